@@ -1,0 +1,75 @@
+//! The interface between the loop and whatever drives the ego.
+
+/// A control command for the ego vehicle, as CARLA's `VehicleControl`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Control {
+    /// Steering in [-1, 1]; positive steers right, as in CARLA.
+    pub steer: f32,
+    /// Throttle in [0, 1].
+    pub throttle: f32,
+    /// Brake in [0, 1].
+    pub brake: f32,
+}
+
+/// The high-level route command (CARLA's `RoadOption` minus one).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Command {
+    /// Turn left at the next junction.
+    Left = 0,
+    /// Turn right at the next junction.
+    Right = 1,
+    /// Go straight through the next junction.
+    Straight = 2,
+    /// Follow the lane.
+    LaneFollow = 3,
+    /// Change to the left lane.
+    ChangeLaneLeft = 4,
+    /// Change to the right lane.
+    ChangeLaneRight = 5,
+}
+
+/// An RGB image in row-major order, 3 bytes a pixel, no row padding.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RgbImage {
+    /// Width (pixels).
+    pub width: u32,
+    /// Height (pixels).
+    pub height: u32,
+    /// `width * height * 3` bytes, sRGB.
+    pub data: Vec<u8>,
+}
+
+/// What a driver sees at a control boundary.
+#[derive(Debug, Clone, Copy)]
+pub struct Observation<'a> {
+    /// Simulation time (seconds since the start of the run).
+    pub time_s: f64,
+    /// Ego speed (metres per second).
+    pub speed_mps: f32,
+    /// The route command at the ego's position.
+    pub command: Command,
+    /// The input scale this observation was rendered at (fraction of S0).
+    pub scale: f32,
+    /// The stitched camera rig image at that scale, if the driver asked for it.
+    pub image: Option<&'a RgbImage>,
+}
+
+/// What a driver needs the loop to provide.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct DriverNeeds {
+    /// The camera rig must be rendered for it.
+    pub camera: bool,
+    /// It reads the simulator's exact state (the expert).
+    pub privileged: bool,
+}
+
+/// Anything that turns observations into controls: the expert, a CNN policy,
+/// a replay of recorded controls.
+pub trait Driver {
+    /// A short name for result records and logs.
+    fn name(&self) -> String;
+    /// What the loop must provide.
+    fn needs(&self) -> DriverNeeds;
+    /// Computes the control for this observation.
+    fn act(&mut self, obs: &Observation<'_>) -> Control;
+}

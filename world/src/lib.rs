@@ -1,0 +1,17 @@
+//! The town and everything in it.
+//!
+//! A [`Town`] is built from an OpenDRIVE file (CARLA's maps, or a town from our
+//! own [`generator`]): drivable lanes and the lane graph, lane markings,
+//! sidewalks, crosswalks, junctions, traffic lights with their stop lines, and
+//! building lots. Routes are read from CARLA's leaderboard XML or our TOML
+//! form and densified by the [`planner`] into a [`DenseRoute`] tagged with
+//! high-level commands.
+//!
+//! Coordinates are OpenDRIVE's: right-handed, x east, y north, z up, metres;
+//! headings in radians counter-clockwise from +x. CARLA's left-handed route
+//! files are converted on reading (`y_xodr = -y`, `yaw_xodr = -yaw`).
+
+pub mod town;
+
+pub use glam::{Vec2, Vec3};
+pub use town::*;
