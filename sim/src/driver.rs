@@ -1,5 +1,7 @@
 //! The interface between the loop and whatever drives the ego.
 
+pub use world::Command;
+
 /// A control command for the ego vehicle, as CARLA's `VehicleControl`.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Control {
@@ -9,23 +11,6 @@ pub struct Control {
     pub throttle: f32,
     /// Brake in [0, 1].
     pub brake: f32,
-}
-
-/// The high-level route command (CARLA's `RoadOption` minus one).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Command {
-    /// Turn left at the next junction.
-    Left = 0,
-    /// Turn right at the next junction.
-    Right = 1,
-    /// Go straight through the next junction.
-    Straight = 2,
-    /// Follow the lane.
-    LaneFollow = 3,
-    /// Change to the left lane.
-    ChangeLaneLeft = 4,
-    /// Change to the right lane.
-    ChangeLaneRight = 5,
 }
 
 /// An RGB image in row-major order, 3 bytes a pixel, no row padding.

@@ -11,7 +11,9 @@
 //! headings in radians counter-clockwise from +x. CARLA's left-handed route
 //! files are converted on reading (`y_xodr = -y`, `yaw_xodr = -yaw`).
 
+pub mod command;
 pub mod town;
 
 pub use glam::{Vec2, Vec3};
+pub use command::Command;
 pub use town::*;
