@@ -11,9 +11,11 @@
 //! headings in radians counter-clockwise from +x. CARLA's left-handed route
 //! files are converted on reading (`y_xodr = -y`, `yaw_xodr = -yaw`).
 
+pub mod actor;
 pub mod command;
 pub mod town;
 
-pub use glam::{Vec2, Vec3};
+pub use actor::{ActorKind, ActorSnapshot};
 pub use command::Command;
+pub use glam::{Vec2, Vec3};
 pub use town::*;

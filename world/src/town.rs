@@ -195,3 +195,15 @@ pub struct Town {
     /// Axis-aligned bounds of the road network: (min, max) corners (metres).
     pub bounds: (Vec2, Vec2),
 }
+
+/// The state of a traffic light's lamps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum LightState {
+    /// Stop.
+    #[default]
+    Red,
+    /// Stop if you can.
+    Yellow,
+    /// Go.
+    Green,
+}
