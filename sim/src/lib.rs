@@ -2,6 +2,9 @@
 //! scenarios and sweeps. It knows nothing of neural networks: a policy is a
 //! [`Driver`].
 
+pub mod delay;
 pub mod driver;
+pub mod monitors;
+pub mod scenario;
 
 pub use driver::*;

@@ -13,6 +13,7 @@
 
 pub mod actor;
 pub mod command;
+pub mod footprint;
 pub mod town;
 
 pub use actor::{ActorKind, ActorSnapshot};

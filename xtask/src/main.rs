@@ -1,1 +1,224 @@
-fn main() {}
+//! Developer tasks: `cargo xtask <task>`.
+//!
+//! | task | what it does |
+//! | --- | --- |
+//! | `setup` | installs what the tests and the camera need and are missing (Debian packages, a Python venv) |
+//! | `run [ARGS]` | `setup`, then `cargo run --release -- run scenarios/default.toml` (or the given arguments) |
+//! | `test [ARGS]` | `setup`, then the whole test suite in release mode |
+//! | `ci` | what `.ci/run` runs: formatting, lints, then `test` with every skip turned into a failure |
+//! | `bless` | rewrites the regression suite's golden files after a deliberate change |
+//!
+//! The set-up never asks: it installs a missing Debian package when it runs as
+//! root (or with password-less sudo), and otherwise prints the exact command to
+//! run and carries on, so the tests that need the package skip with a message.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, ExitCode};
+
+/// Debian packages the project uses at run time, with why.
+const DEBIAN_PACKAGES: &[(&str, &str)] = &[(
+    "mesa-vulkan-drivers",
+    "software Vulkan (lavapipe) for the offscreen camera on machines without a GPU",
+)];
+
+/// Python packages the cross-checking tests use (readers written by others).
+const PYTHON_PACKAGES: &[&str] = &[
+    "mcap==1.6.0",
+    "jsonschema==4.26.0",
+    "safetensors==0.8.0",
+    "numpy==2.4.6",
+];
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let root = workspace_root();
+    let result = match args.first().map(String::as_str) {
+        Some("setup") => setup(&root).map(|_| ()),
+        Some("run") => setup(&root).and_then(|env| run(&root, &env, &args[1..])),
+        Some("test") => setup(&root).and_then(|env| test(&root, &env, &args[1..], false)),
+        Some("ci") => ci(&root),
+        Some("bless") => bless(&root),
+        _ => {
+            eprintln!(
+                "usage: cargo xtask <setup|run|test|ci|bless> [ARGS]\n\nSee xtask/src/main.rs for what each task does."
+            );
+            return ExitCode::from(2);
+        }
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(message) => {
+            eprintln!("xtask: {message}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Environment variables that the set-up hands to the commands it starts.
+type Env = Vec<(String, String)>;
+
+fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("xtask lives one folder below the workspace root")
+        .to_path_buf()
+}
+
+/// Installs what is missing and can be installed; says what to do otherwise.
+fn setup(root: &Path) -> Result<Env, String> {
+    let mut env = Env::new();
+    for (package, why) in DEBIAN_PACKAGES {
+        if debian_package_installed(package) {
+            continue;
+        }
+        eprintln!("xtask: the Debian package `{package}` is missing ({why}).");
+        if can_install_packages() {
+            eprintln!("xtask: installing it with apt-get ...");
+            let prefix: &[&str] = if is_root() { &[] } else { &["sudo", "-n"] };
+            let update = [prefix, &["apt-get", "update", "-qq"]].concat();
+            let install = [prefix, &["apt-get", "install", "-y", "-qq", package]].concat();
+            let ok = status(&update, &[]).is_ok()
+                && status(&install, &[("DEBIAN_FRONTEND", "noninteractive")]).is_ok();
+            if !ok {
+                eprintln!(
+                    "xtask: could not install `{package}`; install it by hand: sudo apt-get install {package}"
+                );
+            }
+        } else {
+            eprintln!(
+                "xtask: install it with: sudo apt-get install {package}  (tests that need it will skip)"
+            );
+        }
+    }
+    match python_venv(root) {
+        Ok(python) => env.push(("MRDRIVE_PYTHON".into(), python.display().to_string())),
+        Err(why) => eprintln!(
+            "xtask: no Python environment for the cross-checking tests ({why}); they will skip"
+        ),
+    }
+    Ok(env)
+}
+
+fn debian_package_installed(package: &str) -> bool {
+    Command::new("dpkg-query")
+        .args(["-W", "-f=${Status}", package])
+        .output()
+        .map(|out| String::from_utf8_lossy(&out.stdout).contains("install ok installed"))
+        // Not a Debian system: nothing to check, nothing to install.
+        .unwrap_or(true)
+}
+
+fn is_root() -> bool {
+    Command::new("id")
+        .arg("-u")
+        .output()
+        .map(|out| String::from_utf8_lossy(&out.stdout).trim() == "0")
+        .unwrap_or(false)
+}
+
+fn can_install_packages() -> bool {
+    let has_apt = Command::new("apt-get").arg("--version").output().is_ok();
+    has_apt && (is_root() || status(&["sudo", "-n", "true"], &[]).is_ok())
+}
+
+/// Makes `.venv` with the Python packages the cross-checks use, once.
+fn python_venv(root: &Path) -> Result<PathBuf, String> {
+    let venv = root.join(".venv");
+    let python = venv.join("bin").join("python3");
+    let stamp = venv.join("mrdrive-packages.txt");
+    let wanted = PYTHON_PACKAGES.join("\n");
+    if python.exists() && std::fs::read_to_string(&stamp).ok().as_deref() == Some(wanted.as_str()) {
+        return Ok(python);
+    }
+    let venv_str = venv.display().to_string();
+    status(&["python3", "-m", "venv", &venv_str], &[])
+        .map_err(|e| format!("python3 -m venv: {e}"))?;
+    let python_str = python.display().to_string();
+    let pip = [
+        &[
+            python_str.as_str(),
+            "-m",
+            "pip",
+            "install",
+            "-q",
+            "--disable-pip-version-check",
+        ][..],
+        PYTHON_PACKAGES,
+    ]
+    .concat();
+    status(&pip, &[]).map_err(|e| format!("pip install: {e}"))?;
+    std::fs::write(&stamp, wanted).map_err(|e| format!("writing {}: {e}", stamp.display()))?;
+    Ok(python)
+}
+
+fn run(root: &Path, env: &Env, args: &[String]) -> Result<(), String> {
+    let mut cmd: Vec<&str> = vec!["cargo", "run", "--release", "--"];
+    if args.is_empty() {
+        cmd.extend(["run", "scenarios/default.toml"]);
+    } else {
+        cmd.extend(args.iter().map(String::as_str));
+    }
+    status_in(root, &cmd, &borrow(env))
+}
+
+fn test(root: &Path, env: &Env, args: &[String], strict: bool) -> Result<(), String> {
+    let mut vars = borrow(env);
+    if strict {
+        vars.push(("MRDRIVE_REQUIRE_SHARED", "1"));
+        vars.push(("MRDRIVE_REQUIRE_PYTHON", "1"));
+        vars.push(("MRDRIVE_REQUIRE_GPU_API", "1"));
+    }
+    let mut cmd: Vec<&str> = vec!["cargo", "test", "--workspace", "--release"];
+    cmd.extend(args.iter().map(String::as_str));
+    status_in(root, &cmd, &vars)
+}
+
+fn ci(root: &Path) -> Result<(), String> {
+    status_in(root, &["cargo", "fmt", "--all", "--", "--check"], &[])?;
+    status_in(
+        root,
+        &[
+            "cargo",
+            "clippy",
+            "--release",
+            "--workspace",
+            "--all-targets",
+            "--",
+            "-D",
+            "warnings",
+        ],
+        &[],
+    )?;
+    let env = setup(root)?;
+    test(root, &env, &[], true)
+}
+
+fn bless(root: &Path) -> Result<(), String> {
+    status_in(
+        root,
+        &["cargo", "test", "--release", "--test", "regression"],
+        &[("MRDRIVE_BLESS", "1")],
+    )
+}
+
+fn borrow(env: &Env) -> Vec<(&str, &str)> {
+    env.iter().map(|(k, v)| (k.as_str(), v.as_str())).collect()
+}
+
+fn status(cmd: &[&str], vars: &[(&str, &str)]) -> Result<(), String> {
+    status_in(Path::new("."), cmd, vars)
+}
+
+fn status_in(dir: &Path, cmd: &[&str], vars: &[(&str, &str)]) -> Result<(), String> {
+    let (program, args) = cmd.split_first().ok_or("empty command")?;
+    let outcome = Command::new(program)
+        .args(args)
+        .current_dir(dir)
+        .envs(vars.iter().copied())
+        .status();
+    match outcome {
+        Ok(s) if s.success() => Ok(()),
+        Ok(s) => Err(format!("`{}` failed ({s})", cmd.join(" "))),
+        Err(e) => Err(format!("`{}` could not start: {e}", cmd.join(" "))),
+    }
+}

@@ -1,0 +1,206 @@
+//! Infraction monitors: one file each, all reading the same per-tick facts
+//! ([`EgoTick`]) and the world's shared definitions (markings, stop lines,
+//! footprints), so a marking or a red-light crossing means one thing
+//! everywhere (PROTOCOL §3).
+//!
+//! | monitor | counts |
+//! | --- | --- |
+//! | [`collision`] | collisions by other actor's kind, once per actor, with a cooldown |
+//! | [`lane_crossing`] | every painted marking the footprint crosses |
+//! | [`red_light`] | passages over a red light's stop line |
+//! | [`route`] | route completion, success, deviation from the route |
+//! | [`blocked`] | stuck, low-speed and route timeouts |
+//! | [`score`] | leaderboard-1.0's driving score from the counts above |
+
+pub mod blocked;
+pub mod collision;
+pub mod lane_crossing;
+pub mod red_light;
+pub mod route;
+pub mod score;
+
+use serde::{Deserialize, Serialize};
+use world::footprint::Footprint;
+use world::{LightState, Vec2};
+
+/// What the other body in a collision was.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ContactKind {
+    /// An NPC vehicle.
+    Vehicle,
+    /// A pedestrian.
+    Pedestrian,
+    /// Anything that does not move: buildings, poles, curbs.
+    Static,
+}
+
+/// The ego touching another body during a tick.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct EgoContact {
+    /// The other body's id (unique within the run, statics included).
+    pub other: u32,
+    /// What it is.
+    pub kind: ContactKind,
+}
+
+/// Where the ego was at one tick.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EgoPose {
+    /// Centre of the footprint (metres, world frame).
+    pub position: Vec2,
+    /// Heading (radians, counter-clockwise from +x).
+    pub heading: f32,
+}
+
+/// Everything the monitors see of one tick, after the physics step.
+#[derive(Debug, Clone, Copy)]
+pub struct EgoTick<'a> {
+    /// The tick just completed (the first step ends at tick 1).
+    pub tick: u64,
+    /// Simulation time at its end (seconds).
+    pub time_s: f64,
+    /// The pose before the step.
+    pub prev: EgoPose,
+    /// The pose after the step.
+    pub now: EgoPose,
+    /// Speed after the step (metres per second).
+    pub speed_mps: f32,
+    /// The ego's length and width (metres).
+    pub size_m: (f32, f32),
+    /// The throttle in force during the step, in [0, 1].
+    pub throttle: f32,
+    /// Bodies the ego touched during the step.
+    pub contacts: &'a [EgoContact],
+    /// The state of every light, indexed by `LightIdx`.
+    pub lights: &'a [LightState],
+}
+
+impl EgoTick<'_> {
+    /// The footprint after the step.
+    pub fn footprint(&self) -> Footprint {
+        Footprint::new(
+            self.now.position,
+            self.now.heading,
+            self.size_m.0,
+            self.size_m.1,
+        )
+    }
+}
+
+/// The kinds of infraction and event the monitors report.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum InfractionKind {
+    /// Collision with a pedestrian.
+    CollisionPedestrian,
+    /// Collision with a vehicle.
+    CollisionVehicle,
+    /// Collision with a static object.
+    CollisionStatic,
+    /// Crossed the stop line of a red light.
+    RedLight,
+    /// Crossed a painted lane marking.
+    LaneCrossing,
+    /// Drove more than the allowed distance away from the route (ends the run).
+    RouteDeviation,
+    /// Stood still while pressing the throttle, or after a collision (ends the run).
+    Stuck,
+    /// Stood still too long (ends the run).
+    LowSpeedTimeout,
+    /// Did not finish in time (ends the run).
+    RouteTimeout,
+}
+
+impl InfractionKind {
+    /// Whether this event ends the run.
+    pub fn terminates(self) -> bool {
+        matches!(
+            self,
+            Self::RouteDeviation | Self::Stuck | Self::LowSpeedTimeout | Self::RouteTimeout
+        )
+    }
+
+    /// A stable snake_case name, for tables and logs.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::CollisionPedestrian => "collision_pedestrian",
+            Self::CollisionVehicle => "collision_vehicle",
+            Self::CollisionStatic => "collision_static",
+            Self::RedLight => "red_light",
+            Self::LaneCrossing => "lane_crossing",
+            Self::RouteDeviation => "route_deviation",
+            Self::Stuck => "stuck",
+            Self::LowSpeedTimeout => "low_speed_timeout",
+            Self::RouteTimeout => "route_timeout",
+        }
+    }
+}
+
+/// One infraction, where and when it happened.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Infraction {
+    /// The tick it was detected at.
+    pub tick: u64,
+    /// Simulation time (seconds).
+    pub time_s: f64,
+    /// What it was.
+    pub kind: InfractionKind,
+    /// Where the ego was (metres, world frame).
+    pub position: [f32; 2],
+    /// A human-readable detail (the other actor, the light, the marking).
+    pub detail: String,
+}
+
+impl Infraction {
+    /// An infraction at this tick's ego position.
+    pub fn at(tick: &EgoTick<'_>, kind: InfractionKind, detail: String) -> Self {
+        Self {
+            tick: tick.tick,
+            time_s: tick.time_s,
+            kind,
+            position: tick.now.position.to_array(),
+            detail,
+        }
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod scripted {
+    //! Scripted ego motions for the monitors' tests.
+    use super::*;
+
+    /// A straight drive along +x at `speed_mps` from `x0`, one pose a tick
+    /// of 25 ms, at lateral position `y`.
+    pub fn straight(x0: f32, y: f32, speed_mps: f32, ticks: usize) -> Vec<EgoPose> {
+        (0..=ticks)
+            .map(|i| EgoPose {
+                position: Vec2::new(x0 + speed_mps * 0.025 * i as f32, y),
+                heading: 0.0,
+            })
+            .collect()
+    }
+
+    /// Feeds a pose sequence to `observe`, one tick per consecutive pair.
+    pub fn drive(
+        poses: &[EgoPose],
+        speed_mps: f32,
+        lights: &[LightState],
+        mut observe: impl FnMut(&EgoTick<'_>),
+    ) {
+        for (i, w) in poses.windows(2).enumerate() {
+            let tick = EgoTick {
+                tick: i as u64 + 1,
+                time_s: (i + 1) as f64 * 0.025,
+                prev: w[0],
+                now: w[1],
+                speed_mps,
+                size_m: (4.79, 2.16),
+                throttle: 0.5,
+                contacts: &[],
+                lights,
+            };
+            observe(&tick);
+        }
+    }
+}

@@ -1,0 +1,139 @@
+//! Red-light infractions (PROTOCOL §3, CARLA's `RunningRedLightTest`): the
+//! ego crosses, in its driving direction, the stop line of a light that is
+//! red, faster than 0.3 m/s. As in CARLA, the point that must cross is near
+//! the car's tail (0.8 half-lengths behind its centre), so a car that stops
+//! with its nose over the line has not run the light; each crossing of a stop
+//! line is one passage, so one infraction.
+
+use world::footprint::crosses_directed;
+use world::{LightState, Town, Vec2};
+
+use super::{EgoTick, Infraction, InfractionKind};
+
+/// Counts red-light infractions.
+#[derive(Debug, Clone)]
+pub struct RedLightMonitor {
+    /// Only crossings faster than this count (metres per second).
+    pub min_speed_mps: f32,
+    /// Stop lines: (light index, right end, left end) on the ground plane.
+    stop_lines: Vec<(usize, Vec2, Vec2)>,
+}
+
+impl RedLightMonitor {
+    /// Collects the town's stop lines.
+    pub fn new(town: &Town) -> Self {
+        let stop_lines = town
+            .lights
+            .iter()
+            .enumerate()
+            .flat_map(|(i, light)| {
+                light
+                    .stop_lines
+                    .iter()
+                    .map(move |l| (i, l.ends[0].truncate(), l.ends[1].truncate()))
+            })
+            .collect();
+        Self {
+            min_speed_mps: 0.3,
+            stop_lines,
+        }
+    }
+
+    /// The point that must cross a stop line: 0.8 half-lengths behind the centre.
+    fn tail(position: Vec2, heading: f32, length_m: f32) -> Vec2 {
+        position - Vec2::from_angle(heading) * (0.8 * length_m / 2.0)
+    }
+
+    /// Pushes an infraction if the ego ran a red light during this tick.
+    pub fn observe(&mut self, tick: &EgoTick<'_>, out: &mut Vec<Infraction>) {
+        if tick.speed_mps <= self.min_speed_mps {
+            return;
+        }
+        let from = Self::tail(tick.prev.position, tick.prev.heading, tick.size_m.0);
+        let to = Self::tail(tick.now.position, tick.now.heading, tick.size_m.0);
+        for &(light, a, b) in &self.stop_lines {
+            let red = tick.lights.get(light).copied() == Some(LightState::Red);
+            if red && crosses_directed(from, to, a, b) {
+                out.push(Infraction::at(
+                    tick,
+                    InfractionKind::RedLight,
+                    format!("light {light}"),
+                ));
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{EgoPose, scripted};
+    use super::*;
+    use world::{LaneIdx, Mesh, StopLine, TrafficLight, Vec3};
+
+    /// One light with a stop line across the lane y in [-3.5, 0] at x = 50,
+    /// for traffic heading +x.
+    fn town_with_light() -> Town {
+        Town {
+            name: "light".into(),
+            lanes: vec![],
+            markings: vec![],
+            sidewalks: vec![],
+            crosswalks: vec![],
+            junctions: vec![],
+            lights: vec![TrafficLight {
+                od_id: "1".into(),
+                position: Vec3::new(52.0, -5.0, 0.0),
+                heading: std::f32::consts::PI,
+                head_height_m: 5.0,
+                junction: None,
+                group: 0,
+                stop_lines: vec![StopLine {
+                    lane: LaneIdx(0),
+                    s: 50.0,
+                    ends: [Vec3::new(50.0, -3.5, 0.0), Vec3::new(50.0, 0.0, 0.0)],
+                }],
+            }],
+            buildings: vec![],
+            road_surface: Mesh::default(),
+            bounds: (Vec2::new(0.0, -5.0), Vec2::new(100.0, 5.0)),
+        }
+    }
+
+    fn count(poses: &[EgoPose], speed: f32, state: LightState) -> usize {
+        let mut monitor = RedLightMonitor::new(&town_with_light());
+        let mut out = Vec::new();
+        scripted::drive(poses, speed, &[state], |t| monitor.observe(t, &mut out));
+        out.len()
+    }
+
+    #[test]
+    fn driving_through_a_red_light_counts_exactly_one() {
+        let poses = scripted::straight(20.0, -1.75, 6.0, 400); // 20 m -> 80 m
+        assert_eq!(count(&poses, 6.0, LightState::Red), 1);
+    }
+
+    #[test]
+    fn driving_through_on_green_or_yellow_counts_none() {
+        let poses = scripted::straight(20.0, -1.75, 6.0, 400);
+        assert_eq!(count(&poses, 6.0, LightState::Green), 0);
+        assert_eq!(count(&poses, 6.0, LightState::Yellow), 0);
+    }
+
+    #[test]
+    fn standing_in_front_of_a_red_light_counts_none() {
+        // Stopped with the nose 0.5 m past the line: the tail has not crossed.
+        let mut poses = scripted::straight(20.0, -1.75, 6.0, 187); // centre at x = 48.05
+        poses.extend(std::iter::repeat_n(*poses.last().unwrap(), 200));
+        assert_eq!(count(&poses, 6.0, LightState::Red), 0);
+        assert_eq!(count(&poses, 0.0, LightState::Red), 0);
+    }
+
+    #[test]
+    fn the_opposite_lane_and_reversing_do_not_count() {
+        let beside: Vec<EgoPose> = scripted::straight(20.0, 1.75, 6.0, 400);
+        assert_eq!(count(&beside, 6.0, LightState::Red), 0);
+        let mut back = scripted::straight(20.0, -1.75, 6.0, 400);
+        back.reverse();
+        assert_eq!(count(&back, 6.0, LightState::Red), 0);
+    }
+}
