@@ -5,6 +5,8 @@
 pub mod delay;
 pub mod driver;
 pub mod monitors;
+pub mod record;
 pub mod scenario;
+pub mod sweep;
 
 pub use driver::*;

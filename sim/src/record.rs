@@ -1,0 +1,173 @@
+//! The result record of one run: everything a table or a plot needs, and
+//! where it came from.
+//!
+//! A record has a deterministic part ([`RunResult`]: counts, completion,
+//! the scenario and build it came from), identical for two runs of the same
+//! scenario, seed, build and render backend, and a [`RunPerf`] part with
+//! wall-clock timings, which is not.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::monitors::{Infraction, InfractionKind};
+
+/// One run's record, as written by `mrdrive run --json` and by sweeps.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunRecord {
+    /// What happened (deterministic).
+    pub result: RunResult,
+    /// How long it took (wall clock; differs run to run).
+    pub perf: RunPerf,
+}
+
+/// The deterministic outcome of a run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunResult {
+    /// Where the run came from.
+    pub provenance: Provenance,
+    /// The run's settings after command-line overrides.
+    pub settings: RunSettings,
+    /// Realised traffic.
+    pub traffic: RealisedTraffic,
+    /// Route completion (percent).
+    pub completion_pct: f64,
+    /// >= 99 % completion and within 10 m of the final route point.
+    pub success: bool,
+    /// Leaderboard-1.0 driving score (percent).
+    pub driving_score: f64,
+    /// Number of infractions of each kind (every kind listed, zeros included).
+    pub counts: BTreeMap<InfractionKind, u32>,
+    /// What ended the run early, if anything.
+    pub termination: Option<InfractionKind>,
+    /// Route length (metres).
+    pub route_length_m: f64,
+    /// Simulated time (seconds).
+    pub sim_time_s: f64,
+    /// Ticks simulated.
+    pub ticks: u64,
+    /// Share of control boundaries at each input scale, keyed like "0.75".
+    pub scale_share: BTreeMap<String, f64>,
+    /// The largest latency in force during the run (milliseconds).
+    pub max_latency_ms: f64,
+    /// Every infraction, in order.
+    pub infractions: Vec<Infraction>,
+}
+
+/// Where a record came from: enough to rerun it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Provenance {
+    /// The scenario's name.
+    pub scenario: String,
+    /// The scenario file as given.
+    pub scenario_file: String,
+    /// The map file.
+    pub map: String,
+    /// The route file and id.
+    pub route: String,
+    /// The driver's name (and checkpoint for a policy).
+    pub driver: String,
+    /// mrdrive's version and git commit.
+    pub build: String,
+    /// The render backend and adapter, or "none" if nothing was rendered.
+    pub render_backend: String,
+}
+
+/// The settings a run used.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunSettings {
+    /// The traffic seed.
+    pub seed: u64,
+    /// Injected delay D (milliseconds).
+    pub delay_ms: f64,
+    /// Control period Tc (milliseconds).
+    pub control_period_ms: f64,
+    /// The selector ("fixed 1.0", "oracle 0.75/1.0", ...).
+    pub resolution: String,
+    /// Target NPC vehicles.
+    pub vehicles: u32,
+    /// Target pedestrians.
+    pub pedestrians: u32,
+}
+
+/// The traffic a run actually had.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RealisedTraffic {
+    /// NPC vehicles spawned.
+    pub vehicles: u32,
+    /// Pedestrians spawned.
+    pub pedestrians: u32,
+}
+
+/// Wall-clock figures of a run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+pub struct RunPerf {
+    /// Whole run (seconds).
+    pub wall_s: f64,
+    /// Simulated seconds per wall second.
+    pub real_time_factor: f64,
+    /// Time in physics (seconds).
+    pub physics_s: f64,
+    /// Time in NPC and pedestrian behaviours and lights (seconds).
+    pub behaviour_s: f64,
+    /// Time rendering the camera (seconds).
+    pub render_s: f64,
+    /// Time in the driver (seconds).
+    pub driver_s: f64,
+    /// Time in monitors and recording (seconds).
+    pub other_s: f64,
+}
+
+impl RunResult {
+    /// The count of one infraction kind.
+    pub fn count(&self, kind: InfractionKind) -> u32 {
+        self.counts.get(&kind).copied().unwrap_or(0)
+    }
+
+    /// All collisions, whatever the other actor.
+    pub fn collisions(&self) -> u32 {
+        self.count(InfractionKind::CollisionVehicle)
+            + self.count(InfractionKind::CollisionPedestrian)
+            + self.count(InfractionKind::CollisionStatic)
+    }
+}
+
+/// Counts infractions by kind, listing every kind (zeros included).
+pub fn count_by_kind(infractions: &[Infraction]) -> BTreeMap<InfractionKind, u32> {
+    use InfractionKind::*;
+    let mut counts: BTreeMap<InfractionKind, u32> = [
+        CollisionPedestrian,
+        CollisionVehicle,
+        CollisionStatic,
+        RedLight,
+        LaneCrossing,
+        RouteDeviation,
+        Stuck,
+        LowSpeedTimeout,
+        RouteTimeout,
+    ]
+    .into_iter()
+    .map(|k| (k, 0))
+    .collect();
+    for i in infractions {
+        *counts.entry(i.kind).or_default() += 1;
+    }
+    counts
+}
+
+/// Writes `record` as pretty JSON to `path` atomically: a reader (or a
+/// resumed sweep) sees either the whole record or none.
+pub fn write_atomically(path: &Path, record: &RunRecord) -> std::io::Result<()> {
+    let text = serde_json::to_string_pretty(record).map_err(std::io::Error::other)?;
+    let tmp = path.with_extension("json.partial");
+    std::fs::write(&tmp, text + "\n")?;
+    std::fs::rename(&tmp, path)
+}
+
+/// Reads a record written by [`write_atomically`].
+pub fn read(path: &Path) -> Result<RunRecord, String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    serde_json::from_str(&text).map_err(|e| format!("{} is not a run record: {e}", path.display()))
+}
