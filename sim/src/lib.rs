@@ -6,6 +6,7 @@ pub mod delay;
 pub mod driver;
 pub mod monitors;
 pub mod record;
+pub mod recorder;
 pub mod scenario;
 pub mod sweep;
 
