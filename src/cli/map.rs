@@ -5,9 +5,12 @@ use std::time::Instant;
 
 use anyhow::Context;
 use clap::{Args, Subcommand};
-use world::generator::{generate_grid_town, GridTownParams};
-use world::map_render::{render_town, RenderOptions};
-use world::{load_xodr_file, plan_route, LightController, LightTiming, LoadOptions, PlannerConfig, RouteFile, UnsignalledJunctions};
+use world::generator::{GridTownParams, generate_grid_town};
+use world::map_render::{RenderOptions, render_town};
+use world::{
+    LightController, LightTiming, LoadOptions, PlannerConfig, RouteFile, UnsignalledJunctions,
+    load_xodr_file, plan_route,
+};
 
 /// Map subcommands.
 #[derive(Subcommand)]
@@ -32,7 +35,11 @@ impl MapLoadArgs {
     /// The loader options these flags ask for.
     pub fn options(&self) -> LoadOptions {
         LoadOptions {
-            unsignalled: if self.generate_lights { UnsignalledJunctions::GenerateLights } else { UnsignalledJunctions::NoLights },
+            unsignalled: if self.generate_lights {
+                UnsignalledJunctions::GenerateLights
+            } else {
+                UnsignalledJunctions::NoLights
+            },
         }
     }
 }
@@ -114,20 +121,61 @@ fn info(a: InfoArgs) -> anyhow::Result<()> {
     println!("town: {}", town.name);
     println!("roads: {}", report.roads);
     println!("lanes (all types): {}", report.lanes);
-    println!("drivable lanes: {} ({} in junctions)", town.lanes.len(), in_junction);
+    println!(
+        "drivable lanes: {} ({} in junctions)",
+        town.lanes.len(),
+        in_junction
+    );
     println!("junctions: {}", town.junctions.len());
-    println!("traffic lights: {}{}", town.lights.len(), if report.generated_lights { " (generated)" } else { "" });
-    println!("stop lines: {}", town.lights.iter().map(|l| l.stop_lines.len()).sum::<usize>());
+    println!(
+        "traffic lights: {}{}",
+        town.lights.len(),
+        if report.generated_lights {
+            " (generated)"
+        } else {
+            ""
+        }
+    );
+    println!(
+        "stop lines: {}",
+        town.lights
+            .iter()
+            .map(|l| l.stop_lines.len())
+            .sum::<usize>()
+    );
     println!("drivable lane length: {:.1} m", town.total_lane_length_m());
     println!("lane markings: {}", town.markings.len());
     println!("sidewalks: {}", town.sidewalks.len());
     let from_map = town.crosswalks.iter().filter(|c| c.from_map).count();
-    println!("crosswalks: {} ({} from the map, {} generated)", town.crosswalks.len(), from_map, town.crosswalks.len() - from_map);
+    println!(
+        "crosswalks: {} ({} from the map, {} generated)",
+        town.crosswalks.len(),
+        from_map,
+        town.crosswalks.len() - from_map
+    );
     println!("buildings: {}", town.buildings.len());
-    println!("road surface: {} triangles", town.road_surface.indices.len() / 3);
+    println!(
+        "road surface: {} triangles",
+        town.road_surface.indices.len() / 3
+    );
     let (lo, hi) = town.bounds;
-    println!("bounds: ({:.1}, {:.1}) to ({:.1}, {:.1}) m, {:.1} m x {:.1} m", lo.x, lo.y, hi.x, hi.y, hi.x - lo.x, hi.y - lo.y);
-    println!("lane graph strongly connected: {}", if town.is_strongly_connected() { "yes" } else { "no" });
+    println!(
+        "bounds: ({:.1}, {:.1}) to ({:.1}, {:.1}) m, {:.1} m x {:.1} m",
+        lo.x,
+        lo.y,
+        hi.x,
+        hi.y,
+        hi.x - lo.x,
+        hi.y - lo.y
+    );
+    println!(
+        "lane graph strongly connected: {}",
+        if town.is_strongly_connected() {
+            "yes"
+        } else {
+            "no"
+        }
+    );
     println!("load time: {ms:.1} ms");
     println!("warnings: {}", report.warnings.len());
     for w in report.warnings.iter().take(20) {
@@ -152,16 +200,39 @@ fn render(a: RenderArgs) -> anyhow::Result<()> {
     };
     let mut lights = LightController::new(&town, LightTiming::default(), a.seed);
     lights.step(a.time_s);
-    let opts = RenderOptions { metres_per_pixel: a.metres_per_pixel, light_states: Some(lights.states()), route, ..Default::default() };
+    let opts = RenderOptions {
+        metres_per_pixel: a.metres_per_pixel,
+        light_states: Some(lights.states()),
+        route,
+        ..Default::default()
+    };
     let img = render_town(&town, &opts);
-    img.save(&a.out).with_context(|| format!("writing {}", a.out.display()))?;
-    println!("wrote {} ({} x {} px, {} m/px)", a.out.display(), img.width(), img.height(), a.metres_per_pixel);
+    img.save(&a.out)
+        .with_context(|| format!("writing {}", a.out.display()))?;
+    println!(
+        "wrote {} ({} x {} px, {} m/px)",
+        a.out.display(),
+        img.width(),
+        img.height(),
+        a.metres_per_pixel
+    );
     Ok(())
 }
 
 fn generate(a: GenerateArgs) -> anyhow::Result<()> {
-    let name = a.name.clone().unwrap_or_else(|| a.out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "town".into()));
-    let p = GridTownParams { name, blocks_x: a.blocks_x, blocks_y: a.blocks_y, block_size_m: a.block_size, seed: a.seed };
+    let name = a.name.clone().unwrap_or_else(|| {
+        a.out
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "town".into())
+    });
+    let p = GridTownParams {
+        name,
+        blocks_x: a.blocks_x,
+        blocks_y: a.blocks_y,
+        block_size_m: a.block_size,
+        seed: a.seed,
+    };
     let xml = generate_grid_town(&p)?;
     std::fs::write(&a.out, &xml).with_context(|| format!("writing {}", a.out.display()))?;
     println!("wrote {} ({} bytes)", a.out.display(), xml.len());

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use world::{load_xodr_file, plan_route, PlannerConfig, RouteFile};
+use world::{PlannerConfig, RouteFile, load_xodr_file, plan_route};
 
 use super::map::MapLoadArgs;
 
@@ -19,6 +19,9 @@ pub struct RoutesArgs {
     /// Plan only these route ids (default: all).
     #[arg(long)]
     pub id: Vec<String>,
+    /// Also print where each command starts (index, position).
+    #[arg(long)]
+    pub verbose: bool,
     #[command(flatten)]
     pub load: MapLoadArgs,
 }
@@ -28,18 +31,31 @@ pub fn run(a: RoutesArgs) -> anyhow::Result<()> {
     let (town, _) = load_xodr_file(&a.map, &a.load.options())?;
     let cfg = PlannerConfig::default();
     println!("map: {}", a.map.display());
-    println!("{:<28} {:>4} {:>9} {:>6} {:>10} {:>8}  commands", "file", "id", "waypoints", "dense", "length_m", "max_gap");
+    println!(
+        "{:<28} {:>4} {:>9} {:>6} {:>10} {:>8}  commands",
+        "file", "id", "waypoints", "dense", "length_m", "max_gap"
+    );
     for path in &a.files {
         let file = RouteFile::load(path)?;
         let routes: Vec<_> = if a.id.is_empty() {
             file.routes.iter().collect()
         } else {
-            a.id.iter().map(|id| file.route(id)).collect::<Result<_, _>>()?
+            a.id.iter()
+                .map(|id| file.route(id))
+                .collect::<Result<_, _>>()?
         };
         for r in routes {
             let d = plan_route(&town, r, &cfg)?;
-            let counts: Vec<String> = d.command_counts().iter().filter(|(_, n)| *n > 0).map(|(c, n)| format!("{c:?}={n}")).collect();
-            let name = path.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+            let counts: Vec<String> = d
+                .command_counts()
+                .iter()
+                .filter(|(_, n)| *n > 0)
+                .map(|(c, n)| format!("{c:?}={n}"))
+                .collect();
+            let name = path
+                .file_name()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default();
             println!(
                 "{:<28} {:>4} {:>9} {:>6} {:>10.1} {:>8.2}  {}",
                 name,
@@ -50,6 +66,16 @@ pub fn run(a: RoutesArgs) -> anyhow::Result<()> {
                 d.max_gap_m(),
                 counts.join(" ")
             );
+            if a.verbose {
+                for (i, p) in d.points.iter().enumerate() {
+                    if i == 0 || d.points[i - 1].command != p.command {
+                        println!(
+                            "    [{i:>5}] {:>8.1} m  ({:>7.1}, {:>7.1})  {:?}",
+                            p.route_s, p.position.x, p.position.y, p.command
+                        );
+                    }
+                }
+            }
         }
     }
     Ok(())

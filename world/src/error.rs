@@ -62,7 +62,9 @@ pub enum RouteError {
         fix: String,
     },
     /// No route with the asked id.
-    #[error("route file {file} has no route with id \"{id}\"; ids in the file: {available}. Fix: pick one of those ids")]
+    #[error(
+        "route file {file} has no route with id \"{id}\"; ids in the file: {available}. Fix: pick one of those ids"
+    )]
     MissingId {
         /// The route file.
         file: PathBuf,
@@ -72,7 +74,9 @@ pub enum RouteError {
         available: String,
     },
     /// A waypoint is too far from every driving lane.
-    #[error("route \"{id}\" in {file}: waypoint {index} at ({x:.1}, {y:.1}) is {distance_m:.1} m from the nearest driving lane (at most {limit_m:.1} m allowed). Fix: move the waypoint onto a lane of this map, or check the route belongs to this map (CARLA XML must be read as CARLA XML so y is flipped)")]
+    #[error(
+        "route \"{id}\" in {file}: waypoint {index} at ({x:.1}, {y:.1}) is {distance_m:.1} m from the nearest driving lane (at most {limit_m:.1} m allowed). Fix: move the waypoint onto a lane of this map, or check the route belongs to this map (CARLA XML must be read as CARLA XML so y is flipped)"
+    )]
     OffMap {
         /// The route file.
         file: PathBuf,
@@ -90,7 +94,9 @@ pub enum RouteError {
         limit_m: f32,
     },
     /// The lane graph has no path between two waypoints.
-    #[error("route \"{id}\" in {file}: no drivable path from waypoint {from} to waypoint {to}. Fix: check the waypoints' order and headings, or the map's lane links")]
+    #[error(
+        "route \"{id}\" in {file}: no drivable path from waypoint {from} to waypoint {to}. Fix: check the waypoints' order and headings, or the map's lane links"
+    )]
     NoPath {
         /// The route file.
         file: PathBuf,

@@ -45,12 +45,20 @@ pub fn project_to_polyline(points: &[Vec3], p: Vec2) -> Option<PolylineProjectio
         let b = w[1].truncate();
         let ab = b - a;
         let len2 = ab.length_squared();
-        let t = if len2 > 0.0 { ((p - a).dot(ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
+        let t = if len2 > 0.0 {
+            ((p - a).dot(ab) / len2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
         let q = a + ab * t;
         let d = q.distance(p);
         let seg_len = len2.sqrt();
         if best.is_none_or(|bp| d < bp.distance) {
-            let offset = if seg_len > 0.0 { ab.perp_dot(p - a) / seg_len } else { 0.0 };
+            let offset = if seg_len > 0.0 {
+                ab.perp_dot(p - a) / seg_len
+            } else {
+                0.0
+            };
             best = Some(PolylineProjection {
                 segment: i,
                 t,
@@ -106,7 +114,10 @@ fn locate(cum: &[f32], s: f32) -> (usize, f32) {
     if s >= cum[last] {
         return (last - 1, 1.0);
     }
-    let i = cum.partition_point(|&c| c <= s).saturating_sub(1).min(last - 1);
+    let i = cum
+        .partition_point(|&c| c <= s)
+        .saturating_sub(1)
+        .min(last - 1);
     let len = cum[i + 1] - cum[i];
     let t = if len > 0.0 { (s - cum[i]) / len } else { 0.0 };
     (i, t)
@@ -141,7 +152,11 @@ pub fn segment_intersection(a0: Vec2, a1: Vec2, b0: Vec2, b1: Vec2) -> Option<(f
             return None;
         }
         let ta = lo.max(0.0);
-        let tb = if s.length_squared() > 0.0 { ((a0 + r * ta) - b0).dot(s) / s.length_squared() } else { 0.0 };
+        let tb = if s.length_squared() > 0.0 {
+            ((a0 + r * ta) - b0).dot(s) / s.length_squared()
+        } else {
+            0.0
+        };
         return Some((ta, tb.clamp(0.0, 1.0)));
     }
     let ta = qp.perp_dot(s) / denom;
@@ -174,7 +189,12 @@ impl OrientedBox {
         let l = f.perp();
         let c = self.center;
         let (hl, hw) = (self.half_length, self.half_width);
-        [c + f * hl - l * hw, c + f * hl + l * hw, c - f * hl + l * hw, c - f * hl - l * hw]
+        [
+            c + f * hl - l * hw,
+            c + f * hl + l * hw,
+            c - f * hl + l * hw,
+            c - f * hl - l * hw,
+        ]
     }
 
     /// Whether `p` lies inside or on the box.
@@ -219,7 +239,11 @@ pub fn box_touches_polyline(b: &OrientedBox, line: &[Vec3]) -> bool {
 pub fn segment_point_distance(a: Vec2, b: Vec2, c: Vec2) -> f32 {
     let ab = b - a;
     let l2 = ab.length_squared();
-    let t = if l2 > 0.0 { ((c - a).dot(ab) / l2).clamp(0.0, 1.0) } else { 0.0 };
+    let t = if l2 > 0.0 {
+        ((c - a).dot(ab) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     (a + ab * t).distance(c)
 }
 
@@ -326,14 +350,25 @@ mod tests {
         // A marking along y = 1.75 (the line between two lanes).
         let marking = [v3(-50.0, 1.75), v3(50.0, 1.75)];
         // Car 4.8 x 2.1 centred in the lane at y = 0: its left side at y = 1.05.
-        let inside = OrientedBox { center: Vec2::ZERO, heading: 0.0, half_length: 2.4, half_width: 1.05 };
+        let inside = OrientedBox {
+            center: Vec2::ZERO,
+            heading: 0.0,
+            half_length: 2.4,
+            half_width: 1.05,
+        };
         assert!(!box_touches_polyline(&inside, &marking));
         // Drifted left by 0.8 m: left side at 1.85 > 1.75.
-        let drifted = OrientedBox { center: Vec2::new(0.0, 0.8), ..inside };
+        let drifted = OrientedBox {
+            center: Vec2::new(0.0, 0.8),
+            ..inside
+        };
         assert!(box_touches_polyline(&drifted, &marking));
         // Yawed by 30 degrees at the lane centre: the front-left corner reaches
         // y = 2.4 sin30 + 1.05 cos30 = 2.11 > 1.75.
-        let yawed = OrientedBox { heading: 30f32.to_radians(), ..inside };
+        let yawed = OrientedBox {
+            heading: 30f32.to_radians(),
+            ..inside
+        };
         assert!(box_touches_polyline(&yawed, &marking));
         // A short marking piece entirely under the car also counts.
         let under = [v3(-0.5, 0.2), v3(0.5, 0.2)];
@@ -344,17 +379,47 @@ mod tests {
     fn stop_line_crossing_is_directional() {
         // Lane drives +x; stop line at x = 10 from (10, 1.75) left to (10, -1.75) right.
         let ends = [Vec2::new(10.0, 1.75), Vec2::new(10.0, -1.75)];
-        assert!(crosses_stop_line(Vec2::new(9.8, 0.0), Vec2::new(10.2, 0.0), ends));
-        assert!(!crosses_stop_line(Vec2::new(9.0, 0.0), Vec2::new(9.9, 0.0), ends));
-        assert!(!crosses_stop_line(Vec2::new(10.2, 0.0), Vec2::new(9.8, 0.0), ends), "reversing");
-        assert!(!crosses_stop_line(Vec2::new(9.8, 3.0), Vec2::new(10.2, 3.0), ends), "beside the lane");
+        assert!(crosses_stop_line(
+            Vec2::new(9.8, 0.0),
+            Vec2::new(10.2, 0.0),
+            ends
+        ));
+        assert!(!crosses_stop_line(
+            Vec2::new(9.0, 0.0),
+            Vec2::new(9.9, 0.0),
+            ends
+        ));
+        assert!(
+            !crosses_stop_line(Vec2::new(10.2, 0.0), Vec2::new(9.8, 0.0), ends),
+            "reversing"
+        );
+        assert!(
+            !crosses_stop_line(Vec2::new(9.8, 3.0), Vec2::new(10.2, 3.0), ends),
+            "beside the lane"
+        );
     }
 
     #[test]
     fn segments_and_hull() {
-        assert!(segments_intersect(Vec2::ZERO, Vec2::ONE, Vec2::new(0.0, 1.0), Vec2::new(1.0, 0.0)));
-        assert!(!segments_intersect(Vec2::ZERO, Vec2::new(1.0, 0.0), Vec2::new(0.0, 1.0), Vec2::new(1.0, 1.0)));
-        let hull = convex_hull(&[Vec2::ZERO, Vec2::new(2.0, 0.0), Vec2::new(1.0, 1.0), Vec2::new(2.0, 2.0), Vec2::new(0.0, 2.0)]);
+        assert!(segments_intersect(
+            Vec2::ZERO,
+            Vec2::ONE,
+            Vec2::new(0.0, 1.0),
+            Vec2::new(1.0, 0.0)
+        ));
+        assert!(!segments_intersect(
+            Vec2::ZERO,
+            Vec2::new(1.0, 0.0),
+            Vec2::new(0.0, 1.0),
+            Vec2::new(1.0, 1.0)
+        ));
+        let hull = convex_hull(&[
+            Vec2::ZERO,
+            Vec2::new(2.0, 0.0),
+            Vec2::new(1.0, 1.0),
+            Vec2::new(2.0, 2.0),
+            Vec2::new(0.0, 2.0),
+        ]);
         assert_eq!(hull.len(), 4);
         assert!((signed_area(&hull) - 4.0).abs() < 1e-5);
         assert!(point_in_polygon(&hull, Vec2::new(1.0, 1.5)));

@@ -38,7 +38,11 @@ impl DriveLane {
 
     /// Lane width at arc length `s` (metres).
     pub fn width_at(&self, s: f32) -> f32 {
-        let i = self.s.partition_point(|&x| x <= s).saturating_sub(1).min(self.width.len().saturating_sub(1));
+        let i = self
+            .s
+            .partition_point(|&x| x <= s)
+            .saturating_sub(1)
+            .min(self.width.len().saturating_sub(1));
         self.width.get(i).copied().unwrap_or(0.0)
     }
 }
@@ -57,16 +61,27 @@ impl Town {
         let mut all: Vec<LanePoint> = Vec::new();
         for (i, l) in self.lanes.iter().enumerate() {
             if let Some(pr) = project_to_polyline(&l.centerline, p) {
-                all.push(LanePoint { lane: LaneIdx(i as u32), s: pr.s, distance_m: pr.distance, offset_m: pr.offset });
+                all.push(LanePoint {
+                    lane: LaneIdx(i as u32),
+                    s: pr.s,
+                    distance_m: pr.distance,
+                    offset_m: pr.offset,
+                });
             }
         }
-        let best_any = all.iter().copied().min_by(|a, b| a.distance_m.total_cmp(&b.distance_m))?;
+        let best_any = all
+            .iter()
+            .copied()
+            .min_by(|a, b| a.distance_m.total_cmp(&b.distance_m))?;
         if let Some(h) = heading {
             let agree = all
                 .iter()
                 .copied()
                 .filter(|lp| lp.distance_m <= best_any.distance_m.max(0.0) + 3.0)
-                .filter(|lp| wrap_angle(self.lane(lp.lane).heading_at(lp.s) - h).abs() < std::f32::consts::FRAC_PI_2)
+                .filter(|lp| {
+                    wrap_angle(self.lane(lp.lane).heading_at(lp.s) - h).abs()
+                        < std::f32::consts::FRAC_PI_2
+                })
                 .min_by(|a, b| a.distance_m.total_cmp(&b.distance_m));
             if let Some(a) = agree {
                 return Some(a);
@@ -194,7 +209,9 @@ mod tests {
         assert_eq!(c, vec![vec![LaneIdx(0), LaneIdx(1)], vec![LaneIdx(2)]]);
         assert!(!t.is_strongly_connected());
         // Near both 0 and 1; heading west prefers lane 1.
-        let west = t.nearest_lane(Vec2::new(5.0, 0.1), Some(std::f32::consts::PI)).unwrap();
+        let west = t
+            .nearest_lane(Vec2::new(5.0, 0.1), Some(std::f32::consts::PI))
+            .unwrap();
         assert_eq!(west.lane, LaneIdx(1));
         let east = t.nearest_lane(Vec2::new(5.0, 0.1), Some(0.0)).unwrap();
         assert_eq!(east.lane, LaneIdx(0));

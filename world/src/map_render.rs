@@ -24,7 +24,13 @@ pub struct RenderOptions {
 
 impl Default for RenderOptions {
     fn default() -> Self {
-        RenderOptions { metres_per_pixel: 0.5, margin_m: 10.0, supersample: 3, light_states: None, route: None }
+        RenderOptions {
+            metres_per_pixel: 0.5,
+            margin_m: 10.0,
+            supersample: 3,
+            light_states: None,
+            route: None,
+        }
     }
 }
 
@@ -50,7 +56,10 @@ struct Canvas {
 
 impl Canvas {
     fn px(&self, p: Vec2) -> Vec2 {
-        Vec2::new((p.x - self.origin.x) * self.scale, (self.top - p.y) * self.scale)
+        Vec2::new(
+            (p.x - self.origin.x) * self.scale,
+            (self.top - p.y) * self.scale,
+        )
     }
 
     /// Fills a polygon given in world coordinates (even-odd rule).
@@ -114,10 +123,19 @@ impl Canvas {
             let mut t = 0.0;
             while t < len {
                 let phase = (s + t) % period;
-                let step = if phase < dash { dash - phase } else { period - phase };
+                let step = if phase < dash {
+                    dash - phase
+                } else {
+                    period - phase
+                };
                 let t1 = (t + step).min(len);
                 if phase < dash {
-                    self.segment(w[0].lerp(w[1], t / len), w[0].lerp(w[1], t1 / len), width_m, c);
+                    self.segment(
+                        w[0].lerp(w[1], t / len),
+                        w[0].lerp(w[1], t1 / len),
+                        width_m,
+                        c,
+                    );
                 }
                 t = t1 + 1e-4;
             }
@@ -126,7 +144,9 @@ impl Canvas {
     }
 
     fn disc(&mut self, c0: Vec2, r: f32, c: Rgb) {
-        let poly: Vec<Vec2> = (0..20).map(|k| c0 + Vec2::from_angle(k as f32 / 20.0 * std::f32::consts::TAU) * r).collect();
+        let poly: Vec<Vec2> = (0..20)
+            .map(|k| c0 + Vec2::from_angle(k as f32 / 20.0 * std::f32::consts::TAU) * r)
+            .collect();
         self.fill(&poly, c);
     }
 }
@@ -147,12 +167,24 @@ pub fn render_town(town: &Town, opts: &RenderOptions) -> RgbImage {
     let out_w = (((hi.x - lo.x) / mpp).ceil() as usize).clamp(1, 8192);
     let out_h = (((hi.y - lo.y) / mpp).ceil() as usize).clamp(1, 8192);
     let (w, h) = (out_w * ss, out_h * ss);
-    let mut cv = Canvas { w, h, scale: ss as f32 / mpp, origin: lo, top: hi.y, buf: vec![BACKGROUND; w * h] };
+    let mut cv = Canvas {
+        w,
+        h,
+        scale: ss as f32 / mpp,
+        origin: lo,
+        top: hi.y,
+        buf: vec![BACKGROUND; w * h],
+    };
     let min_line = mpp * 1.2; // keep thin paint visible: at least ~1 output pixel
 
     for sw in &town.sidewalks {
         for i in 0..sw.inner.len().min(sw.outer.len()).saturating_sub(1) {
-            let q = [sw.inner[i].truncate(), sw.inner[i + 1].truncate(), sw.outer[i + 1].truncate(), sw.outer[i].truncate()];
+            let q = [
+                sw.inner[i].truncate(),
+                sw.inner[i + 1].truncate(),
+                sw.outer[i + 1].truncate(),
+                sw.outer[i].truncate(),
+            ];
             cv.fill(&q, SIDEWALK);
         }
     }
@@ -167,7 +199,15 @@ pub fn render_town(town: &Town, opts: &RenderOptions) -> RgbImage {
             let (wa, wb) = (l.width[i] * 0.5 + 0.05, l.width[i + 1] * 0.5 + 0.05);
             // Overlap consecutive quads a little to avoid seams.
             let e = (b - a).normalize_or_zero() * 0.05;
-            cv.fill(&[a - e - d * wa, b + e - d * wb, b + e + d * wb, a - e + d * wa], ROAD);
+            cv.fill(
+                &[
+                    a - e - d * wa,
+                    b + e - d * wb,
+                    b + e + d * wb,
+                    a - e + d * wa,
+                ],
+                ROAD,
+            );
         }
     }
     for c in &town.crosswalks {
@@ -193,7 +233,9 @@ pub fn render_town(town: &Town, opts: &RenderOptions) -> RgbImage {
             (_, MarkColor::White) => WHITE,
         };
         match (m.kind, m.dash_m) {
-            (MarkKind::Broken | MarkKind::BrokenBroken, Some((d, g))) => cv.dashed(&pts, width, d, g, col),
+            (MarkKind::Broken | MarkKind::BrokenBroken, Some((d, g))) => {
+                cv.dashed(&pts, width, d, g, col)
+            }
             _ => cv.polyline(&pts, width, col),
         }
     }
@@ -201,7 +243,11 @@ pub fn render_town(town: &Town, opts: &RenderOptions) -> RgbImage {
         cv.fill(&b.footprint, BUILDING_EDGE);
         // Inset the fill a little so the edge shows.
         let c = b.footprint.iter().copied().sum::<Vec2>() / b.footprint.len().max(1) as f32;
-        let inset: Vec<Vec2> = b.footprint.iter().map(|p| *p + (c - *p).normalize_or_zero() * 0.8).collect();
+        let inset: Vec<Vec2> = b
+            .footprint
+            .iter()
+            .map(|p| *p + (c - *p).normalize_or_zero() * 0.8)
+            .collect();
         cv.fill(&inset, BUILDING);
     }
     if let Some(route) = &opts.route {
@@ -213,14 +259,23 @@ pub fn render_town(town: &Town, opts: &RenderOptions) -> RgbImage {
         }
     }
     for (i, l) in town.lights.iter().enumerate() {
-        let state = opts.light_states.as_ref().and_then(|s| s.get(i).copied()).unwrap_or_default();
+        let state = opts
+            .light_states
+            .as_ref()
+            .and_then(|s| s.get(i).copied())
+            .unwrap_or_default();
         let col = match state {
             LightState::Red => [230, 30, 30],
             LightState::Yellow => [250, 200, 0],
             LightState::Green => [30, 220, 60],
         };
         for sl in &l.stop_lines {
-            cv.segment(sl.ends[0].truncate(), sl.ends[1].truncate(), 0.6_f32.max(min_line), col);
+            cv.segment(
+                sl.ends[0].truncate(),
+                sl.ends[1].truncate(),
+                0.6_f32.max(min_line),
+                col,
+            );
         }
         let p = l.position.truncate();
         cv.disc(p, 1.8, [10, 10, 10]);
@@ -241,7 +296,11 @@ pub fn render_town(town: &Town, opts: &RenderOptions) -> RgbImage {
                     }
                 }
             }
-            img.put_pixel(x as u32, y as u32, image::Rgb([(acc[0] / n) as u8, (acc[1] / n) as u8, (acc[2] / n) as u8]));
+            img.put_pixel(
+                x as u32,
+                y as u32,
+                image::Rgb([(acc[0] / n) as u8, (acc[1] / n) as u8, (acc[2] / n) as u8]),
+            );
         }
     }
     img
@@ -290,11 +349,17 @@ mod tests {
             road_surface: Mesh::default(),
             bounds: (Vec2::new(0.0, -2.0), Vec2::new(20.0, 2.0)),
         };
-        let opts = RenderOptions { metres_per_pixel: 0.5, margin_m: 10.0, light_states: Some(vec![LightState::Green]), ..Default::default() };
+        let opts = RenderOptions {
+            metres_per_pixel: 0.5,
+            margin_m: 10.0,
+            light_states: Some(vec![LightState::Green]),
+            ..Default::default()
+        };
         let img = render_town(&town, &opts);
         // Image spans x -10..30, y -12..12 -> 80 x 48 px.
         assert_eq!(img.dimensions(), (80, 48));
-        let at = |x: f32, y: f32| *img.get_pixel(((x + 10.0) / 0.5) as u32, ((12.0 - y) / 0.5) as u32);
+        let at =
+            |x: f32, y: f32| *img.get_pixel(((x + 10.0) / 0.5) as u32, ((12.0 - y) / 0.5) as u32);
         assert_eq!(at(5.0, 0.0).0, ROAD);
         assert_eq!(at(5.0, 6.0).0, BACKGROUND);
         assert_eq!(at(10.0, 8.0).0, [30, 220, 60], "green light");

@@ -37,7 +37,13 @@ pub struct PlannerConfig {
 
 impl Default for PlannerConfig {
     fn default() -> Self {
-        PlannerConfig { spacing_m: 1.0, max_snap_m: 4.0, turn_threshold_deg: 35.0, lane_change_cost_m: 20.0, lane_change_length_m: 10.0 }
+        PlannerConfig {
+            spacing_m: 1.0,
+            max_snap_m: 4.0,
+            turn_threshold_deg: 35.0,
+            lane_change_cost_m: 20.0,
+            lane_change_length_m: 10.0,
+        }
     }
 }
 
@@ -75,7 +81,9 @@ impl DenseRoute {
     /// The first command other than `LaneFollow` within `lookahead_m` metres
     /// ahead of point `i`, else the command at `i`.
     pub fn command_ahead(&self, i: usize, lookahead_m: f32) -> Command {
-        let Some(p) = self.points.get(i) else { return Command::LaneFollow };
+        let Some(p) = self.points.get(i) else {
+            return Command::LaneFollow;
+        };
         self.points[i..]
             .iter()
             .take_while(|q| q.route_s - p.route_s <= lookahead_m)
@@ -87,15 +95,25 @@ impl DenseRoute {
     /// How many points carry each command, in `Command` order.
     pub fn command_counts(&self) -> Vec<(Command, usize)> {
         use Command::*;
-        [Left, Right, Straight, LaneFollow, ChangeLaneLeft, ChangeLaneRight]
-            .into_iter()
-            .map(|c| (c, self.points.iter().filter(|p| p.command == c).count()))
-            .collect()
+        [
+            Left,
+            Right,
+            Straight,
+            LaneFollow,
+            ChangeLaneLeft,
+            ChangeLaneRight,
+        ]
+        .into_iter()
+        .map(|c| (c, self.points.iter().filter(|p| p.command == c).count()))
+        .collect()
     }
 
     /// The largest gap between consecutive points (metres).
     pub fn max_gap_m(&self) -> f32 {
-        self.points.windows(2).map(|w| w[0].position.distance(w[1].position)).fold(0.0, f32::max)
+        self.points
+            .windows(2)
+            .map(|w| w[0].position.distance(w[1].position))
+            .fold(0.0, f32::max)
     }
 }
 
@@ -105,7 +123,13 @@ enum Piece {
     /// Drive along `lane` from `s0` to `s1` (metres).
     Follow { lane: LaneIdx, s0: f32, s1: f32 },
     /// Move across from `from` at `from_s` to `to` at `to_s` (end of the move).
-    Change { from: LaneIdx, from_s: f32, to: LaneIdx, to_s: f32, left: bool },
+    Change {
+        from: LaneIdx,
+        from_s: f32,
+        to: LaneIdx,
+        to_s: f32,
+        left: bool,
+    },
 }
 
 #[derive(Clone, Copy, PartialEq)]
@@ -116,7 +140,9 @@ struct Node {
 impl Eq for Node {}
 impl Ord for Node {
     fn cmp(&self, o: &Self) -> Ordering {
-        o.cost.total_cmp(&self.cost).then_with(|| o.lane.cmp(&self.lane))
+        o.cost
+            .total_cmp(&self.cost)
+            .then_with(|| o.lane.cmp(&self.lane))
     }
 }
 impl PartialOrd for Node {
@@ -134,9 +160,17 @@ enum Via {
 
 /// Plans `route` over `town`: snaps each waypoint to its lane, finds the
 /// shortest lane path between consecutive waypoints and densifies it.
-pub fn plan_route(town: &Town, route: &Route, cfg: &PlannerConfig) -> Result<DenseRoute, RouteError> {
+pub fn plan_route(
+    town: &Town,
+    route: &Route,
+    cfg: &PlannerConfig,
+) -> Result<DenseRoute, RouteError> {
     if route.waypoints.len() < 2 {
-        return Err(RouteError::TooFewWaypoints { file: route.source.clone(), id: route.id.clone(), count: route.waypoints.len() });
+        return Err(RouteError::TooFewWaypoints {
+            file: route.source.clone(),
+            id: route.id.clone(),
+            count: route.waypoints.len(),
+        });
     }
     let mut snapped = Vec::new();
     for (i, w) in route.waypoints.iter().enumerate() {
@@ -159,12 +193,13 @@ pub fn plan_route(town: &Town, route: &Route, cfg: &PlannerConfig) -> Result<Den
     let mut pieces: Vec<Piece> = Vec::new();
     let mut leg_ends = vec![0usize];
     for i in 0..snapped.len() - 1 {
-        let leg = plan_leg(town, snapped[i], snapped[i + 1], cfg).ok_or_else(|| RouteError::NoPath {
-            file: route.source.clone(),
-            id: route.id.clone(),
-            from: i,
-            to: i + 1,
-        })?;
+        let leg =
+            plan_leg(town, snapped[i], snapped[i + 1], cfg).ok_or_else(|| RouteError::NoPath {
+                file: route.source.clone(),
+                id: route.id.clone(),
+                from: i,
+                to: i + 1,
+            })?;
         pieces.extend(leg);
         leg_ends.push(pieces.len());
     }
@@ -173,9 +208,18 @@ pub fn plan_route(town: &Town, route: &Route, cfg: &PlannerConfig) -> Result<Den
 }
 
 /// The pieces from `(a, sa)` to `(b, sb)`, or `None` when unreachable.
-fn plan_leg(town: &Town, (a, sa): (LaneIdx, f32), (b, sb): (LaneIdx, f32), cfg: &PlannerConfig) -> Option<Vec<Piece>> {
+fn plan_leg(
+    town: &Town,
+    (a, sa): (LaneIdx, f32),
+    (b, sb): (LaneIdx, f32),
+    cfg: &PlannerConfig,
+) -> Option<Vec<Piece>> {
     if a == b && sb >= sa - 0.01 {
-        return Some(vec![Piece::Follow { lane: a, s0: sa, s1: sb.max(sa) }]);
+        return Some(vec![Piece::Follow {
+            lane: a,
+            s0: sa,
+            s1: sb.max(sa),
+        }]);
     }
     let n = town.lanes.len();
     let mut dist = vec![f32::INFINITY; n];
@@ -185,7 +229,13 @@ fn plan_leg(town: &Town, (a, sa): (LaneIdx, f32), (b, sb): (LaneIdx, f32), cfg: 
     let mut heap = BinaryHeap::new();
     // Edges out of the start position (it is not a node: the start lane may be
     // re-entered at s = 0 to loop back to a point behind).
-    let relax = |from: LaneIdx, e: f32, base: f32, dist: &mut Vec<f32>, entry: &mut Vec<f32>, via: &mut Vec<Via>, heap: &mut BinaryHeap<Node>| {
+    let relax = |from: LaneIdx,
+                 e: f32,
+                 base: f32,
+                 dist: &mut Vec<f32>,
+                 entry: &mut Vec<f32>,
+                 via: &mut Vec<Via>,
+                 heap: &mut BinaryHeap<Node>| {
         let l = town.lane(from);
         let rest = (l.length_m() - e).max(0.0);
         for &s in &l.successors {
@@ -204,13 +254,21 @@ fn plan_leg(town: &Town, (a, sa): (LaneIdx, f32), (b, sb): (LaneIdx, f32), cfg: 
                 continue;
             }
             let target = town.lane(nb);
-            let Some(p) = crate::geometry::project_to_polyline(&target.centerline, l.point_at(end_s).truncate()) else { continue };
+            let Some(p) = crate::geometry::project_to_polyline(
+                &target.centerline,
+                l.point_at(end_s).truncate(),
+            ) else {
+                continue;
+            };
             let c = base + cfg.lane_change_length_m + cfg.lane_change_cost_m;
             if c < dist[nb.0 as usize] {
                 dist[nb.0 as usize] = c;
                 entry[nb.0 as usize] = p.s;
                 via[nb.0 as usize] = Via::Change(from, e, left);
-                heap.push(Node { cost: c, lane: nb.0 });
+                heap.push(Node {
+                    cost: c,
+                    lane: nb.0,
+                });
             }
         }
     };
@@ -230,7 +288,15 @@ fn plan_leg(town: &Town, (a, sa): (LaneIdx, f32), (b, sb): (LaneIdx, f32), cfg: 
         }
         let e = entry[li];
         let before: Vec<f32> = dist.clone();
-        relax(LaneIdx(lane), e, cost, &mut dist, &mut entry, &mut via, &mut heap);
+        relax(
+            LaneIdx(lane),
+            e,
+            cost,
+            &mut dist,
+            &mut entry,
+            &mut via,
+            &mut heap,
+        );
         for i in 0..n {
             if dist[i] < before[i] {
                 start_via[i] = false;
@@ -241,7 +307,11 @@ fn plan_leg(town: &Town, (a, sa): (LaneIdx, f32), (b, sb): (LaneIdx, f32), cfg: 
         return None;
     }
     // Walk back from b.
-    let mut rev: Vec<Piece> = vec![Piece::Follow { lane: b, s0: entry[b.0 as usize], s1: sb }];
+    let mut rev: Vec<Piece> = vec![Piece::Follow {
+        lane: b,
+        s0: entry[b.0 as usize],
+        s1: sb,
+    }];
     let mut cur = b;
     let mut guard = 0;
     loop {
@@ -254,16 +324,34 @@ fn plan_leg(town: &Town, (a, sa): (LaneIdx, f32), (b, sb): (LaneIdx, f32), cfg: 
         match via[ci] {
             Via::Start => return None,
             Via::Succ(p) => {
-                let s0 = if from_start && p == a { sa } else { entry[p.0 as usize] };
-                rev.push(Piece::Follow { lane: p, s0, s1: town.lane(p).length_m() });
+                let s0 = if from_start && p == a {
+                    sa
+                } else {
+                    entry[p.0 as usize]
+                };
+                rev.push(Piece::Follow {
+                    lane: p,
+                    s0,
+                    s1: town.lane(p).length_m(),
+                });
                 if from_start && p == a {
                     break;
                 }
                 cur = p;
             }
             Via::Change(p, at, left) => {
-                rev.push(Piece::Change { from: p, from_s: at, to: cur, to_s: entry[ci], left });
-                rev.push(Piece::Follow { lane: p, s0: at, s1: at });
+                rev.push(Piece::Change {
+                    from: p,
+                    from_s: at,
+                    to: cur,
+                    to_s: entry[ci],
+                    left,
+                });
+                rev.push(Piece::Follow {
+                    lane: p,
+                    s0: at,
+                    s1: at,
+                });
                 if from_start && p == a {
                     if let Some(Piece::Follow { s0, .. }) = rev.last_mut() {
                         *s0 = sa;
@@ -289,8 +377,15 @@ fn unit(v: Vec3) -> Vec2 {
 /// CARLA's turn decision for driving from `approach` into the junction lanes
 /// `run` (consecutive connecting lanes, in order). `threshold_rad`: heading
 /// change under which it is `Straight`.
-pub fn turn_decision(town: &Town, approach: LaneIdx, run: &[LaneIdx], threshold_rad: f32) -> Command {
-    let Some(&first) = run.first() else { return Command::LaneFollow };
+pub fn turn_decision(
+    town: &Town,
+    approach: LaneIdx,
+    run: &[LaneIdx],
+    threshold_rad: f32,
+) -> Command {
+    let Some(&first) = run.first() else {
+        return Command::LaneFollow;
+    };
     let last = *run.last().unwrap_or(&first);
     let exit_vec = |l: LaneIdx| {
         let c = &town.lane(l).centerline;
@@ -337,7 +432,11 @@ fn tag_pieces(town: &Town, pieces: &[Piece], threshold_rad: f32) -> Vec<Command>
     while i < pieces.len() {
         match pieces[i] {
             Piece::Change { left, .. } => {
-                out[i] = if left { Command::ChangeLaneLeft } else { Command::ChangeLaneRight };
+                out[i] = if left {
+                    Command::ChangeLaneLeft
+                } else {
+                    Command::ChangeLaneRight
+                };
                 i += 1;
             }
             Piece::Follow { lane, .. } if town.lane(lane).junction.is_some() => {
@@ -346,7 +445,9 @@ fn tag_pieces(town: &Town, pieces: &[Piece], threshold_rad: f32) -> Vec<Command>
                 let mut run = Vec::new();
                 while j < pieces.len() {
                     match pieces[j] {
-                        Piece::Follow { lane, .. } if town.lane(lane).junction.is_some() => run.push(lane),
+                        Piece::Follow { lane, .. } if town.lane(lane).junction.is_some() => {
+                            run.push(lane)
+                        }
                         _ => break,
                     }
                     j += 1;
@@ -374,15 +475,36 @@ fn tag_pieces(town: &Town, pieces: &[Piece], threshold_rad: f32) -> Vec<Command>
     out
 }
 
-fn densify(town: &Town, id: &str, pieces: &[Piece], commands: &[Command], leg_ends: &[usize], cfg: &PlannerConfig) -> DenseRoute {
+fn densify(
+    town: &Town,
+    id: &str,
+    pieces: &[Piece],
+    commands: &[Command],
+    leg_ends: &[usize],
+    cfg: &PlannerConfig,
+) -> DenseRoute {
     let mut pts: Vec<RoutePoint> = Vec::new();
-    fn push(pts: &mut Vec<RoutePoint>, position: Vec3, heading: f32, lane: LaneIdx, s: f32, command: Command) {
+    fn push(
+        pts: &mut Vec<RoutePoint>,
+        position: Vec3,
+        heading: f32,
+        lane: LaneIdx,
+        s: f32,
+        command: Command,
+    ) {
         if let Some(last) = pts.last() {
             if last.position.distance(position) < 0.05 {
                 return;
             }
         }
-        pts.push(RoutePoint { position, heading, lane, s, command, route_s: 0.0 });
+        pts.push(RoutePoint {
+            position,
+            heading,
+            lane,
+            s,
+            command,
+            route_s: 0.0,
+        });
     }
     let mut waypoint_points = vec![0usize];
     let mut leg = 1;
@@ -398,7 +520,13 @@ fn densify(town: &Town, id: &str, pieces: &[Piece], commands: &[Command], leg_en
                     push(&mut pts, l.point_at(s), l.heading_at(s), lane, s, cmd);
                 }
             }
-            Piece::Change { from, from_s, to, to_s, .. } => {
+            Piece::Change {
+                from,
+                from_s,
+                to,
+                to_s,
+                ..
+            } => {
                 let (lf, lt) = (town.lane(from), town.lane(to));
                 let d = cfg.lane_change_length_m;
                 let n = (d / cfg.spacing_m).ceil().max(1.0) as usize;
@@ -406,8 +534,19 @@ fn densify(town: &Town, id: &str, pieces: &[Piece], commands: &[Command], leg_en
                     let t = k as f32 / n as f32;
                     let pa = lf.point_at(from_s + d * t);
                     let pb = lt.point_at(to_s - d * (1.0 - t));
-                    let (lane, s) = if t < 0.5 { (from, from_s + d * t) } else { (to, to_s - d * (1.0 - t)) };
-                    push(&mut pts, pa.lerp(pb, t), town.lane(lane).heading_at(s), lane, s, cmd);
+                    let (lane, s) = if t < 0.5 {
+                        (from, from_s + d * t)
+                    } else {
+                        (to, to_s - d * (1.0 - t))
+                    };
+                    push(
+                        &mut pts,
+                        pa.lerp(pb, t),
+                        town.lane(lane).heading_at(s),
+                        lane,
+                        s,
+                        cmd,
+                    );
                 }
             }
         }
@@ -423,7 +562,12 @@ fn densify(town: &Town, id: &str, pieces: &[Piece], commands: &[Command], leg_en
         }
         pts[i].route_s = acc;
     }
-    DenseRoute { id: id.to_string(), points: pts, length_m: acc, waypoint_points }
+    DenseRoute {
+        id: id.to_string(),
+        points: pts,
+        length_m: acc,
+        waypoint_points,
+    }
 }
 
 #[cfg(test)]
@@ -502,7 +646,11 @@ mod tests {
             markings: vec![],
             sidewalks: vec![],
             crosswalks: vec![],
-            junctions: vec![Junction { od_id: "j".into(), outline: vec![], lights: vec![] }],
+            junctions: vec![Junction {
+                od_id: "j".into(),
+                outline: vec![],
+                lights: vec![],
+            }],
             lights: vec![],
             buildings: vec![],
             road_surface: Mesh::default(),
@@ -514,7 +662,13 @@ mod tests {
         Route {
             id: "t".into(),
             town: None,
-            waypoints: points.iter().map(|&(x, y)| RouteWaypoint { position: Vec3::new(x, y, 0.0), yaw_rad: None }).collect(),
+            waypoints: points
+                .iter()
+                .map(|&(x, y)| RouteWaypoint {
+                    position: Vec3::new(x, y, 0.0),
+                    yaw_rad: None,
+                })
+                .collect(),
             source: PathBuf::from("hand.toml"),
         }
     }
@@ -523,26 +677,47 @@ mod tests {
     fn turn_decisions_on_a_hand_made_junction() {
         let t = junction_town();
         let th = 35f32.to_radians();
-        assert_eq!(turn_decision(&t, LaneIdx(0), &[LaneIdx(1)], th), Command::Straight);
-        assert_eq!(turn_decision(&t, LaneIdx(0), &[LaneIdx(2)], th), Command::Left);
-        assert_eq!(turn_decision(&t, LaneIdx(0), &[LaneIdx(3)], th), Command::Right);
+        assert_eq!(
+            turn_decision(&t, LaneIdx(0), &[LaneIdx(1)], th),
+            Command::Straight
+        );
+        assert_eq!(
+            turn_decision(&t, LaneIdx(0), &[LaneIdx(2)], th),
+            Command::Left
+        );
+        assert_eq!(
+            turn_decision(&t, LaneIdx(0), &[LaneIdx(3)], th),
+            Command::Right
+        );
     }
 
     #[test]
     fn dense_route_tags_the_junction_and_is_continuous() {
         let t = junction_town();
         let cfg = PlannerConfig::default();
-        for (end, want, lane) in [((30.0, -1.75), Command::Straight, 1), ((1.75, 40.0), Command::Left, 2), ((-1.75, -40.0), Command::Right, 3)] {
+        for (end, want, lane) in [
+            ((30.0, -1.75), Command::Straight, 1),
+            ((1.75, 40.0), Command::Left, 2),
+            ((-1.75, -40.0), Command::Right, 3),
+        ] {
             let r = plan_route(&t, &route(&[(-50.0, -1.75), end]), &cfg).unwrap();
             assert!(r.max_gap_m() <= 1.5, "gap {}", r.max_gap_m());
             // Commands: LaneFollow before, the turn inside, LaneFollow after.
-            let inside: Vec<_> = r.points.iter().filter(|p| p.lane == LaneIdx(lane)).collect();
+            let inside: Vec<_> = r
+                .points
+                .iter()
+                .filter(|p| p.lane == LaneIdx(lane))
+                .collect();
             assert!(!inside.is_empty());
             assert!(inside.iter().all(|p| p.command == want), "{want:?}");
             assert_eq!(r.points[0].command, Command::LaneFollow);
             assert_eq!(r.points.last().unwrap().command, Command::LaneFollow);
             // The driver sees the turn 5 m before the junction.
-            let before = r.points.iter().position(|p| p.position.x >= -15.0 && p.lane == LaneIdx(0)).unwrap();
+            let before = r
+                .points
+                .iter()
+                .position(|p| p.position.x >= -15.0 && p.lane == LaneIdx(0))
+                .unwrap();
             assert_eq!(r.command_ahead(before, 6.0), want);
             assert_eq!(r.command_ahead(0, 6.0), Command::LaneFollow);
         }
@@ -555,11 +730,31 @@ mod tests {
     #[test]
     fn off_map_waypoint_and_unreachable_leg_are_errors() {
         let t = junction_town();
-        let e = plan_route(&t, &route(&[(-50.0, -1.75), (30.0, 30.0)]), &PlannerConfig::default()).unwrap_err().to_string();
-        assert!(e.contains("hand.toml") && e.contains("waypoint 1") && e.contains("from the nearest driving lane"), "{e}");
+        let e = plan_route(
+            &t,
+            &route(&[(-50.0, -1.75), (30.0, 30.0)]),
+            &PlannerConfig::default(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("hand.toml")
+                && e.contains("waypoint 1")
+                && e.contains("from the nearest driving lane"),
+            "{e}"
+        );
         // From the east exit back west: no lane leads there.
-        let e = plan_route(&t, &route(&[(30.0, -1.75), (-50.0, -1.75)]), &PlannerConfig::default()).unwrap_err().to_string();
-        assert!(e.contains("no drivable path from waypoint 0 to waypoint 1"), "{e}");
+        let e = plan_route(
+            &t,
+            &route(&[(30.0, -1.75), (-50.0, -1.75)]),
+            &PlannerConfig::default(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("no drivable path from waypoint 0 to waypoint 1"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -571,9 +766,22 @@ mod tests {
         b.right = Some(LaneIdx(0));
         let mut t = junction_town();
         t.lanes = vec![a, b];
-        let r = plan_route(&t, &route(&[(5.0, 0.0), (80.0, 3.5)]), &PlannerConfig::default()).unwrap();
-        assert!(r.points.iter().any(|p| p.command == Command::ChangeLaneLeft));
-        assert!(!r.points.iter().any(|p| p.command == Command::ChangeLaneRight));
+        let r = plan_route(
+            &t,
+            &route(&[(5.0, 0.0), (80.0, 3.5)]),
+            &PlannerConfig::default(),
+        )
+        .unwrap();
+        assert!(
+            r.points
+                .iter()
+                .any(|p| p.command == Command::ChangeLaneLeft)
+        );
+        assert!(
+            !r.points
+                .iter()
+                .any(|p| p.command == Command::ChangeLaneRight)
+        );
         assert!(r.max_gap_m() <= 1.5, "{}", r.max_gap_m());
         assert_eq!(r.points.last().unwrap().lane, LaneIdx(1));
     }

@@ -51,8 +51,14 @@ impl RouteFile {
     /// Reads a route file: `.toml` as our form, anything else as CARLA XML.
     pub fn load(path: impl AsRef<Path>) -> Result<RouteFile, RouteError> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|source| RouteError::Read { file: path.to_path_buf(), source })?;
-        if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml")) {
+        let text = std::fs::read_to_string(path).map_err(|source| RouteError::Read {
+            file: path.to_path_buf(),
+            source,
+        })?;
+        if path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("toml"))
+        {
             parse_toml(&text, path)
         } else {
             parse_carla_xml(&text, path)
@@ -61,11 +67,19 @@ impl RouteFile {
 
     /// The route with id `id`; a missing id lists the ids the file has.
     pub fn route(&self, id: &str) -> Result<&Route, RouteError> {
-        self.routes.iter().find(|r| r.id == id).ok_or_else(|| RouteError::MissingId {
-            file: self.path.clone(),
-            id: id.to_string(),
-            available: self.routes.iter().map(|r| r.id.as_str()).collect::<Vec<_>>().join(", "),
-        })
+        self.routes
+            .iter()
+            .find(|r| r.id == id)
+            .ok_or_else(|| RouteError::MissingId {
+                file: self.path.clone(),
+                id: id.to_string(),
+                available: self
+                    .routes
+                    .iter()
+                    .map(|r| r.id.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            })
     }
 
     /// The ids in file order.
@@ -74,14 +88,29 @@ impl RouteFile {
     }
 }
 
-fn parse_err(path: &Path, what: impl Into<String>, location: impl Into<String>, fix: &str) -> RouteError {
-    RouteError::Parse { file: path.to_path_buf(), what: what.into(), location: location.into(), fix: fix.into() }
+fn parse_err(
+    path: &Path,
+    what: impl Into<String>,
+    location: impl Into<String>,
+    fix: &str,
+) -> RouteError {
+    RouteError::Parse {
+        file: path.to_path_buf(),
+        what: what.into(),
+        location: location.into(),
+        fix: fix.into(),
+    }
 }
 
 /// Parses CARLA leaderboard route XML (`<routes><route id town><waypoint x y z yaw/>`).
 pub fn parse_carla_xml(text: &str, path: &Path) -> Result<RouteFile, RouteError> {
     let doc = roxmltree::Document::parse(text).map_err(|e| {
-        parse_err(path, format!("not well-formed XML ({e})"), e.pos().to_string(), "repair the XML or copy the file again")
+        parse_err(
+            path,
+            format!("not well-formed XML ({e})"),
+            e.pos().to_string(),
+            "repair the XML or copy the file again",
+        )
     })?;
     let root = doc.root_element();
     if !root.has_tag_name("routes") {
@@ -97,7 +126,14 @@ pub fn parse_carla_xml(text: &str, path: &Path) -> Result<RouteFile, RouteError>
         let line = doc.text_pos_at(r.range().start).row;
         let id = r
             .attribute("id")
-            .ok_or_else(|| parse_err(path, "<route> without id", format!("line {line}"), "give every <route> an id attribute"))?
+            .ok_or_else(|| {
+                parse_err(
+                    path,
+                    "<route> without id",
+                    format!("line {line}"),
+                    "give every <route> an id attribute",
+                )
+            })?
             .to_string();
         let mut waypoints = Vec::new();
         for w in r.children().filter(|n| n.has_tag_name("waypoint")) {
@@ -126,11 +162,22 @@ pub fn parse_carla_xml(text: &str, path: &Path) -> Result<RouteFile, RouteError>
             let y = num("y", true)?.unwrap_or(0.0);
             let z = num("z", false)?.unwrap_or(0.0);
             let yaw = num("yaw", false)?;
-            waypoints.push(RouteWaypoint { position: Vec3::new(x, -y, z), yaw_rad: yaw.map(|d| -d.to_radians()) });
+            waypoints.push(RouteWaypoint {
+                position: Vec3::new(x, -y, z),
+                yaw_rad: yaw.map(|d| -d.to_radians()),
+            });
         }
-        routes.push(Route { id, town: r.attribute("town").map(str::to_string), waypoints, source: path.to_path_buf() });
+        routes.push(Route {
+            id,
+            town: r.attribute("town").map(str::to_string),
+            waypoints,
+            source: path.to_path_buf(),
+        });
     }
-    Ok(RouteFile { path: path.to_path_buf(), routes })
+    Ok(RouteFile {
+        path: path.to_path_buf(),
+        routes,
+    })
 }
 
 #[derive(serde::Deserialize)]
@@ -178,9 +225,17 @@ pub fn parse_toml(text: &str, path: &Path) -> Result<RouteFile, RouteError> {
                 yaw_rad: w.get(2).map(|d| (*d as f32).to_radians()),
             });
         }
-        routes.push(Route { id: r.id, town: r.town, waypoints, source: path.to_path_buf() });
+        routes.push(Route {
+            id: r.id,
+            town: r.town,
+            waypoints,
+            source: path.to_path_buf(),
+        });
     }
-    Ok(RouteFile { path: path.to_path_buf(), routes })
+    Ok(RouteFile {
+        path: path.to_path_buf(),
+        routes,
+    })
 }
 
 #[cfg(test)]
@@ -202,7 +257,8 @@ mod tests {
 
     #[test]
     fn missing_id_lists_the_ids_and_names_the_file() {
-        let xml = r#"<routes><route id="0"><waypoint x="0" y="0"/></route><route id="1"/></routes>"#;
+        let xml =
+            r#"<routes><route id="0"><waypoint x="0" y="0"/></route><route id="1"/></routes>"#;
         let f = parse_carla_xml(xml, Path::new("routes/some.xml")).unwrap();
         let e = f.route("5").unwrap_err().to_string();
         assert!(e.contains("routes/some.xml"), "{e}");
@@ -214,13 +270,26 @@ mod tests {
         let t = "[[route]]\nid = \"a\"\nwaypoints = [[1.0, 2.0], [3.0, 4.0, 90.0]]\n";
         let f = parse_toml(t, Path::new("x.toml")).unwrap();
         assert_eq!(f.ids(), vec!["a"]);
-        assert_eq!(f.routes[0].waypoints[0].position, Vec3::new(1.0, 2.0, 0.0), "TOML is already in the OpenDRIVE frame");
+        assert_eq!(
+            f.routes[0].waypoints[0].position,
+            Vec3::new(1.0, 2.0, 0.0),
+            "TOML is already in the OpenDRIVE frame"
+        );
         let bad = "[[route]]\nid = \"a\"\nwaypoints = [[1.0]]\n";
-        let e = parse_toml(bad, Path::new("x.toml")).unwrap_err().to_string();
+        let e = parse_toml(bad, Path::new("x.toml"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("x.toml") && e.contains("waypoint 0"), "{e}");
-        let e = parse_toml("[[route]]\nwaypoints = []\n", Path::new("y.toml")).unwrap_err().to_string();
+        let e = parse_toml("[[route]]\nwaypoints = []\n", Path::new("y.toml"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("y.toml") && e.contains("id"), "{e}");
-        let e = parse_carla_xml("<routes><route id=\"0\"><waypoint x=\"1\"", Path::new("z.xml")).unwrap_err().to_string();
+        let e = parse_carla_xml(
+            "<routes><route id=\"0\"><waypoint x=\"1\"",
+            Path::new("z.xml"),
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("z.xml") && e.contains("XML"), "{e}");
     }
 }

@@ -17,7 +17,10 @@ pub fn carla_dir(test: &str) -> Option<PathBuf> {
         return Some(dir);
     }
     if std::env::var("MRDRIVE_REQUIRE_SHARED").as_deref() == Ok("1") {
-        panic!("{test}: {} not found and MRDRIVE_REQUIRE_SHARED=1", dir.display());
+        panic!(
+            "{test}: {} not found and MRDRIVE_REQUIRE_SHARED=1",
+            dir.display()
+        );
     }
     println!("SKIPPED: {test}: CARLA data {} not found", dir.display());
     None

@@ -27,7 +27,11 @@ pub struct LightTiming {
 
 impl Default for LightTiming {
     fn default() -> Self {
-        LightTiming { green_s: 10.0, yellow_s: 3.0, all_red_s: 2.0 }
+        LightTiming {
+            green_s: 10.0,
+            yellow_s: 3.0,
+            all_red_s: 2.0,
+        }
     }
 }
 
@@ -68,13 +72,22 @@ impl LightController {
         let mut light_slot = vec![(0, 0); town.lights.len()];
         let mut make = |groups: Vec<u32>, slots: usize, rng: &mut ChaCha8Rng| {
             let len = slots as f64 * timing.slot_s();
-            let offset_s = if len > 0.0 { rng.random::<f64>() * len } else { 0.0 };
-            cycles.push(Cycle { groups, slots, offset_s });
+            let offset_s = if len > 0.0 {
+                rng.random::<f64>() * len
+            } else {
+                0.0
+            };
+            cycles.push(Cycle {
+                groups,
+                slots,
+                offset_s,
+            });
             cycles.len() - 1
         };
         for (ji, _) in town.junctions.iter().enumerate() {
-            let mine: Vec<usize> =
-                (0..town.lights.len()).filter(|&i| town.lights[i].junction.map(|j| j.0 as usize) == Some(ji)).collect();
+            let mine: Vec<usize> = (0..town.lights.len())
+                .filter(|&i| town.lights[i].junction.map(|j| j.0 as usize) == Some(ji))
+                .collect();
             if mine.is_empty() {
                 continue;
             }
@@ -84,7 +97,10 @@ impl LightController {
             let slots = groups.len().max(2);
             let c = make(groups.clone(), slots, &mut rng);
             for &i in &mine {
-                let slot = groups.iter().position(|g| *g == town.lights[i].group).unwrap_or(0);
+                let slot = groups
+                    .iter()
+                    .position(|g| *g == town.lights[i].group)
+                    .unwrap_or(0);
                 light_slot[i] = (c, slot);
             }
         }
@@ -94,7 +110,12 @@ impl LightController {
                 light_slot[i] = (c, 0);
             }
         }
-        LightController { timing, cycles, light_slot, time_s: 0.0 }
+        LightController {
+            timing,
+            cycles,
+            light_slot,
+            time_s: 0.0,
+        }
     }
 
     /// Advances the clock by `dt_s` seconds.
@@ -114,7 +135,9 @@ impl LightController {
 
     /// The state of one light now. Lights out of range are red.
     pub fn state(&self, light: LightIdx) -> LightState {
-        let Some(&(c, slot)) = self.light_slot.get(light.0 as usize) else { return LightState::Red };
+        let Some(&(c, slot)) = self.light_slot.get(light.0 as usize) else {
+            return LightState::Red;
+        };
         let cycle = &self.cycles[c];
         let slot_s = self.timing.slot_s();
         let len = cycle.slots as f64 * slot_s;
@@ -138,7 +161,9 @@ impl LightController {
 
     /// The states of all lights, indexed like `Town::lights`.
     pub fn states(&self) -> Vec<LightState> {
-        (0..self.light_slot.len()).map(|i| self.state(LightIdx(i as u32))).collect()
+        (0..self.light_slot.len())
+            .map(|i| self.state(LightIdx(i as u32)))
+            .collect()
     }
 
     /// Number of junction cycles (junctions with lights, plus lone lights).
@@ -177,7 +202,13 @@ mod tests {
             markings: vec![],
             sidewalks: vec![],
             crosswalks: vec![],
-            junctions: (0..junctions).map(|i| Junction { od_id: i.to_string(), outline: vec![], lights: vec![] }).collect(),
+            junctions: (0..junctions)
+                .map(|i| Junction {
+                    od_id: i.to_string(),
+                    outline: vec![],
+                    lights: vec![],
+                })
+                .collect(),
             lights,
             buildings: vec![],
             road_surface: Mesh::default(),
@@ -197,13 +228,24 @@ mod tests {
 
     #[test]
     fn groups_take_turns_with_yellow_and_all_red() {
-        let t = town(vec![light(Some(0), 0), light(Some(0), 1), light(Some(0), 2), light(Some(0), 0)], 1);
+        let t = town(
+            vec![
+                light(Some(0), 0),
+                light(Some(0), 1),
+                light(Some(0), 2),
+                light(Some(0), 0),
+            ],
+            1,
+        );
         let timing = LightTiming::default();
         let mut c = LightController::new(&t, timing, 7);
         let tr = trace(&mut c, 4, (3.0 * timing.slot_s() / 0.05) as usize);
         for s in &tr {
             // Never two groups non-red at once; lights of one group agree.
-            let live = [s[0], s[1], s[2]].iter().filter(|x| **x != LightState::Red).count();
+            let live = [s[0], s[1], s[2]]
+                .iter()
+                .filter(|x| **x != LightState::Red)
+                .count();
             assert!(live <= 1, "{s:?}");
             assert_eq!(s[0], s[3]);
         }
@@ -215,7 +257,11 @@ mod tests {
             assert!((yellow - 3.0).abs() < 0.11, "group {g} yellow {yellow}");
         }
         // All-red gaps exist: 3 x 2 s per cycle.
-        let all_red = tr.iter().filter(|s| s.iter().all(|x| *x == LightState::Red)).count() as f64 * 0.05;
+        let all_red = tr
+            .iter()
+            .filter(|s| s.iter().all(|x| *x == LightState::Red))
+            .count() as f64
+            * 0.05;
         assert!((all_red - 6.0).abs() < 0.2, "all red {all_red}");
         // Green is followed by yellow, never straight by red.
         for w in tr.windows(2) {
@@ -232,16 +278,29 @@ mod tests {
         let mut a = LightController::new(&t, LightTiming::default(), 42);
         let mut b = LightController::new(&t, LightTiming::default(), 42);
         assert_eq!(trace(&mut a, 6, 500), trace(&mut b, 6, 500));
-        let offsets = |seed| LightController::new(&t, LightTiming::default(), seed).cycles.iter().map(|c| c.offset_s).collect::<Vec<_>>();
+        let offsets = |seed| {
+            LightController::new(&t, LightTiming::default(), seed)
+                .cycles
+                .iter()
+                .map(|c| c.offset_s)
+                .collect::<Vec<_>>()
+        };
         assert_ne!(offsets(42), offsets(43));
         let o = offsets(42);
-        assert!(o[0] != o[1] && o[1] != o[2], "junctions get their own offsets: {o:?}");
+        assert!(
+            o[0] != o[1] && o[1] != o[2],
+            "junctions get their own offsets: {o:?}"
+        );
     }
 
     #[test]
     fn custom_timing_is_used() {
         let t = town(vec![light(Some(0), 0), light(Some(0), 1)], 1);
-        let timing = LightTiming { green_s: 5.0, yellow_s: 1.0, all_red_s: 0.5 };
+        let timing = LightTiming {
+            green_s: 5.0,
+            yellow_s: 1.0,
+            all_red_s: 0.5,
+        };
         let mut c = LightController::new(&t, timing, 1);
         let tr = trace(&mut c, 2, (2.0 * timing.slot_s() / 0.05).round() as usize);
         let green = tr.iter().filter(|s| s[0] == LightState::Green).count() as f64 * 0.05;

@@ -80,20 +80,36 @@ impl Town {
 }
 
 /// Loads an OpenDRIVE file into a [`Town`] and a [`LoadReport`].
-pub fn load_xodr_file(path: impl AsRef<Path>, opts: &LoadOptions) -> Result<(Town, LoadReport), MapError> {
+pub fn load_xodr_file(
+    path: impl AsRef<Path>,
+    opts: &LoadOptions,
+) -> Result<(Town, LoadReport), MapError> {
     let path = path.as_ref();
-    let xml = std::fs::read(path).map_err(|source| MapError::Read { file: path.to_path_buf(), source })?;
+    let xml = std::fs::read(path).map_err(|source| MapError::Read {
+        file: path.to_path_buf(),
+        source,
+    })?;
     let xml = String::from_utf8(xml).map_err(|e| MapError::Import {
         file: path.to_path_buf(),
-        detail: format!("not UTF-8 text (invalid byte at offset {})", e.utf8_error().valid_up_to()),
+        detail: format!(
+            "not UTF-8 text (invalid byte at offset {})",
+            e.utf8_error().valid_up_to()
+        ),
         fix: "give an OpenDRIVE .xodr file (XML text)".into(),
     })?;
-    let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "town".into());
+    let name = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "town".into());
     load_impl(&xml, &name, path.to_path_buf(), opts)
 }
 
 /// Loads OpenDRIVE text into a [`Town`] named `name`.
-pub fn load_xodr_str(xml: &str, name: &str, opts: &LoadOptions) -> Result<(Town, LoadReport), MapError> {
+pub fn load_xodr_str(
+    xml: &str,
+    name: &str,
+    opts: &LoadOptions,
+) -> Result<(Town, LoadReport), MapError> {
     load_impl(xml, name, PathBuf::from(format!("<{name}>")), opts)
 }
 
@@ -101,7 +117,12 @@ fn p3(p: xodr::Point) -> Vec3 {
     Vec3::new(p.x, p.y, p.z)
 }
 
-fn load_impl(xml: &str, name: &str, file: PathBuf, opts: &LoadOptions) -> Result<(Town, LoadReport), MapError> {
+fn load_impl(
+    xml: &str,
+    name: &str,
+    file: PathBuf,
+    opts: &LoadOptions,
+) -> Result<(Town, LoadReport), MapError> {
     if !xml.contains("<OpenDRIVE") {
         return Err(MapError::Import {
             file,
@@ -111,13 +132,19 @@ fn load_impl(xml: &str, name: &str, file: PathBuf, opts: &LoadOptions) -> Result
     }
     let (net, prov) = xodr::load_str_with_provenance(xml).map_err(|e| MapError::Import {
         file: file.clone(),
-        detail: e.to_string(),
+        detail: match &e {
+            xodr::ImportError::Xml(x) => format!("{e} (at line {}, column {})", x.pos().row, x.pos().col),
+            _ => e.to_string(),
+        },
         fix: match e {
             xodr::ImportError::Xml(_) => "the XML is broken at the position named (a truncated file ends early); re-export or copy the file again".into(),
             _ => "the file holds no usable roads; check it is an OpenDRIVE map".into(),
         },
     })?;
-    let ctx = Ctx { net: &net, file: &file };
+    let ctx = Ctx {
+        net: &net,
+        file: &file,
+    };
     ctx.reject_dropped_geometry(&prov.warnings)?;
     ctx.validate()?;
     let report = LoadReport {
@@ -128,7 +155,13 @@ fn load_impl(xml: &str, name: &str, file: PathBuf, opts: &LoadOptions) -> Result
         generated_lights: false,
         warnings: prov.warnings.iter().map(|w| w.to_string()).collect(),
     };
-    let mut b = Builder { ctx, prov: &prov, town: empty_town(name), lane_of: HashMap::new(), junction_of: BTreeMap::new() };
+    let mut b = Builder {
+        ctx,
+        prov: &prov,
+        town: empty_town(name),
+        lane_of: HashMap::new(),
+        junction_of: BTreeMap::new(),
+    };
     b.junctions();
     b.lanes();
     b.markings();
@@ -165,12 +198,23 @@ struct Ctx<'a> {
 
 impl Ctx<'_> {
     fn invalid(&self, what: String, location: String, fix: &str) -> MapError {
-        MapError::Invalid { file: self.file.clone(), what, location, fix: fix.into() }
+        MapError::Invalid {
+            file: self.file.clone(),
+            what,
+            location,
+            fix: fix.into(),
+        }
     }
 
     fn road_od(&self, lane: LaneId) -> (String, i32) {
         match self.net.road_lane(lane) {
-            Some(rl) => (self.net.road(rl.road).map(|r| r.od_id().to_string()).unwrap_or_default(), rl.od_id),
+            Some(rl) => (
+                self.net
+                    .road(rl.road)
+                    .map(|r| r.od_id().to_string())
+                    .unwrap_or_default(),
+                rl.od_id,
+            ),
             None => (String::new(), 0),
         }
     }
@@ -195,13 +239,22 @@ impl Ctx<'_> {
                 ),
                 _ => continue,
             };
-            return Err(self.invalid(what, location, "give finite numbers and positive lengths (check the exporter or repair the file)"));
+            return Err(self.invalid(
+                what,
+                location,
+                "give finite numbers and positive lengths (check the exporter or repair the file)",
+            ));
         }
         Ok(())
     }
 
     fn validate(&self) -> Result<(), MapError> {
-        let ok = |p: xodr::Point| p.is_finite() && p.x.abs() < MAX_COORD_M && p.y.abs() < MAX_COORD_M && p.z.abs() < MAX_COORD_M;
+        let ok = |p: xodr::Point| {
+            p.is_finite()
+                && p.x.abs() < MAX_COORD_M
+                && p.y.abs() < MAX_COORD_M
+                && p.z.abs() < MAX_COORD_M
+        };
         for road in self.net.roads() {
             let len = road.length();
             if !len.is_finite() || len <= 0.0 || len > 1.0e6 {
@@ -217,24 +270,45 @@ impl Ctx<'_> {
             let loc = || format!("road id=\"{road}\" lane id=\"{od}\"");
             if let Some(p) = lane.center.points().iter().find(|p| !ok(**p)) {
                 return Err(self.invalid(
-                    format!("lane point ({}, {}, {}) is not finite or beyond {MAX_COORD_M} m", p.x, p.y, p.z),
+                    format!(
+                        "lane point ({}, {}, {}) is not finite or beyond {MAX_COORD_M} m",
+                        p.x, p.y, p.z
+                    ),
                     loc(),
                     "fix the road's <geometry> x/y/hdg/length and <elevation> values",
                 ));
             }
             let len = lane.center.length();
             if !len.is_finite() || len <= 0.0 {
-                return Err(self.invalid(format!("lane length {len} is not positive"), loc(), "give the road a positive length"));
+                return Err(self.invalid(
+                    format!("lane length {len} is not positive"),
+                    loc(),
+                    "give the road a positive length",
+                ));
             }
             let w = lane.width;
-            if !w.is_finite() || w < 0.0 || w > 100.0 || lane.widths.iter().any(|w| !w.is_finite() || *w < 0.0 || *w > 100.0) {
-                return Err(self.invalid(format!("lane width {w} is negative, not finite or over 100 m"), loc(), "fix the lane's <width> records"));
+            if !w.is_finite()
+                || w < 0.0
+                || w > 100.0
+                || lane
+                    .widths
+                    .iter()
+                    .any(|w| !w.is_finite() || *w < 0.0 || *w > 100.0)
+            {
+                return Err(self.invalid(
+                    format!("lane width {w} is negative, not finite or over 100 m"),
+                    loc(),
+                    "fix the lane's <width> records",
+                ));
             }
         }
         for s in self.net.signals() {
             if !ok(s.position) || !s.heading.is_finite() {
                 return Err(self.invalid(
-                    format!("signal position ({}, {}, {}) or heading {} is not finite", s.position.x, s.position.y, s.position.z, s.heading),
+                    format!(
+                        "signal position ({}, {}, {}) or heading {} is not finite",
+                        s.position.x, s.position.y, s.position.z, s.heading
+                    ),
                     format!("signal \"{}\"", s.name),
                     "fix the signal's s/t/zOffset/hOffset",
                 ));
@@ -290,7 +364,12 @@ fn resample(points: &[Vec3], spacing: f32) -> (Vec<Vec3>, Vec<f32>) {
 
 impl Builder<'_> {
     fn junctions(&mut self) {
-        let mut ids: Vec<String> = self.prov.junctions.iter().map(|j| j.od_id.clone()).collect();
+        let mut ids: Vec<String> = self
+            .prov
+            .junctions
+            .iter()
+            .map(|j| j.od_id.clone())
+            .collect();
         for road in self.ctx.net.roads() {
             if let Some(j) = road.junction() {
                 ids.push(j.to_string());
@@ -298,16 +377,24 @@ impl Builder<'_> {
         }
         for id in ids {
             if !self.junction_of.contains_key(&id) {
-                self.junction_of.insert(id.clone(), JunctionIdx(self.town.junctions.len() as u32));
-                self.town.junctions.push(Junction { od_id: id, outline: Vec::new(), lights: Vec::new() });
+                self.junction_of
+                    .insert(id.clone(), JunctionIdx(self.town.junctions.len() as u32));
+                self.town.junctions.push(Junction {
+                    od_id: id,
+                    outline: Vec::new(),
+                    lights: Vec::new(),
+                });
             }
         }
     }
 
     fn lanes(&mut self) {
         let net = self.ctx.net;
-        let chosen: Vec<&xodr::Lane> =
-            net.lanes().iter().filter(|l| l.kind == LaneType::Driving && l.layer == Layer::Permanent).collect();
+        let chosen: Vec<&xodr::Lane> = net
+            .lanes()
+            .iter()
+            .filter(|l| l.kind == LaneType::Driving && l.layer == Layer::Permanent)
+            .collect();
         for (i, l) in chosen.iter().enumerate() {
             self.lane_of.insert(l.id, LaneIdx(i as u32));
         }
@@ -320,7 +407,13 @@ impl Builder<'_> {
             let (centerline, s) = resample(&pts, CENTERLINE_SPACING_M);
             let total = s.last().copied().unwrap_or(0.0).max(1e-6);
             let xl = l.center.length();
-            let stored = |si: f32| if backward { (1.0 - si / total) * xl } else { si / total * xl };
+            let stored = |si: f32| {
+                if backward {
+                    (1.0 - si / total) * xl
+                } else {
+                    si / total * xl
+                }
+            };
             let width = s.iter().map(|&si| l.width_at(stored(si))).collect();
             let speed = match net.speed_limit_at(l.id, stored(total * 0.5)) {
                 Some(xodr::SpeedLimit::Max(v)) if v.is_finite() && v > 0.0 => v,
@@ -333,7 +426,10 @@ impl Builder<'_> {
                 .and_then(|r| r.junction())
                 .and_then(|j| self.junction_of.get(j).copied());
             let map_ids = |ids: &[LaneId]| -> Vec<LaneIdx> {
-                let mut v: Vec<LaneIdx> = ids.iter().filter_map(|i| self.lane_of.get(i).copied()).collect();
+                let mut v: Vec<LaneIdx> = ids
+                    .iter()
+                    .filter_map(|i| self.lane_of.get(i).copied())
+                    .collect();
                 v.sort();
                 v.dedup();
                 v
@@ -355,7 +451,9 @@ impl Builder<'_> {
         // Neighbours: which side is the neighbour on, seen in driving direction?
         for (i, l) in chosen.iter().enumerate() {
             for n in &l.neighbors {
-                let Some(&ni) = self.lane_of.get(n) else { continue };
+                let Some(&ni) = self.lane_of.get(n) else {
+                    continue;
+                };
                 let other = &self.town.lanes[ni.0 as usize];
                 let mid = other.centerline[other.centerline.len() / 2].truncate();
                 if let Some(p) = project_to_polyline(&self.town.lanes[i].centerline, mid) {
@@ -412,7 +510,10 @@ impl Builder<'_> {
             };
             // The mark runs along the right edge of its left lane, or the left
             // edge of its right lane (looking along the reference direction).
-            let (lane, side) = match (mark.left.and_then(|l| net.lane(l)), mark.right.and_then(|l| net.lane(l))) {
+            let (lane, side) = match (
+                mark.left.and_then(|l| net.lane(l)),
+                mark.right.and_then(|l| net.lane(l)),
+            ) {
                 (Some(l), _) => (l, -1.0),
                 (None, Some(r)) => (r, 1.0),
                 _ => continue,
@@ -422,23 +523,41 @@ impl Builder<'_> {
             }
             let edge = edge_points(lane, side);
             // Clip to the stretch of road the mark covers.
-            let points = match self.prov.road_marks.get(mi).filter(|p| p.road_mark == mark.id) {
+            let points = match self
+                .prov
+                .road_marks
+                .get(mi)
+                .filter(|p| p.road_mark == mark.id)
+            {
                 Some(mp) => clip_to_mark(net, lane, &edge, mp.s, mp.length),
                 None => edge,
             };
             if points.len() < 2 {
                 continue;
             }
-            let color = if mark.color.eq_ignore_ascii_case("yellow") { MarkColor::Yellow } else { MarkColor::White };
+            let color = if mark.color.eq_ignore_ascii_case("yellow") {
+                MarkColor::Yellow
+            } else {
+                MarkColor::White
+            };
             let dash_m = mark.lines.iter().find_map(|line| match line.pattern {
                 xodr::LinePattern::Dashed { length, space } => Some((length, space)),
                 _ => None,
             });
             let dash_m = dash_m.or(match kind {
-                MarkKind::Broken | MarkKind::BrokenBroken | MarkKind::SolidBroken | MarkKind::BrokenSolid => Some((4.0, 8.0)),
+                MarkKind::Broken
+                | MarkKind::BrokenBroken
+                | MarkKind::SolidBroken
+                | MarkKind::BrokenSolid => Some((4.0, 8.0)),
                 _ => None,
             });
-            self.town.markings.push(LaneMarking { points, kind, color, width_m: mark.width.max(0.05), dash_m });
+            self.town.markings.push(LaneMarking {
+                points,
+                kind,
+                color,
+                width_m: mark.width.max(0.05),
+                dash_m,
+            });
         }
     }
 
@@ -450,45 +569,102 @@ impl Builder<'_> {
             .iter()
             .filter_map(|p| p.heights.first().map(|h| (p.lane, h.inner)))
             .collect();
-        for l in net.lanes().iter().filter(|l| l.kind == LaneType::Sidewalk && l.layer == Layer::Permanent) {
+        for l in net
+            .lanes()
+            .iter()
+            .filter(|l| l.kind == LaneType::Sidewalk && l.layer == Layer::Permanent)
+        {
             let (_, od) = self.ctx.road_od(l.id);
             let left = edge_points(l, 1.0);
             let right = edge_points(l, -1.0);
             let (inner, outer) = if od < 0 { (left, right) } else { (right, left) };
-            let height_m = heights.get(&l.id).copied().filter(|h| h.is_finite()).unwrap_or(DEFAULT_SIDEWALK_HEIGHT_M);
-            self.town.sidewalks.push(Sidewalk { inner, outer, height_m });
+            let height_m = heights
+                .get(&l.id)
+                .copied()
+                .filter(|h| h.is_finite())
+                .unwrap_or(DEFAULT_SIDEWALK_HEIGHT_M);
+            self.town.sidewalks.push(Sidewalk {
+                inner,
+                outer,
+                height_m,
+            });
         }
     }
 
     fn objects(&mut self) {
         for o in self.ctx.net.objects() {
             let poly: Option<(Vec<Vec2>, f32)> = match &o.shape {
-                xodr::Shape::Outline { corners, closed: true, .. } if corners.len() >= 3 => {
-                    let h = corners.iter().map(|c| c.top.z - c.base.z).fold(0.0, f32::max);
-                    Some((corners.iter().map(|c| Vec2::new(c.base.x, c.base.y)).collect(), h))
+                xodr::Shape::Outline {
+                    corners,
+                    closed: true,
+                    ..
+                } if corners.len() >= 3 => {
+                    let h = corners
+                        .iter()
+                        .map(|c| c.top.z - c.base.z)
+                        .fold(0.0, f32::max);
+                    Some((
+                        corners
+                            .iter()
+                            .map(|c| Vec2::new(c.base.x, c.base.y))
+                            .collect(),
+                        h,
+                    ))
                 }
-                xodr::Shape::Solid { position, heading, extent: Some(xodr::Extent::Box { length, width, height }), .. } => {
+                xodr::Shape::Solid {
+                    position,
+                    heading,
+                    extent:
+                        Some(xodr::Extent::Box {
+                            length,
+                            width,
+                            height,
+                        }),
+                    ..
+                } => {
                     let f = Vec2::from_angle(*heading);
                     let l = f.perp();
                     let c = Vec2::new(position.x, position.y);
                     let (hl, hw) = (length * 0.5, width * 0.5);
-                    Some((vec![c - f * hl - l * hw, c + f * hl - l * hw, c + f * hl + l * hw, c - f * hl + l * hw], *height))
+                    Some((
+                        vec![
+                            c - f * hl - l * hw,
+                            c + f * hl - l * hw,
+                            c + f * hl + l * hw,
+                            c - f * hl + l * hw,
+                        ],
+                        *height,
+                    ))
                 }
                 _ => None,
             };
             let Some((mut poly, h)) = poly else { continue };
-            if poly.iter().any(|p| !p.is_finite() || p.x.abs() > MAX_COORD_M || p.y.abs() > MAX_COORD_M) {
+            if poly
+                .iter()
+                .any(|p| !p.is_finite() || p.x.abs() > MAX_COORD_M || p.y.abs() > MAX_COORD_M)
+            {
                 continue;
             }
             if signed_area(&poly) < 0.0 {
                 poly.reverse();
             }
             match o.kind {
-                xodr::ObjectType::Building => self.town.buildings.push(Building { footprint: poly, height_m: if h > 0.0 { h } else { 10.0 } }),
+                xodr::ObjectType::Building => self.town.buildings.push(Building {
+                    footprint: poly,
+                    height_m: if h > 0.0 { h } else { 10.0 },
+                }),
                 xodr::ObjectType::Crosswalk if poly.len() == 4 => {
                     let z = 0.0;
-                    let c = [poly[0].extend(z), poly[1].extend(z), poly[2].extend(z), poly[3].extend(z)];
-                    self.town.crosswalks.push(Crosswalk { corners: c, from_map: true });
+                    let c = [
+                        poly[0].extend(z),
+                        poly[1].extend(z),
+                        poly[2].extend(z),
+                        poly[3].extend(z),
+                    ];
+                    self.town.crosswalks.push(Crosswalk {
+                        corners: c,
+                        from_map: true,
+                    });
                 }
                 _ => {}
             }
@@ -498,9 +674,21 @@ impl Builder<'_> {
     fn junction_outlines(&mut self) {
         let net = self.ctx.net;
         let mut pts: BTreeMap<JunctionIdx, Vec<Vec2>> = BTreeMap::new();
-        for l in net.lanes().iter().filter(|l| l.layer == Layer::Permanent && l.kind != LaneType::Sidewalk) {
-            let Some(j) = net.road_lane(l.id).and_then(|rl| net.road(rl.road)).and_then(|r| r.junction()) else { continue };
-            let Some(&ji) = self.junction_of.get(j) else { continue };
+        for l in net
+            .lanes()
+            .iter()
+            .filter(|l| l.layer == Layer::Permanent && l.kind != LaneType::Sidewalk)
+        {
+            let Some(j) = net
+                .road_lane(l.id)
+                .and_then(|rl| net.road(rl.road))
+                .and_then(|r| r.junction())
+            else {
+                continue;
+            };
+            let Some(&ji) = self.junction_of.get(j) else {
+                continue;
+            };
             let e = pts.entry(ji).or_default();
             for side in [-1.0, 1.0] {
                 e.extend(edge_points(l, side).iter().map(|p| p.truncate()));
@@ -509,7 +697,8 @@ impl Builder<'_> {
         for area in net.junction_areas() {
             if let Some(&ji) = self.junction_of.get(&area.od_id) {
                 if area.boundary.len() >= 3 {
-                    let mut poly: Vec<Vec2> = area.boundary.iter().map(|p| Vec2::new(p.x, p.y)).collect();
+                    let mut poly: Vec<Vec2> =
+                        area.boundary.iter().map(|p| Vec2::new(p.x, p.y)).collect();
                     if signed_area(&poly) < 0.0 {
                         poly.reverse();
                     }
@@ -530,11 +719,20 @@ impl Builder<'_> {
         let mut l = lane;
         if lanes[l.0 as usize].junction.is_some() {
             // A signal on a connecting road: stop where it is entered.
-            return lanes[l.0 as usize].predecessors.iter().copied().find(|p| lanes[p.0 as usize].junction.is_none());
+            return lanes[l.0 as usize]
+                .predecessors
+                .iter()
+                .copied()
+                .find(|p| lanes[p.0 as usize].junction.is_none());
         }
         for _ in 0..16 {
             let dl = &lanes[l.0 as usize];
-            if dl.successors.iter().any(|s| lanes[s.0 as usize].junction.is_some()) || dl.successors.len() != 1 {
+            if dl
+                .successors
+                .iter()
+                .any(|s| lanes[s.0 as usize].junction.is_some())
+                || dl.successors.len() != 1
+            {
                 return Some(l);
             }
             l = dl.successors[0];
@@ -559,7 +757,10 @@ impl Builder<'_> {
     /// The junction a stop lane leads into.
     fn junction_after(&self, lane: LaneIdx) -> Option<JunctionIdx> {
         let lanes = &self.town.lanes;
-        lanes[lane.0 as usize].successors.iter().find_map(|s| lanes[s.0 as usize].junction)
+        lanes[lane.0 as usize]
+            .successors
+            .iter()
+            .find_map(|s| lanes[s.0 as usize].junction)
     }
 
     fn lights(&mut self, opts: &LoadOptions, report: &mut LoadReport) {
@@ -568,20 +769,38 @@ impl Builder<'_> {
         let mut ctrl_junction: HashMap<xodr::ControllerId, (String, Option<u32>)> = HashMap::new();
         for cp in &self.prov.controllers {
             if let Some(j) = cp.junctions.first() {
-                let seq = j.sequence.or_else(|| net.controller(cp.controller).and_then(|c| c.sequence));
+                let seq = j
+                    .sequence
+                    .or_else(|| net.controller(cp.controller).and_then(|c| c.sequence));
                 ctrl_junction.insert(cp.controller, (j.junction_id.clone(), seq));
             }
         }
-        let od_ids: HashMap<xodr::SignalId, String> = self.prov.signals.iter().map(|s| (s.signal, s.od_id.clone())).collect();
+        let od_ids: HashMap<xodr::SignalId, String> = self
+            .prov
+            .signals
+            .iter()
+            .map(|s| (s.signal, s.od_id.clone()))
+            .collect();
         for sig in net.signals() {
-            let is_light = sig.dynamic && (sig.kind == "1000001" || !sig.controllers.is_empty() || sig.name.to_ascii_lowercase().contains("light"));
+            let is_light = sig.dynamic
+                && (sig.kind == "1000001"
+                    || !sig.controllers.is_empty()
+                    || sig.name.to_ascii_lowercase().contains("light"));
             if !is_light {
                 continue;
             }
-            let mut stop_lanes: Vec<LaneIdx> = sig.lanes.iter().filter_map(|l| self.lane_of.get(l).copied()).filter_map(|l| self.stop_lane(l)).collect();
+            let mut stop_lanes: Vec<LaneIdx> = sig
+                .lanes
+                .iter()
+                .filter_map(|l| self.lane_of.get(l).copied())
+                .filter_map(|l| self.stop_lane(l))
+                .collect();
             stop_lanes.sort();
             stop_lanes.dedup();
-            let from_ctrl = sig.controllers.iter().find_map(|c| ctrl_junction.get(c).cloned());
+            let from_ctrl = sig
+                .controllers
+                .iter()
+                .find_map(|c| ctrl_junction.get(c).cloned());
             let junction = from_ctrl
                 .as_ref()
                 .and_then(|(j, _)| self.junction_of.get(j).copied())
@@ -589,7 +808,10 @@ impl Builder<'_> {
             let group = from_ctrl.and_then(|(_, s)| s).unwrap_or(u32::MAX);
             let stop_lines = stop_lanes.iter().map(|l| self.stop_line(*l)).collect();
             self.town.lights.push(TrafficLight {
-                od_id: od_ids.get(&sig.id).cloned().unwrap_or_else(|| sig.name.clone()),
+                od_id: od_ids
+                    .get(&sig.id)
+                    .cloned()
+                    .unwrap_or_else(|| sig.name.clone()),
                 position: p3(sig.position),
                 heading: sig.heading,
                 head_height_m: DEFAULT_LIGHT_HEAD_HEIGHT_M,
@@ -612,7 +834,12 @@ impl Builder<'_> {
             by_junction.entry(l.junction).or_default().push(i);
         }
         for (j, idx) in by_junction {
-            let mut next = idx.iter().map(|&i| self.town.lights[i].group).filter(|g| *g != u32::MAX).max().map_or(0, |g| g + 1);
+            let mut next = idx
+                .iter()
+                .map(|&i| self.town.lights[i].group)
+                .filter(|g| *g != u32::MAX)
+                .max()
+                .map_or(0, |g| g + 1);
             for &i in &idx {
                 if self.town.lights[i].group == u32::MAX {
                     self.town.lights[i].group = next;
@@ -622,7 +849,8 @@ impl Builder<'_> {
             if let Some(j) = j {
                 let mut list: Vec<usize> = idx.clone();
                 list.sort_by_key(|&i| (self.town.lights[i].group, i));
-                self.town.junctions[j.0 as usize].lights = list.into_iter().map(|i| LightIdx(i as u32)).collect();
+                self.town.junctions[j.0 as usize].lights =
+                    list.into_iter().map(|i| LightIdx(i as u32)).collect();
             }
         }
     }
@@ -635,7 +863,10 @@ impl Builder<'_> {
                 continue;
             }
             if let Some(j) = self.junction_after(LaneIdx(i as u32)) {
-                approaches.entry((j, l.road_id.clone())).or_default().push(LaneIdx(i as u32));
+                approaches
+                    .entry((j, l.road_id.clone()))
+                    .or_default()
+                    .push(LaneIdx(i as u32));
             }
         }
         let mut per_junction: BTreeMap<JunctionIdx, Vec<(String, Vec<LaneIdx>)>> = BTreeMap::new();
@@ -649,10 +880,17 @@ impl Builder<'_> {
             for (g, (road, lanes)) in roads.iter().enumerate() {
                 let stop_lines: Vec<StopLine> = lanes.iter().map(|l| self.stop_line(*l)).collect();
                 // Pole beside the rightmost stop line's right end, facing traffic.
-                let across = (stop_lines[0].ends[1] - stop_lines[0].ends[0]).truncate().normalize_or_zero();
+                let across = (stop_lines[0].ends[1] - stop_lines[0].ends[0])
+                    .truncate()
+                    .normalize_or_zero();
                 let sl = stop_lines
                     .iter()
-                    .max_by(|a, b| a.ends[1].truncate().dot(across).total_cmp(&b.ends[1].truncate().dot(across)))
+                    .max_by(|a, b| {
+                        a.ends[1]
+                            .truncate()
+                            .dot(across)
+                            .total_cmp(&b.ends[1].truncate().dot(across))
+                    })
                     .unwrap_or(&stop_lines[0]);
                 let forward = across.perp();
                 let pos = sl.ends[1] + (across * 1.5).extend(0.0);
@@ -684,17 +922,27 @@ impl Builder<'_> {
         let lanes = &self.town.lanes;
         for l in lanes.iter().filter(|l| l.junction.is_none()) {
             let n = l.centerline.len();
-            if let Some(j) = l.successors.iter().find_map(|s| lanes[s.0 as usize].junction) {
+            if let Some(j) = l
+                .successors
+                .iter()
+                .find_map(|s| lanes[s.0 as usize].junction)
+            {
                 let e = ends.entry((j, l.road_id.clone())).or_default();
                 let p = l.centerline[n - 1].truncate();
                 e.pts.push((p, l.width[n - 1]));
-                e.dir.get_or_insert((p - l.centerline[n - 2].truncate()).normalize_or_zero());
+                e.dir
+                    .get_or_insert((p - l.centerline[n - 2].truncate()).normalize_or_zero());
             }
-            if let Some(j) = l.predecessors.iter().find_map(|s| lanes[s.0 as usize].junction) {
+            if let Some(j) = l
+                .predecessors
+                .iter()
+                .find_map(|s| lanes[s.0 as usize].junction)
+            {
                 let e = ends.entry((j, l.road_id.clone())).or_default();
                 let p = l.centerline[0].truncate();
                 e.pts.push((p, l.width[0]));
-                e.dir.get_or_insert((p - l.centerline[1].truncate()).normalize_or_zero());
+                e.dir
+                    .get_or_insert((p - l.centerline[1].truncate()).normalize_or_zero());
             }
         }
         for (_, e) in ends {
@@ -721,7 +969,12 @@ impl Builder<'_> {
                 c.reverse();
             }
             self.town.crosswalks.push(Crosswalk {
-                corners: [c[0].extend(0.0), c[1].extend(0.0), c[2].extend(0.0), c[3].extend(0.0)],
+                corners: [
+                    c[0].extend(0.0),
+                    c[1].extend(0.0),
+                    c[2].extend(0.0),
+                    c[3].extend(0.0),
+                ],
                 from_map: false,
             });
         }
@@ -735,7 +988,9 @@ impl Builder<'_> {
             if !self.lane_of.contains_key(&span.lane) {
                 continue;
             }
-            for tri in mesh.indices[span.indices.start as usize..span.indices.end as usize].chunks_exact(3) {
+            for tri in
+                mesh.indices[span.indices.start as usize..span.indices.end as usize].chunks_exact(3)
+            {
                 let mut idx = [0u32; 3];
                 for k in 0..3 {
                     let v = tri[k];
@@ -777,12 +1032,21 @@ impl Builder<'_> {
 /// Clips a lane edge (stored direction) to the mark's stretch `[s, s+len]` of
 /// the road's reference line, mapping reference s to the edge proportionally
 /// over the lane's own span of reference s.
-fn clip_to_mark(net: &RoadNetwork, lane: &xodr::Lane, edge: &[Vec3], s: f64, len: f64) -> Vec<Vec3> {
-    let Some(rl) = net.road_lane(lane.id) else { return edge.to_vec() };
+fn clip_to_mark(
+    net: &RoadNetwork,
+    lane: &xodr::Lane,
+    edge: &[Vec3],
+    s: f64,
+    len: f64,
+) -> Vec<Vec3> {
+    let Some(rl) = net.road_lane(lane.id) else {
+        return edge.to_vec();
+    };
     let pts = lane.center.points();
     let (Some(a), Some(b)) = (
         net.road_position_on(rl.road, pts[0]).map(|p| p.s),
-        net.road_position_on(rl.road, pts[pts.len() - 1]).map(|p| p.s),
+        net.road_position_on(rl.road, pts[pts.len() - 1])
+            .map(|p| p.s),
     ) else {
         return edge.to_vec();
     };
@@ -806,4 +1070,3 @@ fn clip_to_mark(net: &RoadNetwork, lane: &xodr::Lane, edge: &[Vec3], s: f64, len
     out.push(crate::geometry::point_at(edge, &cum, s1));
     out
 }
-
