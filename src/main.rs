@@ -1,1 +1,30 @@
-fn main() {}
+//! `mrdrive`: the command-line program. Each subcommand lives in `cli/`.
+
+mod cli;
+
+use clap::{Parser, Subcommand};
+
+/// A closed-loop driving simulator for multi-resolution end-to-end policies.
+#[derive(Parser)]
+#[command(name = "mrdrive", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Maps: summary, picture, town generator.
+    #[command(subcommand)]
+    Map(cli::map::MapCommand),
+    /// Plan routes over a map and print their dense lengths and commands.
+    Routes(cli::routes::RoutesArgs),
+}
+
+fn main() -> anyhow::Result<()> {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Map(c) => cli::map::run(c),
+        Command::Routes(a) => cli::routes::run(a),
+    }
+}

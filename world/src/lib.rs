@@ -13,10 +13,25 @@
 
 pub mod actor;
 pub mod command;
-pub mod footprint;
+pub mod error;
+pub mod generator;
+pub mod geometry;
+pub mod lane_graph;
+pub mod map_render;
+pub mod planner;
+pub mod route;
+pub mod testdata;
 pub mod town;
+pub mod traffic_light;
+pub mod xodr_map;
 
 pub use actor::{ActorKind, ActorSnapshot};
 pub use command::Command;
+pub use error::{MapError, RouteError};
 pub use glam::{Vec2, Vec3};
+pub use lane_graph::LanePoint;
+pub use planner::{DenseRoute, PlannerConfig, RoutePoint, plan_route};
+pub use route::{Route, RouteFile, RouteWaypoint};
 pub use town::*;
+pub use traffic_light::{LightController, LightTiming};
+pub use xodr_map::{LoadOptions, LoadReport, UnsignalledJunctions, load_xodr_file, load_xodr_str};

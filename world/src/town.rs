@@ -130,8 +130,8 @@ pub struct StopLine {
     pub lane: LaneIdx,
     /// Arc length along that lane (metres).
     pub s: f32,
-    /// The line's two ends across the lane (metres, world frame): the right
-    /// end first, then the left end, as seen driving along the lane.
+    /// The line's two ends across the lane (metres, world frame): the left end
+    /// first, the right end second, seen in the lane's driving direction.
     pub ends: [Vec3; 2],
 }
 

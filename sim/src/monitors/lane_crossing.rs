@@ -6,7 +6,8 @@
 
 use std::collections::BTreeSet;
 
-use world::{MarkKind, Town, Vec2};
+use world::geometry::box_touches_polyline;
+use world::{MarkKind, Town, Vec2, Vec3};
 
 use super::{EgoTick, Infraction, InfractionKind};
 
@@ -18,8 +19,8 @@ const CELL_M: f32 = 8.0;
 pub struct LaneCrossingMonitor {
     /// Per cell: (marking index, segment index) pairs whose bounds touch it.
     grid: std::collections::HashMap<(i32, i32), Vec<(u32, u32)>>,
-    /// Segments of each marking, on the ground plane.
-    segments: Vec<Vec<(Vec2, Vec2)>>,
+    /// Segments of each marking.
+    segments: Vec<Vec<[Vec3; 2]>>,
     touching: BTreeSet<u32>,
     scratch: BTreeSet<u32>,
 }
@@ -34,17 +35,14 @@ impl LaneCrossingMonitor {
         let mut grid: std::collections::HashMap<(i32, i32), Vec<(u32, u32)>> = Default::default();
         let mut segments = Vec::with_capacity(town.markings.len());
         for (m, marking) in town.markings.iter().enumerate() {
-            let segs: Vec<(Vec2, Vec2)> = if marking.kind == MarkKind::Curb {
+            let segs: Vec<[Vec3; 2]> = if marking.kind == MarkKind::Curb {
                 Vec::new()
             } else {
-                marking
-                    .points
-                    .windows(2)
-                    .map(|w| (w[0].truncate(), w[1].truncate()))
-                    .collect()
+                marking.points.windows(2).map(|w| [w[0], w[1]]).collect()
             };
-            for (s, (a, b)) in segs.iter().enumerate() {
-                let (lo, hi) = (cell(a.min(*b)), cell(a.max(*b)));
+            for (s, [a, b]) in segs.iter().enumerate() {
+                let (a, b) = (a.truncate(), b.truncate());
+                let (lo, hi) = (cell(a.min(b)), cell(a.max(b)));
                 for cx in lo.0..=hi.0 {
                     for cy in lo.1..=hi.1 {
                         grid.entry((cx, cy)).or_default().push((m as u32, s as u32));
@@ -64,7 +62,15 @@ impl LaneCrossingMonitor {
     /// The markings the footprint touches this tick, into `self.scratch`.
     fn collect_touching(&mut self, tick: &EgoTick<'_>) {
         let footprint = tick.footprint();
-        let (lo, hi) = footprint.bounds();
+        let corners = footprint.corners();
+        let lo = corners
+            .iter()
+            .copied()
+            .fold(Vec2::splat(f32::INFINITY), Vec2::min);
+        let hi = corners
+            .iter()
+            .copied()
+            .fold(Vec2::splat(f32::NEG_INFINITY), Vec2::max);
         let (lo, hi) = (cell(lo), cell(hi));
         self.scratch.clear();
         for cx in lo.0..=hi.0 {
@@ -76,8 +82,7 @@ impl LaneCrossingMonitor {
                     if self.scratch.contains(&m) {
                         continue;
                     }
-                    let (a, b) = self.segments[m as usize][s as usize];
-                    if footprint.touches_segment(a, b) {
+                    if box_touches_polyline(&footprint, &self.segments[m as usize][s as usize]) {
                         self.scratch.insert(m);
                     }
                 }
@@ -103,7 +108,7 @@ impl LaneCrossingMonitor {
 mod tests {
     use super::super::{EgoPose, scripted};
     use super::*;
-    use world::{LaneMarking, MarkColor, Mesh, Vec3};
+    use world::{LaneMarking, MarkColor, Mesh};
 
     /// A town with one broken centre line along y = 0 and a curb at y = -4.
     fn two_lane_road() -> Town {

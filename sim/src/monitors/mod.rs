@@ -20,7 +20,7 @@ pub mod route;
 pub mod score;
 
 use serde::{Deserialize, Serialize};
-use world::footprint::Footprint;
+use world::geometry::OrientedBox;
 use world::{LightState, Vec2};
 
 /// What the other body in a collision was.
@@ -78,13 +78,13 @@ pub struct EgoTick<'a> {
 
 impl EgoTick<'_> {
     /// The footprint after the step.
-    pub fn footprint(&self) -> Footprint {
-        Footprint::new(
-            self.now.position,
-            self.now.heading,
-            self.size_m.0,
-            self.size_m.1,
-        )
+    pub fn footprint(&self) -> OrientedBox {
+        OrientedBox {
+            center: self.now.position,
+            heading: self.now.heading,
+            half_length: self.size_m.0 / 2.0,
+            half_width: self.size_m.1 / 2.0,
+        }
     }
 }
 

@@ -5,7 +5,7 @@
 //! with its nose over the line has not run the light; each crossing of a stop
 //! line is one passage, so one infraction.
 
-use world::footprint::crosses_directed;
+use world::geometry::crosses_stop_line;
 use world::{LightState, Town, Vec2};
 
 use super::{EgoTick, Infraction, InfractionKind};
@@ -15,8 +15,8 @@ use super::{EgoTick, Infraction, InfractionKind};
 pub struct RedLightMonitor {
     /// Only crossings faster than this count (metres per second).
     pub min_speed_mps: f32,
-    /// Stop lines: (light index, right end, left end) on the ground plane.
-    stop_lines: Vec<(usize, Vec2, Vec2)>,
+    /// Stop lines: (light index, [left end, right end]) on the ground plane.
+    stop_lines: Vec<(usize, [Vec2; 2])>,
 }
 
 impl RedLightMonitor {
@@ -30,7 +30,7 @@ impl RedLightMonitor {
                 light
                     .stop_lines
                     .iter()
-                    .map(move |l| (i, l.ends[0].truncate(), l.ends[1].truncate()))
+                    .map(move |l| (i, [l.ends[0].truncate(), l.ends[1].truncate()]))
             })
             .collect();
         Self {
@@ -51,9 +51,9 @@ impl RedLightMonitor {
         }
         let from = Self::tail(tick.prev.position, tick.prev.heading, tick.size_m.0);
         let to = Self::tail(tick.now.position, tick.now.heading, tick.size_m.0);
-        for &(light, a, b) in &self.stop_lines {
+        for &(light, ends) in &self.stop_lines {
             let red = tick.lights.get(light).copied() == Some(LightState::Red);
-            if red && crosses_directed(from, to, a, b) {
+            if red && crosses_stop_line(from, to, ends) {
                 out.push(Infraction::at(
                     tick,
                     InfractionKind::RedLight,
@@ -90,7 +90,7 @@ mod tests {
                 stop_lines: vec![StopLine {
                     lane: LaneIdx(0),
                     s: 50.0,
-                    ends: [Vec3::new(50.0, -3.5, 0.0), Vec3::new(50.0, 0.0, 0.0)],
+                    ends: [Vec3::new(50.0, 0.0, 0.0), Vec3::new(50.0, -3.5, 0.0)],
                 }],
             }],
             buildings: vec![],

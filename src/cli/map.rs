@@ -1,0 +1,240 @@
+//! `mrdrive map ...`: summary, picture and generator of towns.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::Context;
+use clap::{Args, Subcommand};
+use world::generator::{GridTownParams, generate_grid_town};
+use world::map_render::{RenderOptions, render_town};
+use world::{
+    LightController, LightTiming, LoadOptions, PlannerConfig, RouteFile, UnsignalledJunctions,
+    load_xodr_file, plan_route,
+};
+
+/// Map subcommands.
+#[derive(Subcommand)]
+pub enum MapCommand {
+    /// Print a map's summary: roads, lanes, junctions, lights, lane length, warnings.
+    Info(InfoArgs),
+    /// Draw a top-down picture of a map (PNG).
+    Render(RenderArgs),
+    /// Write a generated grid town as OpenDRIVE.
+    Generate(GenerateArgs),
+}
+
+/// Options shared by commands that load a map.
+#[derive(Args, Clone)]
+pub struct MapLoadArgs {
+    /// Give junctions generated traffic lights when the map has none.
+    #[arg(long)]
+    pub generate_lights: bool,
+}
+
+impl MapLoadArgs {
+    /// The loader options these flags ask for.
+    pub fn options(&self) -> LoadOptions {
+        LoadOptions {
+            unsignalled: if self.generate_lights {
+                UnsignalledJunctions::GenerateLights
+            } else {
+                UnsignalledJunctions::NoLights
+            },
+        }
+    }
+}
+
+/// `map info` arguments.
+#[derive(Args)]
+pub struct InfoArgs {
+    /// The OpenDRIVE file.
+    pub file: PathBuf,
+    #[command(flatten)]
+    pub load: MapLoadArgs,
+}
+
+/// `map render` arguments.
+#[derive(Args)]
+pub struct RenderArgs {
+    /// The OpenDRIVE file.
+    pub file: PathBuf,
+    /// Output PNG.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Ground size of a pixel (metres).
+    #[arg(long, default_value_t = 0.5)]
+    pub metres_per_pixel: f32,
+    /// A route file (CARLA XML or TOML) to draw.
+    #[arg(long)]
+    pub route: Option<PathBuf>,
+    /// The route id within --route.
+    #[arg(long, default_value = "0")]
+    pub id: String,
+    /// Show the lights as they are this many seconds into a run.
+    #[arg(long, default_value_t = 0.0)]
+    pub time_s: f64,
+    /// Seed of the light controllers' phase offsets.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    #[command(flatten)]
+    pub load: MapLoadArgs,
+}
+
+/// `map generate` arguments.
+#[derive(Args)]
+pub struct GenerateArgs {
+    /// Blocks along x.
+    #[arg(long, default_value_t = 5)]
+    pub blocks_x: u32,
+    /// Blocks along y.
+    #[arg(long, default_value_t = 4)]
+    pub blocks_y: u32,
+    /// Distance between junction centres (metres).
+    #[arg(long, default_value_t = 82.0)]
+    pub block_size: f64,
+    /// Seed for removed streets and buildings.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Town name written into the file (default: the output file's stem).
+    #[arg(long)]
+    pub name: Option<String>,
+    /// Output .xodr file.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// Runs a map subcommand.
+pub fn run(cmd: MapCommand) -> anyhow::Result<()> {
+    match cmd {
+        MapCommand::Info(a) => info(a),
+        MapCommand::Render(a) => render(a),
+        MapCommand::Generate(a) => generate(a),
+    }
+}
+
+fn info(a: InfoArgs) -> anyhow::Result<()> {
+    let t0 = Instant::now();
+    let (town, report) = load_xodr_file(&a.file, &a.load.options())?;
+    let ms = t0.elapsed().as_secs_f64() * 1e3;
+    let in_junction = town.lanes.iter().filter(|l| l.junction.is_some()).count();
+    println!("map: {}", a.file.display());
+    println!("town: {}", town.name);
+    println!("roads: {}", report.roads);
+    println!("lanes (all types): {}", report.lanes);
+    println!(
+        "drivable lanes: {} ({} in junctions)",
+        town.lanes.len(),
+        in_junction
+    );
+    println!("junctions: {}", town.junctions.len());
+    println!(
+        "traffic lights: {}{}",
+        town.lights.len(),
+        if report.generated_lights {
+            " (generated)"
+        } else {
+            ""
+        }
+    );
+    println!(
+        "stop lines: {}",
+        town.lights
+            .iter()
+            .map(|l| l.stop_lines.len())
+            .sum::<usize>()
+    );
+    println!("drivable lane length: {:.1} m", town.total_lane_length_m());
+    println!("lane markings: {}", town.markings.len());
+    println!("sidewalks: {}", town.sidewalks.len());
+    let from_map = town.crosswalks.iter().filter(|c| c.from_map).count();
+    println!(
+        "crosswalks: {} ({} from the map, {} generated)",
+        town.crosswalks.len(),
+        from_map,
+        town.crosswalks.len() - from_map
+    );
+    println!("buildings: {}", town.buildings.len());
+    println!(
+        "road surface: {} triangles",
+        town.road_surface.indices.len() / 3
+    );
+    let (lo, hi) = town.bounds;
+    println!(
+        "bounds: ({:.1}, {:.1}) to ({:.1}, {:.1}) m, {:.1} m x {:.1} m",
+        lo.x,
+        lo.y,
+        hi.x,
+        hi.y,
+        hi.x - lo.x,
+        hi.y - lo.y
+    );
+    println!(
+        "lane graph strongly connected: {}",
+        if town.is_strongly_connected() {
+            "yes"
+        } else {
+            "no"
+        }
+    );
+    println!("load time: {ms:.1} ms");
+    println!("warnings: {}", report.warnings.len());
+    for w in report.warnings.iter().take(20) {
+        println!("  - {w}");
+    }
+    if report.warnings.len() > 20 {
+        println!("  ... and {} more", report.warnings.len() - 20);
+    }
+    Ok(())
+}
+
+fn render(a: RenderArgs) -> anyhow::Result<()> {
+    let (town, _) = load_xodr_file(&a.file, &a.load.options())?;
+    let route = match &a.route {
+        Some(path) => {
+            let file = RouteFile::load(path)?;
+            let r = file.route(&a.id)?;
+            let dense = plan_route(&town, r, &PlannerConfig::default())?;
+            Some(dense.points.iter().map(|p| p.position).collect())
+        }
+        None => None,
+    };
+    let mut lights = LightController::new(&town, LightTiming::default(), a.seed);
+    lights.step(a.time_s);
+    let opts = RenderOptions {
+        metres_per_pixel: a.metres_per_pixel,
+        light_states: Some(lights.states()),
+        route,
+        ..Default::default()
+    };
+    let img = render_town(&town, &opts);
+    img.save(&a.out)
+        .with_context(|| format!("writing {}", a.out.display()))?;
+    println!(
+        "wrote {} ({} x {} px, {} m/px)",
+        a.out.display(),
+        img.width(),
+        img.height(),
+        a.metres_per_pixel
+    );
+    Ok(())
+}
+
+fn generate(a: GenerateArgs) -> anyhow::Result<()> {
+    let name = a.name.clone().unwrap_or_else(|| {
+        a.out
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "town".into())
+    });
+    let p = GridTownParams {
+        name,
+        blocks_x: a.blocks_x,
+        blocks_y: a.blocks_y,
+        block_size_m: a.block_size,
+        seed: a.seed,
+    };
+    let xml = generate_grid_town(&p)?;
+    std::fs::write(&a.out, &xml).with_context(|| format!("writing {}", a.out.display()))?;
+    println!("wrote {} ({} bytes)", a.out.display(), xml.len());
+    Ok(())
+}

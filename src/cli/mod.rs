@@ -1,0 +1,4 @@
+//! Subcommands of the `mrdrive` program.
+
+pub mod map;
+pub mod routes;

@@ -1,0 +1,367 @@
+//! A top-down picture of a town: lanes, junctions, sidewalks, crosswalks,
+//! markings, buildings, traffic lights coloured by state and optionally a
+//! route, rasterised with supersampling (antialiased) into an RGB image.
+
+use glam::{Vec2, Vec3};
+use image::RgbImage;
+
+use crate::town::{LightState, MarkColor, MarkKind, Town};
+
+/// How to draw a town.
+#[derive(Debug, Clone)]
+pub struct RenderOptions {
+    /// Ground size of one output pixel (metres).
+    pub metres_per_pixel: f32,
+    /// Border around the town's bounds (metres).
+    pub margin_m: f32,
+    /// Samples per pixel along each axis (antialiasing); 1 to 4.
+    pub supersample: u32,
+    /// The state of each light (indexed like `Town::lights`); `None` draws them all red.
+    pub light_states: Option<Vec<LightState>>,
+    /// A route to draw over the town (points in driving order).
+    pub route: Option<Vec<Vec3>>,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        RenderOptions {
+            metres_per_pixel: 0.5,
+            margin_m: 10.0,
+            supersample: 3,
+            light_states: None,
+            route: None,
+        }
+    }
+}
+
+type Rgb = [u8; 3];
+const BACKGROUND: Rgb = [52, 66, 50];
+const ROAD: Rgb = [72, 72, 78];
+const SIDEWALK: Rgb = [168, 164, 156];
+const BUILDING: Rgb = [140, 112, 96];
+const BUILDING_EDGE: Rgb = [90, 70, 60];
+const WHITE: Rgb = [240, 240, 240];
+const YELLOW: Rgb = [235, 200, 40];
+const CURB: Rgb = [120, 120, 120];
+const ROUTE: Rgb = [40, 140, 255];
+
+struct Canvas {
+    w: usize,
+    h: usize,
+    scale: f32,
+    origin: Vec2,
+    top: f32,
+    buf: Vec<Rgb>,
+}
+
+impl Canvas {
+    fn px(&self, p: Vec2) -> Vec2 {
+        Vec2::new(
+            (p.x - self.origin.x) * self.scale,
+            (self.top - p.y) * self.scale,
+        )
+    }
+
+    /// Fills a polygon given in world coordinates (even-odd rule).
+    fn fill(&mut self, poly: &[Vec2], c: Rgb) {
+        if poly.len() < 3 {
+            return;
+        }
+        let pts: Vec<Vec2> = poly.iter().map(|p| self.px(*p)).collect();
+        let (mut y0, mut y1) = (f32::MAX, f32::MIN);
+        for p in &pts {
+            y0 = y0.min(p.y);
+            y1 = y1.max(p.y);
+        }
+        let ys = (y0.floor().max(0.0)) as usize;
+        let ye = (y1.ceil().min(self.h as f32)) as usize;
+        let mut xs: Vec<f32> = Vec::new();
+        for y in ys..ye {
+            let yc = y as f32 + 0.5;
+            xs.clear();
+            for i in 0..pts.len() {
+                let (a, b) = (pts[i], pts[(i + 1) % pts.len()]);
+                if (a.y > yc) != (b.y > yc) {
+                    xs.push(a.x + (yc - a.y) / (b.y - a.y) * (b.x - a.x));
+                }
+            }
+            xs.sort_by(f32::total_cmp);
+            for pair in xs.chunks_exact(2) {
+                let xa = (pair[0] - 0.5).ceil().max(0.0) as usize;
+                let xb = ((pair[1] - 0.5).floor() + 1.0).clamp(0.0, self.w as f32) as usize;
+                for x in xa..xb {
+                    self.buf[y * self.w + x] = c;
+                }
+            }
+        }
+    }
+
+    /// A thick line segment in world coordinates, at least `min_px` output pixels wide.
+    fn segment(&mut self, a: Vec2, b: Vec2, width_m: f32, c: Rgb) {
+        let d = (b - a).normalize_or_zero();
+        if d == Vec2::ZERO {
+            return;
+        }
+        let n = d.perp() * (width_m * 0.5);
+        self.fill(&[a - n, b - n, b + n, a + n], c);
+    }
+
+    fn polyline(&mut self, pts: &[Vec2], width_m: f32, c: Rgb) {
+        for w in pts.windows(2) {
+            self.segment(w[0], w[1], width_m, c);
+        }
+    }
+
+    fn dashed(&mut self, pts: &[Vec2], width_m: f32, dash: f32, gap: f32, c: Rgb) {
+        let period = dash + gap;
+        let mut s = 0.0f32;
+        for w in pts.windows(2) {
+            let len = w[0].distance(w[1]);
+            if len <= 0.0 {
+                continue;
+            }
+            let mut t = 0.0;
+            while t < len {
+                let phase = (s + t) % period;
+                let step = if phase < dash {
+                    dash - phase
+                } else {
+                    period - phase
+                };
+                let t1 = (t + step).min(len);
+                if phase < dash {
+                    self.segment(
+                        w[0].lerp(w[1], t / len),
+                        w[0].lerp(w[1], t1 / len),
+                        width_m,
+                        c,
+                    );
+                }
+                t = t1 + 1e-4;
+            }
+            s += len;
+        }
+    }
+
+    fn disc(&mut self, c0: Vec2, r: f32, c: Rgb) {
+        let poly: Vec<Vec2> = (0..20)
+            .map(|k| c0 + Vec2::from_angle(k as f32 / 20.0 * std::f32::consts::TAU) * r)
+            .collect();
+        self.fill(&poly, c);
+    }
+}
+
+/// Rasterises `town` into an RGB image fitted to its bounds.
+pub fn render_town(town: &Town, opts: &RenderOptions) -> RgbImage {
+    let ss = opts.supersample.clamp(1, 4) as usize;
+    let mpp = opts.metres_per_pixel.max(0.01);
+    let (mut lo, mut hi) = town.bounds;
+    for b in &town.buildings {
+        for p in &b.footprint {
+            lo = lo.min(*p);
+            hi = hi.max(*p);
+        }
+    }
+    lo -= Vec2::splat(opts.margin_m);
+    hi += Vec2::splat(opts.margin_m);
+    let out_w = (((hi.x - lo.x) / mpp).ceil() as usize).clamp(1, 8192);
+    let out_h = (((hi.y - lo.y) / mpp).ceil() as usize).clamp(1, 8192);
+    let (w, h) = (out_w * ss, out_h * ss);
+    let mut cv = Canvas {
+        w,
+        h,
+        scale: ss as f32 / mpp,
+        origin: lo,
+        top: hi.y,
+        buf: vec![BACKGROUND; w * h],
+    };
+    let min_line = mpp * 1.2; // keep thin paint visible: at least ~1 output pixel
+
+    for sw in &town.sidewalks {
+        for i in 0..sw.inner.len().min(sw.outer.len()).saturating_sub(1) {
+            let q = [
+                sw.inner[i].truncate(),
+                sw.inner[i + 1].truncate(),
+                sw.outer[i + 1].truncate(),
+                sw.outer[i].truncate(),
+            ];
+            cv.fill(&q, SIDEWALK);
+        }
+    }
+    for j in &town.junctions {
+        cv.fill(&j.outline, ROAD);
+    }
+    for l in &town.lanes {
+        for i in 0..l.centerline.len().saturating_sub(1) {
+            let a = l.centerline[i].truncate();
+            let b = l.centerline[i + 1].truncate();
+            let d = (b - a).normalize_or_zero().perp();
+            let (wa, wb) = (l.width[i] * 0.5 + 0.05, l.width[i + 1] * 0.5 + 0.05);
+            // Overlap consecutive quads a little to avoid seams.
+            let e = (b - a).normalize_or_zero() * 0.05;
+            cv.fill(
+                &[
+                    a - e - d * wa,
+                    b + e - d * wb,
+                    b + e + d * wb,
+                    a - e + d * wa,
+                ],
+                ROAD,
+            );
+        }
+    }
+    for c in &town.crosswalks {
+        let k = c.corners.map(|p| p.truncate());
+        // Stripes across: split the edge k0-k1 (along the road) into bars.
+        let along = k[1] - k[0];
+        let across = k[3] - k[0];
+        let bars = (across.length() / 1.0).floor().max(1.0) as usize;
+        for i in (0..bars).step_by(2) {
+            let t0 = i as f32 / bars as f32;
+            let t1 = (i + 1) as f32 / bars as f32;
+            let p0 = k[0] + across * t0;
+            let p1 = k[0] + across * t1;
+            cv.fill(&[p0, p0 + along, p1 + along, p1], WHITE);
+        }
+    }
+    for m in &town.markings {
+        let pts: Vec<Vec2> = m.points.iter().map(|p| p.truncate()).collect();
+        let width = m.width_m.max(min_line);
+        let col = match (m.kind, m.color) {
+            (MarkKind::Curb, _) => CURB,
+            (_, MarkColor::Yellow) => YELLOW,
+            (_, MarkColor::White) => WHITE,
+        };
+        match (m.kind, m.dash_m) {
+            (MarkKind::Broken | MarkKind::BrokenBroken, Some((d, g))) => {
+                cv.dashed(&pts, width, d, g, col)
+            }
+            _ => cv.polyline(&pts, width, col),
+        }
+    }
+    for b in &town.buildings {
+        cv.fill(&b.footprint, BUILDING_EDGE);
+        // Inset the fill a little so the edge shows.
+        let c = b.footprint.iter().copied().sum::<Vec2>() / b.footprint.len().max(1) as f32;
+        let inset: Vec<Vec2> = b
+            .footprint
+            .iter()
+            .map(|p| *p + (c - *p).normalize_or_zero() * 0.8)
+            .collect();
+        cv.fill(&inset, BUILDING);
+    }
+    if let Some(route) = &opts.route {
+        let pts: Vec<Vec2> = route.iter().map(|p| p.truncate()).collect();
+        cv.polyline(&pts, 1.0_f32.max(min_line * 2.0), ROUTE);
+        if let (Some(a), Some(b)) = (pts.first(), pts.last()) {
+            cv.disc(*a, 3.0, [40, 220, 60]);
+            cv.disc(*b, 3.0, [230, 40, 40]);
+        }
+    }
+    for (i, l) in town.lights.iter().enumerate() {
+        let state = opts
+            .light_states
+            .as_ref()
+            .and_then(|s| s.get(i).copied())
+            .unwrap_or_default();
+        let col = match state {
+            LightState::Red => [230, 30, 30],
+            LightState::Yellow => [250, 200, 0],
+            LightState::Green => [30, 220, 60],
+        };
+        for sl in &l.stop_lines {
+            cv.segment(
+                sl.ends[0].truncate(),
+                sl.ends[1].truncate(),
+                0.6_f32.max(min_line),
+                col,
+            );
+        }
+        let p = l.position.truncate();
+        cv.disc(p, 1.8, [10, 10, 10]);
+        cv.disc(p, 1.3, col);
+    }
+
+    // Downsample (box filter).
+    let mut img = RgbImage::new(out_w as u32, out_h as u32);
+    let n = (ss * ss) as u32;
+    for y in 0..out_h {
+        for x in 0..out_w {
+            let mut acc = [0u32; 3];
+            for dy in 0..ss {
+                for dx in 0..ss {
+                    let c = cv.buf[(y * ss + dy) * w + x * ss + dx];
+                    for k in 0..3 {
+                        acc[k] += c[k] as u32;
+                    }
+                }
+            }
+            img.put_pixel(
+                x as u32,
+                y as u32,
+                image::Rgb([(acc[0] / n) as u8, (acc[1] / n) as u8, (acc[2] / n) as u8]),
+            );
+        }
+    }
+    img
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::town::*;
+
+    #[test]
+    fn lane_and_light_colours_land_where_they_should() {
+        let centerline: Vec<Vec3> = (0..=20).map(|i| Vec3::new(i as f32, 0.0, 0.0)).collect();
+        let s = crate::geometry::arc_lengths(&centerline);
+        let lane = DriveLane {
+            road_id: "r".into(),
+            od_lane: -1,
+            centerline,
+            s,
+            width: vec![4.0; 21],
+            speed_limit_mps: 10.0,
+            junction: None,
+            successors: vec![],
+            predecessors: vec![],
+            left: None,
+            right: None,
+        };
+        let light = TrafficLight {
+            od_id: "l".into(),
+            position: Vec3::new(10.0, 8.0, 0.0),
+            heading: 0.0,
+            head_height_m: 3.0,
+            junction: None,
+            group: 0,
+            stop_lines: vec![],
+        };
+        let town = Town {
+            name: "t".into(),
+            lanes: vec![lane],
+            markings: vec![],
+            sidewalks: vec![],
+            crosswalks: vec![],
+            junctions: vec![],
+            lights: vec![light],
+            buildings: vec![],
+            road_surface: Mesh::default(),
+            bounds: (Vec2::new(0.0, -2.0), Vec2::new(20.0, 2.0)),
+        };
+        let opts = RenderOptions {
+            metres_per_pixel: 0.5,
+            margin_m: 10.0,
+            light_states: Some(vec![LightState::Green]),
+            ..Default::default()
+        };
+        let img = render_town(&town, &opts);
+        // Image spans x -10..30, y -12..12 -> 80 x 48 px.
+        assert_eq!(img.dimensions(), (80, 48));
+        let at =
+            |x: f32, y: f32| *img.get_pixel(((x + 10.0) / 0.5) as u32, ((12.0 - y) / 0.5) as u32);
+        assert_eq!(at(5.0, 0.0).0, ROAD);
+        assert_eq!(at(5.0, 6.0).0, BACKGROUND);
+        assert_eq!(at(10.0, 8.0).0, [30, 220, 60], "green light");
+    }
+}
