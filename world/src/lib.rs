@@ -12,8 +12,17 @@
 //! files are converted on reading (`y_xodr = -y`, `yaw_xodr = -yaw`).
 
 pub mod actor;
+pub mod ahead;
 pub mod command;
+pub mod lane_path;
+pub mod npc;
+pub mod pedestrian;
+pub mod physics;
+pub mod soak;
+pub mod testtown;
 pub mod town;
+pub mod traffic;
+pub mod vehicle;
 
 pub use actor::{ActorKind, ActorSnapshot};
 pub use command::Command;
