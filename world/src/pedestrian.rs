@@ -10,8 +10,11 @@
 //! 1.2-1.8 m/s). Only jaywalkers (a share `cross_factor` of the walkers, like
 //! CARLA's `set_pedestrians_cross_factor`) use jaywalk edges. Before stepping
 //! onto a crossing or jaywalk edge a walker waits while a vehicle moving
-//! faster than 0.5 m/s is within `wait_vehicle_m` of the crossing, for at
-//! most `max_wait_s`, then goes anyway.
+//! faster than 0.5 m/s is within `wait_vehicle_m` of the crossing (or
+//! `wait_time_gap_s` seconds at its speed) or any
+//! vehicle stands on it, for at most `max_wait_s`, then goes anyway. On the
+//! road it stops rather than step into the next 1.5 s of a moving vehicle's
+//! path; a walker held up by a vehicle for half a second turns back.
 
 use crate::actor::ActorKind;
 use crate::ahead::ActorView;
@@ -37,6 +40,8 @@ pub struct PedestrianParams {
     pub corner_link_m: f32,
     /// A walker waits to cross while a moving vehicle is this close to the crossing (metres).
     pub wait_vehicle_m: f32,
+    /// ... or would reach it within this many seconds at its speed (seconds).
+    pub wait_time_gap_s: f32,
     /// Longest wait before crossing anyway (seconds).
     pub max_wait_s: f32,
     /// A spawn spot is refused when a vehicle or walker is this close (metres).
@@ -52,6 +57,7 @@ impl Default for PedestrianParams {
             cross_factor: 0.1,
             corner_link_m: 8.0,
             wait_vehicle_m: 12.0,
+            wait_time_gap_s: 4.0,
             max_wait_s: 10.0,
             spawn_clearance_m: 0.5,
         }
@@ -338,9 +344,13 @@ impl Pedestrian {
         {
             let a = self.position;
             let busy = vehicles.iter().any(|v| {
-                v.kind != ActorKind::Pedestrian
-                    && v.speed_mps > 0.5
-                    && seg_dist(v.position, a, target) < p.wait_vehicle_m
+                if v.kind == ActorKind::Pedestrian {
+                    return false;
+                }
+                let d = seg_dist(v.position, a, target);
+                // A moving vehicle nearby, or any vehicle standing on the crossing itself.
+                (v.speed_mps > 0.5 && d < p.wait_vehicle_m.max(v.speed_mps * p.wait_time_gap_s))
+                    || d < v.half_length_m + 1.0
             });
             if busy {
                 self.wait_ticks += 1;
@@ -350,6 +360,15 @@ impl Pedestrian {
         let to = target - self.position;
         let d = to.length();
         let step = self.speed_mps * dt_s;
+        // On the road: do not walk into the path of a moving vehicle.
+        if matches!(kind, Some(EdgeKind::Crosswalk | EdgeKind::Jaywalk)) && d > 1e-6 {
+            let ahead = self.position + to / d * (self.speed_mps * 1.0).min(d);
+            if vehicles.iter().any(|v| {
+                v.kind != ActorKind::Pedestrian && v.speed_mps > 0.3 && sweeps_over(v, ahead, 1.5)
+            }) {
+                return (self.position, self.z);
+            }
+        }
         let z0 = g.nodes[self.from as usize].z;
         let z1 = g.nodes[next as usize].z;
         if d <= step {
@@ -405,6 +424,18 @@ impl Pedestrian {
             }
         }
     }
+}
+
+/// Whether a vehicle keeping its speed and heading comes within 1 m of `p` in the next `horizon_s` seconds.
+fn sweeps_over(v: &ActorView, p: Vec2, horizon_s: f32) -> bool {
+    let dir = Vec2::from_angle(v.yaw);
+    let rel = p - v.position;
+    let along = rel.dot(dir);
+    let across = dir.perp_dot(rel).abs();
+    let margin = 1.0;
+    across < v.half_width_m + margin
+        && along > -(v.half_length_m + margin)
+        && along < v.half_length_m + margin + v.speed_mps * horizon_s
 }
 
 fn seg_dist(p: Vec2, a: Vec2, b: Vec2) -> f32 {

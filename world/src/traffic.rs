@@ -80,8 +80,10 @@ pub struct TrafficStats {
     pub npc_red_runs: u64,
     /// Contacts started between two NPC vehicles.
     pub npc_npc_collisions: u64,
-    /// Contacts started between an NPC vehicle and a pedestrian.
+    /// Contacts started by an NPC vehicle driving into a pedestrian.
     pub npc_pedestrian_collisions: u64,
+    /// Contacts started by a pedestrian walking into a vehicle (NPC or ego).
+    pub pedestrian_vehicle_bumps: u64,
     /// Contacts started between an NPC vehicle and a static collider.
     pub npc_static_collisions: u64,
     /// Times an NPC had been stopped for more than 60 s.
@@ -705,38 +707,20 @@ impl Traffic {
             if !ev.started {
                 continue;
             }
-            if let (
-                Party::Actor {
-                    kind: ActorKind::Vehicle,
-                    ..
-                },
-                b,
-            ) = (ev.a, ev.b)
-            {
-                match b {
-                    Party::Actor {
-                        kind: ActorKind::Vehicle,
-                        ..
-                    } => self.stats.npc_npc_collisions += 1,
-                    Party::Actor {
-                        kind: ActorKind::Pedestrian,
-                        ..
-                    } => self.stats.npc_pedestrian_collisions += 1,
-                    Party::Static(_) => self.stats.npc_static_collisions += 1,
-                    _ => {}
+            let kind = |p: Party| match p {
+                Party::Actor { kind, .. } => Some(kind),
+                Party::Static(_) => None,
+            };
+            match (kind(ev.a), kind(ev.b)) {
+                (Some(ActorKind::Vehicle), Some(ActorKind::Vehicle)) => {
+                    self.stats.npc_npc_collisions += 1
                 }
-            } else if let (
-                Party::Actor {
-                    kind: ActorKind::Pedestrian,
-                    ..
-                },
-                Party::Actor {
-                    kind: ActorKind::Vehicle,
-                    ..
-                },
-            ) = (ev.a, ev.b)
-            {
-                self.stats.npc_pedestrian_collisions += 1;
+                (Some(ActorKind::Vehicle), Some(ActorKind::Pedestrian)) => {
+                    self.stats.npc_pedestrian_collisions += 1
+                }
+                (Some(ActorKind::Vehicle), None) => self.stats.npc_static_collisions += 1,
+                (Some(ActorKind::Pedestrian), Some(_)) => self.stats.pedestrian_vehicle_bumps += 1,
+                _ => {}
             }
         }
         self.stats.ticks += 1;
@@ -984,64 +968,5 @@ mod tests {
             a.kind == ActorKind::Vehicle && a.distance_m < 2.4 + 0.3,
             "{a:?}"
         );
-    }
-}
-
-#[cfg(test)]
-mod debug_tests {
-    use super::*;
-    use crate::testtown::{FixtureLights, grid};
-
-    #[test]
-    #[ignore]
-    fn debug_deadlocks() {
-        let t = Arc::new(grid(3, 3, 60.0));
-        let lights = FixtureLights::new(&t);
-        let mut tr = Traffic::new(
-            t.clone(),
-            TrafficConfig {
-                vehicles: 20,
-                pedestrians: 20,
-                seed: 7,
-                ..Default::default()
-            },
-            None,
-        );
-        let mut states = Vec::new();
-        for tick in 0..(40 * 120) {
-            lights.states_at(tick, &mut states);
-            tr.step(&states);
-            if tick % 400 == 399 || tick == 40 * 120 - 1 {
-                for n in &tr.npcs {
-                    if n.stopped_ticks > 800 {
-                        let vp = tr.cfg.vehicle;
-                        let ahead = {
-                            let mut pts = Vec::new();
-                            n.path.sample_ahead(&t, 1.0, 30.0, &mut pts);
-                            nearest_ahead(&pts, &tr.views, Some(n.id), 1.5, 30.0)
-                        };
-                        println!(
-                            "tick {tick} npc {} stopped {} lane {:?} (junction {:?}) s {:.1}/{:.1} pos {:?} res {:?} req {:?} holders {:?} jl {:?} stop {:?} ahead {:?} ctl {:?}",
-                            n.id,
-                            n.stopped_ticks,
-                            n.path.lane(),
-                            t.lanes[n.path.lane().0 as usize].junction,
-                            n.path.s_m,
-                            lane_len(&t, n.path.lane()),
-                            n.state.position,
-                            n.reservation,
-                            n.request,
-                            npc::next_junction_lane(&t, n, &vp)
-                                .map(|(l, _)| tr.reservations.holders(l).to_vec()),
-                            npc::next_junction_lane(&t, n, &vp),
-                            npc::next_stop_line(&t, &tr.rules, n, &vp, 50.0),
-                            ahead,
-                            n.control
-                        );
-                    }
-                }
-            }
-        }
-        println!("{:?}", tr.stats());
     }
 }
