@@ -147,9 +147,16 @@ pub fn run(args: TrafficArgs) -> Result<()> {
             println!("NPC respawns            {}", r.stats.respawns);
             println!("step wall time          {:.2} s", r.step_wall_s);
             println!(
-                "ticks/s                 {:.0} (physics + behaviours, one thread)",
+                "ticks/s                 {:.0} per wall second of stepping (physics + behaviours, one thread)",
                 r.ticks_per_s
             );
+            if let Some(cpu) = r.cpu_s.filter(|&c| c > 0.0) {
+                println!(
+                    "ticks per CPU second    {:.0} ({:.2} s of CPU for the soak loop; differs from wall when cores are shared)",
+                    r.ticks as f64 / cpu,
+                    cpu
+                );
+            }
         }
         TrafficCommand::Table(a) => {
             let town = Arc::new(load_town(&a.town)?);

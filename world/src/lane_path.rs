@@ -154,8 +154,13 @@ impl LanePath {
         let n = (len_m / step_m).ceil() as usize;
         let mut lane_k = 0usize;
         let mut s = self.s_m;
-        let mut lane = self.lanes[0];
-        let mut len = lane_len(town, lane);
+        let mut l = &town.lanes[self.lanes[0].0 as usize];
+        let mut len = *l.s.last().unwrap_or(&0.0);
+        // Walk the centreline points forward instead of searching for each sample.
+        let mut j =
+            l.s.partition_point(|&x| x <= s)
+                .saturating_sub(1)
+                .min(l.s.len().saturating_sub(2));
         for i in 0..=n {
             if i > 0 {
                 s += step_m;
@@ -163,13 +168,23 @@ impl LanePath {
             while s > len && lane_k + 1 < self.lanes.len() {
                 s -= len;
                 lane_k += 1;
-                lane = self.lanes[lane_k];
-                len = lane_len(town, lane);
+                l = &town.lanes[self.lanes[lane_k].0 as usize];
+                len = *l.s.last().unwrap_or(&0.0);
+                j = 0;
             }
-            if s > len {
+            if s > len || l.s.len() < 2 {
                 break;
             }
-            out.push(lane_point(town, lane, s).0);
+            while j + 2 < l.s.len() && l.s[j + 1] < s {
+                j += 1;
+            }
+            let seg = (l.s[j + 1] - l.s[j]).max(1e-6);
+            let t = ((s - l.s[j]) / seg).clamp(0.0, 1.0);
+            out.push(
+                l.centerline[j]
+                    .truncate()
+                    .lerp(l.centerline[j + 1].truncate(), t),
+            );
         }
     }
 }
@@ -302,6 +317,21 @@ mod tests {
         assert!((total - (len0 + 2.0)).abs() < 0.05, "{total}");
         assert_eq!(p.lane(), next);
         assert!((p.s_m - 2.0).abs() < 0.05, "{}", p.s_m);
+    }
+
+    #[test]
+    fn sampling_matches_point_lookup() {
+        let t = grid(3, 3, 60.0);
+        let mut p = LanePath::new(LaneIdx(0), 3.3);
+        let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(1);
+        crate::npc::extend_path(&t, &mut p, &mut rng, 120.0);
+        let mut pts = Vec::new();
+        p.sample_ahead(&t, 1.0, 100.0, &mut pts);
+        assert_eq!(pts.len(), 101);
+        for (i, q) in pts.iter().enumerate() {
+            let (r, _, _) = p.point_ahead(&t, i as f32);
+            assert!((*q - r).length() < 1e-3, "sample {i}: {q} vs {r}");
+        }
     }
 
     #[test]

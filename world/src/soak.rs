@@ -29,6 +29,8 @@ pub struct SoakReport {
     pub step_wall_s: f64,
     /// Ticks per wall second of `Traffic::step` (physics + behaviours).
     pub ticks_per_s: f64,
+    /// CPU time of the stepping thread over the run (seconds; Linux only, None elsewhere).
+    pub cpu_s: Option<f64>,
     /// The counters (collisions, red runs, deadlocks, respawns).
     pub stats: TrafficStats,
 }
@@ -44,12 +46,14 @@ pub fn soak(
     let ticks = (minutes * 60.0 / crate::physics::DT_S as f64).round() as u64;
     let mut states = Vec::new();
     let mut wall = 0.0f64;
+    let cpu0 = thread_cpu_s();
     for tick in 0..ticks {
         lights(tick, &mut states);
         let t0 = Instant::now();
         traffic.step(&states);
         wall += t0.elapsed().as_secs_f64();
     }
+    let cpu_s = thread_cpu_s().zip(cpu0).map(|(b, a)| b - a);
     SoakReport {
         vehicles: (cfg.vehicles, traffic.realised_vehicles()),
         pedestrians: (cfg.pedestrians, traffic.realised_pedestrians()),
@@ -58,8 +62,16 @@ pub fn soak(
         sim_s: ticks as f64 * crate::physics::DT_S as f64,
         step_wall_s: wall,
         ticks_per_s: if wall > 0.0 { ticks as f64 / wall } else { 0.0 },
+        cpu_s,
         stats: traffic.stats(),
     }
+}
+
+/// CPU time this thread has run (seconds), from Linux's `/proc/thread-self/schedstat`.
+fn thread_cpu_s() -> Option<f64> {
+    let text = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
+    let ns: f64 = text.split_whitespace().next()?.parse().ok()?;
+    Some(ns * 1e-9)
 }
 
 /// A mean and a (sample) standard deviation.
