@@ -307,6 +307,10 @@ pub struct Pedestrian {
     pub wait_ticks: u32,
     /// Consecutive ticks its walk was blocked by a vehicle.
     pub blocked_ticks: u32,
+    /// Crosswalks it has walked over.
+    pub crosswalk_legs: u32,
+    /// Times it has crossed the road between crosswalks.
+    pub jaywalk_legs: u32,
     /// Its own random stream.
     pub rng: ChaCha8Rng,
 }
@@ -396,6 +400,15 @@ impl Pedestrian {
         if let Some(&next) = self.route.first()
             && (g.nodes[next as usize].position - position).length() < 1e-3
         {
+            match g.edges[self.from as usize]
+                .iter()
+                .find(|e| e.0 == next)
+                .map(|e| e.2)
+            {
+                Some(EdgeKind::Crosswalk) => self.crosswalk_legs += 1,
+                Some(EdgeKind::Jaywalk) => self.jaywalk_legs += 1,
+                _ => {}
+            }
             self.from = next;
             self.route.remove(0);
         }
@@ -418,10 +431,6 @@ impl Pedestrian {
             } else {
                 Vec::new()
             };
-            if let Some(&n) = self.route.first() {
-                // Walking back: the leg ends at `from`; remember the far end as where it came from.
-                let _ = n;
-            }
         }
     }
 }
@@ -505,6 +514,8 @@ mod tests {
             route,
             wait_ticks: 0,
             blocked_ticks: 0,
+            crosswalk_legs: 0,
+            jaywalk_legs: 0,
             rng,
         };
         let pp = PedestrianParams { regoal_p: 0.0, ..p };

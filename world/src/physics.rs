@@ -102,6 +102,22 @@ impl Party {
     }
 }
 
+/// What an actor touched: the party, and the collider when it is static.
+#[derive(Debug, Clone, Copy)]
+struct Touch {
+    party: Party,
+    collider: Option<ColliderHandle>,
+}
+
+impl Touch {
+    fn key(&self) -> (u8, u32) {
+        match self.collider {
+            Some(h) => (1, h.into_raw_parts().0),
+            None => self.party.key(),
+        }
+    }
+}
+
 /// A contact found during a tick: `a` moved into `b`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ContactEvent {
@@ -162,8 +178,8 @@ pub struct Physics {
     /// The rapier world: fixed colliders of the town and one kinematic body per actor.
     pub world: PhysicsWorld,
     bodies: Vec<Option<Body>>,
-    contacts: BTreeMap<(u32, (u8, u32)), Party>,
-    prev_contacts: BTreeMap<(u32, (u8, u32)), Party>,
+    contacts: BTreeMap<(u32, (u8, u32)), Touch>,
+    prev_contacts: BTreeMap<(u32, (u8, u32)), Touch>,
     events: Vec<ContactEvent>,
 }
 
@@ -228,6 +244,24 @@ impl Physics {
             prev_contacts: BTreeMap::new(),
             events: Vec::new(),
         }
+    }
+
+    /// Adds a static box (street furniture, a parked obstacle): centre on the ground, size (metres), yaw (radians).
+    pub fn add_static_box(
+        &mut self,
+        centre: Vec2,
+        ground_z: f32,
+        size: Vec3,
+        yaw: f32,
+        kind: StaticKind,
+    ) {
+        let half = size * 0.5;
+        let c = ColliderBuilder::cuboid(half.x, half.y, half.z)
+            .position(pose(centre, ground_z + half.z, yaw))
+            .user_data(kind.code());
+        self.world.colliders.insert(c);
+        // Refresh the broad phase so queries see it at once.
+        self.world.step();
     }
 
     fn new_body(&mut self, id: u32, body: Body) {
@@ -427,7 +461,7 @@ impl Physics {
         p: Vec2,
         yaw: f32,
         motion: Vec2,
-    ) -> Option<(f32, Vec2, Party)> {
+    ) -> Option<(f32, Vec2, Touch)> {
         let ps = pose(p, b.centre_z, yaw);
         let vel = motion.extend(0.0);
         let opts = ShapeCastOptions {
@@ -436,7 +470,7 @@ impl Physics {
             stop_at_penetration: false,
             compute_impact_geometry_on_penetration: true,
         };
-        let mut best: Option<(f32, Vec2, Party)> = None;
+        let mut best: Option<(f32, Vec2, Touch)> = None;
         if self.static_blocked(b) {
             let qp = self
                 .world
@@ -448,11 +482,11 @@ impl Physics {
                     .get(h)
                     .map_or(StaticKind::Curb, |c| StaticKind::from_code(c.user_data));
                 // normal1 is the hit collider's outward normal (world frame).
-                best = Some((
-                    hit.time_of_impact,
-                    -hit.normal1.truncate(),
-                    Party::Static(kind),
-                ));
+                let touch = Touch {
+                    party: Party::Static(kind),
+                    collider: Some(h),
+                };
+                best = Some((hit.time_of_impact, -hit.normal1.truncate(), touch));
             }
         }
         let reach = motion.length();
@@ -477,14 +511,14 @@ impl Physics {
             {
                 // normal1 is the mover's outward normal in its local frame.
                 let n = (ps.rotation * hit.normal1).truncate();
-                best = Some((
-                    hit.time_of_impact,
-                    n,
-                    Party::Actor {
+                let touch = Touch {
+                    party: Party::Actor {
                         id: j as u32,
                         kind: o.kind,
                     },
-                ));
+                    collider: None,
+                };
+                best = Some((hit.time_of_impact, n, touch));
             }
         }
         best
@@ -500,13 +534,13 @@ impl Physics {
                 hit: None,
             };
         };
-        let mut hit_party = None;
+        let mut hit: Option<Touch> = None;
         let mut yaw = b.yaw;
         if target_yaw != b.yaw {
             if self.touches_at(id, &b, b.position, target_yaw)
                 && !self.touches_at(id, &b, b.position, b.yaw)
             {
-                hit_party = Some(self.blocker(id, &b, b.position, target_yaw));
+                hit = Some(self.blocker(id, &b, b.position, target_yaw));
             } else {
                 yaw = target_yaw;
             }
@@ -527,11 +561,11 @@ impl Physics {
                         moved += motion.length();
                         break;
                     }
-                    Some((toi, n, party)) => {
+                    Some((toi, n, touch)) => {
                         let step = motion * toi;
                         p += step;
                         moved += step.length();
-                        hit_party = Some(party);
+                        hit = Some(touch);
                         let rest = motion - step;
                         let nn = n.normalize_or_zero();
                         motion = rest - nn * rest.dot(nn).max(0.0);
@@ -539,8 +573,8 @@ impl Physics {
                 }
             }
         }
-        if let Some(party) = hit_party {
-            self.contacts.insert((id, party.key()), party);
+        if let Some(t) = hit {
+            self.contacts.insert((id, t.key()), t);
         }
         let body = self.bodies[id as usize].as_mut().expect("body exists");
         body.position = p;
@@ -553,11 +587,11 @@ impl Physics {
             } else {
                 1.0
             },
-            hit: hit_party,
+            hit: hit.map(|t| t.party),
         }
     }
 
-    fn blocker(&self, id: u32, b: &Body, p: Vec2, yaw: f32) -> Party {
+    fn blocker(&self, id: u32, b: &Body, p: Vec2, yaw: f32) -> Touch {
         let ps = pose(p, b.centre_z, yaw);
         for (j, o) in self.bodies.iter().enumerate() {
             let Some(o) = o else { continue };
@@ -568,20 +602,42 @@ impl Physics {
             if intersection_test(&ps, b.shape.shape(), &po, o.shape.shape())
                 .is_ok_and(|h| h.intersecting)
             {
-                return Party::Actor {
+                let party = Party::Actor {
                     id: j as u32,
                     kind: o.kind,
+                };
+                return Touch {
+                    party,
+                    collider: None,
                 };
             }
         }
         let qp = self
             .world
             .query_pipeline_with_filter(QueryFilter::only_fixed());
-        qp.intersect_shape(ps, b.shape.shape())
-            .next()
-            .map_or(Party::Static(StaticKind::Curb), |(_, c)| {
-                Party::Static(StaticKind::from_code(c.user_data))
-            })
+        let found = qp.intersect_shape(ps, b.shape.shape()).next();
+        Touch {
+            party: Party::Static(found.map_or(StaticKind::Curb, |(_, c)| {
+                StaticKind::from_code(c.user_data)
+            })),
+            collider: found.map(|(h, _)| h),
+        }
+    }
+
+    /// Distance from actor `id` to what it touched (metres).
+    fn touch_distance(&self, id: u32, t: &Touch) -> Option<f32> {
+        match (t.collider, t.party) {
+            (Some(h), _) => {
+                let b = self.body(id)?;
+                let c = self.world.colliders.get(h)?;
+                let ps = pose(b.position, b.centre_z, b.yaw);
+                rapier3d::parry::query::distance(&ps, b.shape.shape(), c.position(), c.shape())
+                    .ok()
+                    .map(|d| d.distance)
+            }
+            (None, Party::Actor { id: other, .. }) => self.distance(id, other),
+            (None, Party::Static(_)) => None,
+        }
     }
 
     /// Places an actor at a pose without sweeping (spawning, respawning); the caller checks it fits.
@@ -606,14 +662,28 @@ impl Physics {
         }
         self.world.step();
         self.events.clear();
-        for (&(id, key), &party) in &self.contacts {
+        for (&(id, key), t) in &self.contacts {
             let kind = self.body(id).map_or(ActorKind::Vehicle, |b| b.kind);
             self.events.push(ContactEvent {
                 a: Party::Actor { id, kind },
-                b: party,
+                b: t.party,
                 started: !self.prev_contacts.contains_key(&(id, key)),
             });
         }
+        // A pair stays in contact while the two stay within two skins of each other,
+        // even on ticks where neither pushed (so resting contact does not restart).
+        let keep: Vec<_> = self
+            .prev_contacts
+            .iter()
+            .filter(|(k, t)| {
+                !self.contacts.contains_key(k)
+                    && self
+                        .touch_distance(k.0, t)
+                        .is_some_and(|d| d <= 2.0 * SKIN_M)
+            })
+            .map(|(k, t)| (*k, *t))
+            .collect();
+        self.contacts.extend(keep);
         std::mem::swap(&mut self.prev_contacts, &mut self.contacts);
         self.contacts.clear();
         &self.events

@@ -282,6 +282,8 @@ impl Traffic {
                 route: Vec::new(),
                 wait_ticks: 0,
                 blocked_ticks: 0,
+                crosswalk_legs: 0,
+                jaywalk_legs: 0,
                 rng,
             });
         }
@@ -968,5 +970,77 @@ mod tests {
             a.kind == ActorKind::Vehicle && a.distance_m < 2.4 + 0.3,
             "{a:?}"
         );
+    }
+
+    #[test]
+    fn a_stuck_npc_is_respawned_after_40_ticks() {
+        let t = town();
+        let mut tr = Traffic::new(t.clone(), cfg(1, 0, 2), None);
+        // Put the NPC on lane 0 and a box it cannot see (not an actor) 8 m ahead of it.
+        let id = tr.npcs[0].id;
+        let start = Vec2::new(20.0, -1.75);
+        tr.npcs[0].state = VehicleState::at_rest(start, 0.0);
+        tr.npcs[0].path = LanePath::new(LaneIdx(0), 10.0);
+        let n = &mut tr.npcs[0];
+        npc::extend_path(&t, &mut n.path, &mut n.rng, 80.0);
+        tr.physics.teleport(id, start, 0.0);
+        tr.physics.add_static_box(
+            Vec2::new(30.0, -1.75),
+            0.0,
+            Vec3::new(1.0, 3.0, 1.0),
+            0.0,
+            crate::physics::StaticKind::Pole,
+        );
+        tr.refresh_views();
+        let green = vec![LightState::Green; t.lights.len()];
+        let mut hit_tick = None;
+        let mut respawn_tick = None;
+        for tick in 0..400u32 {
+            let ev = tr.step(&green).to_vec();
+            if hit_tick.is_none()
+                && ev
+                    .iter()
+                    .any(|e| e.started && matches!(e.b, Party::Static(_)))
+            {
+                hit_tick = Some(tick);
+            }
+            if tr.stats().respawns > 0 {
+                respawn_tick = Some(tick);
+                break;
+            }
+        }
+        let (h, r) = (
+            hit_tick.expect("hit the box"),
+            respawn_tick.expect("respawned"),
+        );
+        // Respawned once stuck for more than 40 ticks (it needs a few ticks to come to a stop).
+        assert!(r > h + 40 && r < h + 60, "hit at {h}, respawned at {r}");
+        assert!((tr.npcs[0].state.position - Vec2::new(27.0, -1.75)).length() > 3.0);
+        assert_eq!(tr.stats().npc_static_collisions, 1);
+    }
+
+    #[test]
+    fn the_cross_factor_decides_who_crosses_between_crosswalks() {
+        let t = town();
+        let legs = |cross: f32| {
+            let mut c = cfg(0, 40, 9);
+            c.pedestrian.cross_factor = cross;
+            let mut tr = Traffic::new(t.clone(), c, None);
+            let lights = vec![LightState::Red; t.lights.len()];
+            for _ in 0..(40 * 120) {
+                tr.step(&lights);
+            }
+            let cw: u32 = tr.pedestrians.iter().map(|p| p.crosswalk_legs).sum();
+            let jw: u32 = tr.pedestrians.iter().map(|p| p.jaywalk_legs).sum();
+            let jaywalkers = tr.pedestrians.iter().filter(|p| p.jaywalker).count();
+            assert!(tr.pedestrians.iter().all(|p| p.jaywalker == (cross >= 1.0)));
+            (cw, jw, jaywalkers)
+        };
+        let (cw0, jw0, j0) = legs(0.0);
+        assert!(cw0 > 5, "{cw0} crosswalk legs");
+        assert_eq!((jw0, j0), (0, 0));
+        let (_, jw1, j1) = legs(1.0);
+        assert!(j1 > 30, "{j1} jaywalkers");
+        assert!(jw1 > 5, "{jw1} jaywalk legs");
     }
 }
