@@ -1,4 +1,5 @@
-//! `mrdrive`: the command-line program. Each subcommand lives in `cli/`.
+//! `mrdrive`: the command-line program that wires the crates together. Each
+//! subcommand lives in `cli/`.
 
 mod cli;
 
@@ -19,6 +20,8 @@ enum Command {
     Map(cli::map::MapCommand),
     /// Plan routes over a map and print their dense lengths and commands.
     Routes(cli::routes::RoutesArgs),
+    /// NPC traffic: soak runs and Table I.
+    Traffic(cli::traffic::TrafficArgs),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -26,5 +29,6 @@ fn main() -> anyhow::Result<()> {
     match cli.command {
         Command::Map(c) => cli::map::run(c),
         Command::Routes(a) => cli::routes::run(a),
+        Command::Traffic(a) => cli::traffic::run(a),
     }
 }

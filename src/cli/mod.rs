@@ -1,4 +1,5 @@
-//! Subcommands of the `mrdrive` program.
+//! Subcommands of the `mrdrive` program, one file each.
 
 pub mod map;
 pub mod routes;
+pub mod traffic;

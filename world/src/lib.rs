@@ -12,17 +12,26 @@
 //! files are converted on reading (`y_xodr = -y`, `yaw_xodr = -yaw`).
 
 pub mod actor;
+pub mod ahead;
 pub mod command;
 pub mod error;
 pub mod generator;
 pub mod geometry;
 pub mod lane_graph;
+pub mod lane_path;
 pub mod map_render;
+pub mod npc;
+pub mod pedestrian;
+pub mod physics;
 pub mod planner;
 pub mod route;
+pub mod soak;
 pub mod testdata;
+pub mod testtown;
 pub mod town;
+pub mod traffic;
 pub mod traffic_light;
+pub mod vehicle;
 pub mod xodr_map;
 
 pub use actor::{ActorKind, ActorSnapshot};

@@ -1,0 +1,208 @@
+//! What is ahead along a path: the one definition the NPCs and the expert share.
+//!
+//! An actor is "ahead" when its footprint reaches into a corridor around the
+//! path (a polyline starting at the asking vehicle's reference point, points
+//! about 1 m apart) and lies in front of the path's start. Its distance is
+//! measured along the path to the near edge of its footprint.
+
+use crate::actor::ActorKind;
+use glam::Vec2;
+
+/// A moving actor as the behaviours see it at the start of a tick.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ActorView {
+    /// The actor's id (the ego is 0).
+    pub id: u32,
+    /// Ego, vehicle or pedestrian.
+    pub kind: ActorKind,
+    /// Centre of its footprint (metres, ground plane).
+    pub position: Vec2,
+    /// Heading (radians).
+    pub yaw: f32,
+    /// Speed along the heading (metres per second).
+    pub speed_mps: f32,
+    /// Half its length (metres).
+    pub half_length_m: f32,
+    /// Half its width (metres).
+    pub half_width_m: f32,
+}
+
+/// The nearest actor ahead along a path.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ahead {
+    /// The actor's id.
+    pub id: u32,
+    /// Its kind.
+    pub kind: ActorKind,
+    /// Path distance from the path's start to the near edge of its footprint (metres, >= 0).
+    pub distance_m: f32,
+    /// Its speed along the path's direction there (metres per second; negative when oncoming).
+    pub speed_along_mps: f32,
+}
+
+/// Chord length of the coarse pass (path points).
+const COARSE: usize = 5;
+
+/// Nearest actor (other than `exclude`) ahead along `path` within `max_m`, whose footprint comes within `corridor_half_m` of the path (metres).
+pub fn nearest_ahead(
+    path: &[Vec2],
+    actors: &[ActorView],
+    exclude: Option<u32>,
+    corridor_half_m: f32,
+    max_m: f32,
+) -> Option<Ahead> {
+    if path.len() < 2 {
+        return None;
+    }
+    let mut lo = Vec2::splat(f32::INFINITY);
+    let mut hi = Vec2::splat(f32::NEG_INFINITY);
+    for p in path {
+        lo = lo.min(*p);
+        hi = hi.max(*p);
+    }
+    let pad = corridor_half_m + 3.5;
+    lo -= Vec2::splat(pad);
+    hi += Vec2::splat(pad);
+    let mut best: Option<Ahead> = None;
+    let n = path.len();
+    for a in actors {
+        if Some(a.id) == exclude || a.position.cmplt(lo).any() || a.position.cmpgt(hi).any() {
+            continue;
+        }
+        let reach = corridor_half_m + a.half_length_m.max(a.half_width_m);
+        // Coarse pass over chords of COARSE segments (their sagitta is below 1 m on
+        // our lanes), then a fine pass around the first chord that comes near.
+        let mut k = 0;
+        while k + 1 < n {
+            let k2 = (k + COARSE).min(n - 1);
+            if seg_dist(a.position, path[k], path[k2]).0 > reach + 1.0 {
+                k = k2;
+                continue;
+            }
+            let lo = k.saturating_sub(COARSE);
+            let hi = (k2 + COARSE).min(n - 1);
+            let mut near: Option<(f32, usize, f32)> = None;
+            for i in lo..hi {
+                let (d, t) = seg_dist(a.position, path[i], path[i + 1]);
+                if near.is_none_or(|b| d < b.0) {
+                    near = Some((d, i, t));
+                }
+            }
+            k = hi;
+            let Some((d, i, t)) = near else { continue };
+            if d > reach {
+                continue;
+            }
+            let seg = path[i + 1] - path[i];
+            let seg_len = seg.length().max(1e-6);
+            let dir = seg / seg_len;
+            let rel = Vec2::from_angle(a.yaw);
+            let (c, s) = (rel.dot(dir).abs(), rel.perp_dot(dir).abs());
+            let lat_ext = s * a.half_length_m + c * a.half_width_m;
+            let long_ext = c * a.half_length_m + s * a.half_width_m;
+            let lateral = dir.perp_dot(a.position - path[i]).abs();
+            if lateral > corridor_half_m + lat_ext {
+                continue;
+            }
+            if i == 0 && t <= 0.0 && (a.position - path[0]).dot(dir) < 0.0 {
+                continue; // behind the start
+            }
+            let along = path_len_to(path, i) + t * seg_len;
+            let dist = (along - long_ext).max(0.0);
+            if dist > max_m {
+                continue;
+            }
+            if best.is_none_or(|b| dist < b.distance_m) {
+                best = Some(Ahead {
+                    id: a.id,
+                    kind: a.kind,
+                    distance_m: dist,
+                    speed_along_mps: a.speed_mps * rel.dot(dir),
+                });
+            }
+        }
+    }
+    best
+}
+
+fn path_len_to(path: &[Vec2], i: usize) -> f32 {
+    path[..=i].windows(2).map(|w| (w[1] - w[0]).length()).sum()
+}
+
+/// Distance from `p` to segment `a`-`b` and the parameter of the nearest point.
+fn seg_dist(p: Vec2, a: Vec2, b: Vec2) -> (f32, f32) {
+    let ab = b - a;
+    let t = ((p - a).dot(ab) / ab.length_squared().max(1e-12)).clamp(0.0, 1.0);
+    ((a + ab * t - p).length(), t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn car(id: u32, x: f32, y: f32, yaw: f32) -> ActorView {
+        ActorView {
+            id,
+            kind: ActorKind::Vehicle,
+            position: Vec2::new(x, y),
+            yaw,
+            speed_mps: 2.0,
+            half_length_m: 2.4,
+            half_width_m: 1.1,
+        }
+    }
+
+    #[test]
+    fn finds_the_nearest_actor_in_the_corridor() {
+        let path: Vec<Vec2> = (0..40).map(|i| Vec2::new(i as f32, 0.0)).collect();
+        let actors = [
+            car(1, 20.0, 0.3, 0.0),
+            car(2, 12.0, 3.6, 0.0), // next lane: outside the corridor
+            car(3, 30.0, 0.0, 0.0), // farther
+            car(4, -6.0, 0.0, 0.0), // behind
+            car(5, 15.0, 2.5, std::f32::consts::FRAC_PI_2), // crossing, nose in the corridor
+        ];
+        let a = nearest_ahead(&path, &actors, None, 1.2, 50.0).unwrap();
+        assert_eq!(a.id, 5);
+        assert!(
+            (a.distance_m - (15.0 - 1.1)).abs() < 0.05,
+            "{}",
+            a.distance_m
+        );
+        assert!(a.speed_along_mps.abs() < 1e-3);
+        let a = nearest_ahead(&path, &actors[..4], None, 1.2, 50.0).unwrap();
+        assert_eq!(a.id, 1);
+        assert!((a.distance_m - 17.6).abs() < 0.05);
+        assert!((a.speed_along_mps - 2.0).abs() < 1e-4);
+        assert!(nearest_ahead(&path, &actors[..4], Some(1), 1.2, 10.0).is_none());
+    }
+
+    #[test]
+    fn follows_a_curved_path() {
+        // Quarter circle of radius 10 m, points ~1 m apart.
+        let path: Vec<Vec2> = (0..=16)
+            .map(|i| Vec2::from_angle(i as f32 / 10.0) * 10.0)
+            .collect();
+        let on = Vec2::from_angle(1.2) * 10.0;
+        let actors = [ActorView {
+            id: 7,
+            kind: ActorKind::Pedestrian,
+            position: on,
+            yaw: 0.0,
+            speed_mps: 1.0,
+            half_length_m: 0.3,
+            half_width_m: 0.3,
+        }];
+        let a = nearest_ahead(&path, &actors, None, 1.0, 30.0).unwrap();
+        assert!(
+            (a.distance_m - (12.0 - 0.3)).abs() < 0.2,
+            "{}",
+            a.distance_m
+        );
+        let off = [ActorView {
+            position: on * 1.3,
+            ..actors[0]
+        }];
+        assert!(nearest_ahead(&path, &off, None, 1.0, 30.0).is_none());
+    }
+}

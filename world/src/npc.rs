@@ -1,0 +1,466 @@
+//! NPC vehicles: CARLA-autopilot-like drivers on the lane graph.
+//!
+//! Each NPC follows a [`LanePath`] through the lane graph, choosing a random
+//! successor (its own `ChaCha8Rng`) whenever the path ahead runs short, so a
+//! new random choice is made at each junction. Per tick it decides a
+//! [`VehicleControl`] for the shared vehicle model:
+//!
+//! - longitudinal: the Intelligent Driver Model toward the lane's speed limit
+//!   (lowered on curves to keep lateral acceleration below 2.5 m/s^2), with
+//!   obstacles at (a) the nearest actor in its corridor ahead
+//!   ([`crate::ahead::nearest_ahead`]), minimum gap 3.0 m, (b) the stop line
+//!   of a red light, or of a yellow one it can still stop for comfortably,
+//!   (c) the entry of a junction it holds no reservation for;
+//! - lateral: pure pursuit on the path, lookahead `max(4 m, 2 m + 1 s * v)`.
+//!
+//! Junction yielding: connecting lanes of one junction conflict when their
+//! centrelines come within 3 m of each other. Before entering a junction an
+//! NPC requests its connecting lane; [`Reservations`] grants requests in
+//! order of waiting time (then id) when no other vehicle holds a conflicting
+//! lane and the exit lane has room for it ("don't block the box"). The
+//! reservation is released once the vehicle has left the junction.
+
+use crate::ahead::{ActorView, nearest_ahead};
+use crate::lane_path::{LanePath, lane_len};
+use crate::town::{LaneIdx, LightIdx, LightState, Town};
+use crate::vehicle::{VehicleControl, VehicleParams, VehicleState};
+use glam::Vec2;
+use rand::RngExt;
+use rand_chacha::ChaCha8Rng;
+
+/// Parameters of the NPC driver.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NpcParams {
+    /// Minimum bumper-to-bumper gap to a leader at standstill (metres; PROTOCOL: 3.0).
+    pub min_gap_m: f32,
+    /// Desired time headway to a leader (seconds).
+    pub time_headway_s: f32,
+    /// IDM maximum acceleration (metres per second squared).
+    pub max_accel_mps2: f32,
+    /// IDM comfortable deceleration (metres per second squared); also the yellow-light decision.
+    pub comfort_decel_mps2: f32,
+    /// Standstill gap before a stop line or junction entry (metres).
+    pub stop_gap_m: f32,
+    /// Standstill gap to a pedestrian (metres).
+    pub pedestrian_gap_m: f32,
+    /// Largest lateral acceleration on curves (metres per second squared).
+    pub max_lateral_accel_mps2: f32,
+    /// Fraction of the speed limit driven (1.0 = at the limit).
+    pub speed_factor: f32,
+    /// Ticks stopped while wanting to move before a respawn (PROTOCOL: 40).
+    pub stuck_ticks: u32,
+    /// Extra half-width of the corridor in which actors count as ahead (metres).
+    pub corridor_margin_m: f32,
+}
+
+impl Default for NpcParams {
+    fn default() -> Self {
+        NpcParams {
+            min_gap_m: 3.0,
+            time_headway_s: 1.0,
+            max_accel_mps2: 2.0,
+            comfort_decel_mps2: 3.0,
+            stop_gap_m: 0.5,
+            pedestrian_gap_m: 4.0,
+            max_lateral_accel_mps2: 2.5,
+            speed_factor: 1.0,
+            stuck_ticks: 40,
+            corridor_margin_m: 0.4,
+        }
+    }
+}
+
+/// One NPC vehicle.
+#[derive(Debug, Clone)]
+pub struct Npc {
+    /// Actor id.
+    pub id: u32,
+    /// Pose, speed and actuators.
+    pub state: VehicleState,
+    /// Ground height (metres).
+    pub ground_z: f32,
+    /// Where it is on the lane graph and where it goes next.
+    pub path: LanePath,
+    /// The connecting lane it may enter, if granted.
+    pub reservation: Option<LaneIdx>,
+    /// The connecting lane it is asking for and the tick it started asking.
+    pub request: Option<(LaneIdx, u64)>,
+    /// Consecutive ticks stopped while its driver wants to move.
+    pub stuck_ticks: u32,
+    /// Consecutive ticks below 0.1 m/s for any reason.
+    pub stopped_ticks: u32,
+    /// The control decided this tick.
+    pub control: VehicleControl,
+    /// Paint index.
+    pub color: u8,
+    /// Its own random stream (route choices, respawns).
+    pub rng: ChaCha8Rng,
+}
+
+/// Static per-town data the NPC driver needs: stop lines per lane and junction conflicts.
+#[derive(Debug, Clone)]
+pub struct RoadRules {
+    /// For each lane, its stop lines: (arc length, light), sorted by arc length.
+    pub stop_lines: Vec<Vec<(f32, LightIdx)>>,
+    /// For each connecting lane, the connecting lanes of its junction it conflicts with.
+    pub conflicts: Vec<Vec<LaneIdx>>,
+}
+
+/// Distance between two centrelines below which connecting lanes conflict (metres).
+const CONFLICT_M: f32 = 3.0;
+
+impl RoadRules {
+    /// Builds the stop-line table and the junction conflict sets of a town.
+    pub fn new(town: &Town) -> RoadRules {
+        let mut stop_lines = vec![Vec::new(); town.lanes.len()];
+        for (li, l) in town.lights.iter().enumerate() {
+            for sl in &l.stop_lines {
+                if let Some(v) = stop_lines.get_mut(sl.lane.0 as usize) {
+                    v.push((sl.s, LightIdx(li as u32)));
+                }
+            }
+        }
+        for v in &mut stop_lines {
+            v.sort_by(|a: &(f32, LightIdx), b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        }
+        let mut conflicts = vec![Vec::new(); town.lanes.len()];
+        let mut by_junction: std::collections::BTreeMap<u32, Vec<usize>> = Default::default();
+        for (i, l) in town.lanes.iter().enumerate() {
+            if let Some(j) = l.junction {
+                by_junction.entry(j.0).or_default().push(i);
+            }
+        }
+        for lanes in by_junction.values() {
+            for (k, &a) in lanes.iter().enumerate() {
+                for &b in &lanes[k + 1..] {
+                    if centrelines_within(town, a, b, CONFLICT_M) {
+                        conflicts[a].push(LaneIdx(b as u32));
+                        conflicts[b].push(LaneIdx(a as u32));
+                    }
+                }
+            }
+        }
+        RoadRules {
+            stop_lines,
+            conflicts,
+        }
+    }
+}
+
+fn centrelines_within(town: &Town, a: usize, b: usize, d: f32) -> bool {
+    let (la, lb) = (&town.lanes[a].centerline, &town.lanes[b].centerline);
+    la.iter().any(|p| {
+        lb.iter()
+            .any(|q| (p.truncate() - q.truncate()).length_squared() < d * d)
+    })
+}
+
+/// Junction reservations: who holds which connecting lane.
+#[derive(Debug, Clone, Default)]
+pub struct Reservations {
+    holders: Vec<Vec<u32>>,
+}
+
+impl Reservations {
+    /// No reservations, for a town with `n_lanes` lanes.
+    pub fn new(n_lanes: usize) -> Reservations {
+        Reservations {
+            holders: vec![Vec::new(); n_lanes],
+        }
+    }
+
+    /// Whether `lane` can be granted to `id`: no other vehicle holds it or a conflicting lane.
+    /// (Several vehicles may hold the same lane: they follow each other.)
+    pub fn free_for(&self, rules: &RoadRules, lane: LaneIdx, id: u32) -> bool {
+        rules.conflicts[lane.0 as usize]
+            .iter()
+            .all(|c| self.holders[c.0 as usize].iter().all(|&h| h == id))
+    }
+
+    /// Records that `id` holds `lane`.
+    pub fn grant(&mut self, lane: LaneIdx, id: u32) {
+        let h = &mut self.holders[lane.0 as usize];
+        if !h.contains(&id) {
+            h.push(id);
+        }
+    }
+
+    /// Drops `id`'s hold on `lane`.
+    pub fn release(&mut self, lane: LaneIdx, id: u32) {
+        self.holders[lane.0 as usize].retain(|&h| h != id);
+    }
+
+    /// Who holds a lane.
+    pub fn holders(&self, lane: LaneIdx) -> &[u32] {
+        &self.holders[lane.0 as usize]
+    }
+}
+
+/// Where an actor is on the lane graph, for the box-blocking check: (lane, arc length of its rear).
+pub type LaneOccupant = (LaneIdx, f32);
+
+/// Makes sure the path reaches `ahead_m` beyond the position, choosing random successors.
+pub fn extend_path(town: &Town, path: &mut LanePath, rng: &mut ChaCha8Rng, ahead_m: f32) {
+    while path.remaining_m(town) < ahead_m {
+        let last = *path.lanes.back().expect("path has a lane");
+        let succ = &town.lanes[last.0 as usize].successors;
+        if succ.is_empty() {
+            return;
+        }
+        let k = if succ.len() == 1 {
+            0
+        } else {
+            rng.random_range(0..succ.len())
+        };
+        path.lanes.push_back(succ[k]);
+    }
+}
+
+/// What an NPC's driver decided this tick and why.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Decision {
+    /// The control to apply.
+    pub control: VehicleControl,
+    /// The acceleration asked of the vehicle (metres per second squared).
+    pub accel_mps2: f32,
+    /// The acceleration it would ask with nothing ahead (to tell "waiting" from "stuck").
+    pub free_accel_mps2: f32,
+}
+
+/// The junction lane an NPC must reserve next: (lane, path distance from its front bumper to the lane's entry).
+pub fn next_junction_lane(
+    town: &Town,
+    npc: &Npc,
+    params: &VehicleParams,
+) -> Option<(LaneIdx, f32)> {
+    let mut off = -npc.path.s_m;
+    for (k, &l) in npc.path.lanes.iter().enumerate() {
+        if town.lanes[l.0 as usize].junction.is_some() {
+            if k == 0 {
+                return None; // already inside
+            }
+            return Some((l, off - params.length_m * 0.5));
+        }
+        off += lane_len(town, l);
+        if off > 60.0 {
+            break;
+        }
+    }
+    None
+}
+
+/// The first stop line ahead of the front bumper: (path distance from the front bumper, light).
+pub fn next_stop_line(
+    town: &Town,
+    rules: &RoadRules,
+    npc: &Npc,
+    params: &VehicleParams,
+    max_m: f32,
+) -> Option<(f32, LightIdx)> {
+    let half = params.length_m * 0.5;
+    let mut off = -npc.path.s_m;
+    for &l in &npc.path.lanes {
+        for &(s, light) in &rules.stop_lines[l.0 as usize] {
+            let d = off + s - half;
+            if d > -0.3 && d < max_m {
+                return Some((d, light));
+            }
+        }
+        off += lane_len(town, l);
+        if off > max_m + half {
+            break;
+        }
+    }
+    None
+}
+
+fn idm_term(p: &NpcParams, v: f32, gap: f32, v_lead: f32, s0: f32) -> f32 {
+    let s_star = s0
+        + (v * p.time_headway_s
+            + v * (v - v_lead) / (2.0 * (p.max_accel_mps2 * p.comfort_decel_mps2).sqrt()))
+        .max(0.0);
+    let g = (gap - 0.0).max(0.05);
+    -p.max_accel_mps2 * (s_star / g) * (s_star / g)
+}
+
+/// Scratch buffers reused across ticks.
+#[derive(Debug, Default)]
+pub struct Scratch {
+    /// Path samples.
+    pub pts: Vec<Vec2>,
+}
+
+/// Decides one NPC's control for this tick. `granted` says whether it holds the reservation for its next junction lane.
+#[allow(clippy::too_many_arguments)]
+pub fn decide(
+    town: &Town,
+    rules: &RoadRules,
+    p: &NpcParams,
+    vp: &VehicleParams,
+    npc: &Npc,
+    actors: &[ActorView],
+    lights: &[LightState],
+    scratch: &mut Scratch,
+) -> Decision {
+    let v = npc.state.speed_mps;
+    let half = vp.length_m * 0.5;
+    let look = (v * v / (2.0 * p.comfort_decel_mps2) + v * 2.0 + 20.0).max(25.0);
+    npc.path
+        .sample_ahead(town, 1.0, look + half, &mut scratch.pts);
+
+    // Desired speed: the limit, lowered on curves ahead.
+    let limit = town.lanes[npc.path.lane().0 as usize].speed_limit_mps * p.speed_factor;
+    let mut v0 = limit.max(0.1);
+    let pts = &scratch.pts;
+    let horizon = pts.len().min(((v * 2.5) as usize).max(8) + 3);
+    for i in 1..horizon.saturating_sub(1) {
+        let (a, b, c) = (pts[i - 1], pts[i], pts[i + 1]);
+        let k = curvature(a, b, c);
+        if k > 1e-3 {
+            let vc = (p.max_lateral_accel_mps2 / k).sqrt();
+            // Allow braking toward the curve at the comfortable rate.
+            let d = (i as f32 - half).max(0.0);
+            v0 = v0.min((vc * vc + 2.0 * p.comfort_decel_mps2 * d).sqrt());
+        }
+    }
+    let free = p.max_accel_mps2 * (1.0 - (v / v0).powi(4));
+    let mut accel = free;
+
+    // Actors ahead.
+    let corridor = vp.width_m * 0.5 + p.corridor_margin_m;
+    if let Some(a) = nearest_ahead(pts, actors, Some(npc.id), corridor, look + half) {
+        let gap = a.distance_m - half;
+        let s0 = if a.kind == crate::actor::ActorKind::Pedestrian {
+            p.pedestrian_gap_m
+        } else {
+            p.min_gap_m
+        };
+        accel = accel.min(free + idm_term(p, v, gap, a.speed_along_mps.max(0.0), s0));
+    }
+    // Lights.
+    if let Some((d, light)) = next_stop_line(town, rules, npc, vp, look) {
+        let st = lights
+            .get(light.0 as usize)
+            .copied()
+            .unwrap_or(LightState::Green);
+        let stop = match st {
+            LightState::Red => true,
+            LightState::Yellow => d > v * v / (2.0 * p.comfort_decel_mps2) - 0.5,
+            LightState::Green => false,
+        };
+        if stop {
+            accel = accel.min(free + idm_term(p, v, d, 0.0, p.stop_gap_m));
+        }
+    }
+    // Junction entry without a reservation.
+    if let Some((lane, d)) = next_junction_lane(town, npc, vp)
+        && npc.reservation != Some(lane)
+        && d > -0.5
+    {
+        accel = accel.min(free + idm_term(p, v, d, 0.0, p.stop_gap_m));
+    }
+    accel = accel.clamp(-vp.brake_decel_mps2, p.max_accel_mps2);
+
+    // Pure pursuit.
+    let ld = (2.0 + v).max(4.0);
+    let (target, _, _) = npc.path.point_ahead(town, ld);
+    let to = target - npc.state.position;
+    let alpha = to.y.atan2(to.x) - npc.state.yaw;
+    let dist = to.length().max(0.5);
+    let kappa = 2.0 * alpha.sin() / dist;
+    let steer = vp.steer_for_curvature(kappa);
+    let (throttle, brake) = if v < 0.05 && accel <= 0.0 {
+        (0.0, 1.0)
+    } else {
+        vp.pedals_for_accel(accel, v)
+    };
+    Decision {
+        control: VehicleControl {
+            steer,
+            throttle,
+            brake,
+        },
+        accel_mps2: accel,
+        free_accel_mps2: free,
+    }
+}
+
+/// Curvature of the circle through three points (1 / metres, unsigned).
+fn curvature(a: Vec2, b: Vec2, c: Vec2) -> f32 {
+    let ab = (b - a).length();
+    let bc = (c - b).length();
+    let ca = (a - c).length();
+    let cross = (b - a).perp_dot(c - a).abs();
+    if ab * bc * ca < 1e-9 {
+        0.0
+    } else {
+        2.0 * cross / (ab * bc * ca)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testtown::grid;
+
+    #[test]
+    fn crossing_connecting_lanes_conflict_and_parallel_right_turns_do_not() {
+        let t = grid(3, 3, 60.0);
+        let rules = RoadRules::new(&t);
+        // In the centre junction (index 4), find a straight east-bound lane and a
+        // straight north-bound lane: they cross.
+        let dir = |l: &crate::town::DriveLane| {
+            let a = l.centerline[0].truncate();
+            let b = l.centerline.last().unwrap().truncate();
+            (b - a).normalize()
+        };
+        let jl: Vec<usize> = (0..t.lanes.len())
+            .filter(|&i| t.lanes[i].junction == Some(crate::town::JunctionIdx(4)))
+            .collect();
+        assert_eq!(jl.len(), 12);
+        let east = *jl.iter().find(|&&i| dir(&t.lanes[i]).x > 0.99).unwrap();
+        let north = *jl.iter().find(|&&i| dir(&t.lanes[i]).y > 0.99).unwrap();
+        assert!(rules.conflicts[east].contains(&LaneIdx(north as u32)));
+        // Two right turns from opposite approaches never come close.
+        let rights: Vec<usize> = jl
+            .iter()
+            .copied()
+            .filter(|&i| {
+                let l = &t.lanes[i];
+                let d0 = (l.centerline[1] - l.centerline[0]).truncate();
+                let n = l.centerline.len();
+                let d1 = (l.centerline[n - 1] - l.centerline[n - 2]).truncate();
+                d0.perp_dot(d1) < -0.5 * d0.length() * d1.length()
+            })
+            .collect();
+        assert_eq!(rights.len(), 4);
+        let conflicts_among_rights = rights
+            .iter()
+            .filter(|&&a| {
+                rights
+                    .iter()
+                    .any(|&b| rules.conflicts[a].contains(&LaneIdx(b as u32)))
+            })
+            .count();
+        assert_eq!(conflicts_among_rights, 0);
+        // Stop lines are indexed by lane.
+        let sl = &t.lights[0].stop_lines[0];
+        assert_eq!(rules.stop_lines[sl.lane.0 as usize][0].0, sl.s);
+    }
+
+    #[test]
+    fn reservations_block_conflicts_only() {
+        let t = grid(3, 3, 60.0);
+        let rules = RoadRules::new(&t);
+        let mut r = Reservations::new(t.lanes.len());
+        let a = (0..t.lanes.len())
+            .find(|&i| !rules.conflicts[i].is_empty())
+            .unwrap();
+        let b = rules.conflicts[a][0];
+        r.grant(LaneIdx(a as u32), 1);
+        assert!(!r.free_for(&rules, b, 2));
+        assert!(r.free_for(&rules, LaneIdx(a as u32), 2));
+        r.release(LaneIdx(a as u32), 1);
+        assert!(r.free_for(&rules, b, 2));
+    }
+}

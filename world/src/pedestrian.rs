@@ -1,0 +1,530 @@
+//! Pedestrians: walkers on a graph of sidewalks and crossings.
+//!
+//! The [`WalkGraph`] has nodes about 3 m apart along each sidewalk's middle
+//! line, edges between neighbours, links between sidewalk ends that meet at a
+//! corner (within `corner_link_m`), an edge across each crosswalk (its two
+//! ends join the nearest sidewalk nodes) and "jaywalk" edges straight across
+//! the road between facing sidewalks. A walker heads for a random goal node
+//! (a bounded Dijkstra from where it is; a new goal with probability
+//! `regoal_p` per tick, PROTOCOL §2: 0.02) at its own speed (uniform in
+//! 1.2-1.8 m/s). Only jaywalkers (a share `cross_factor` of the walkers, like
+//! CARLA's `set_pedestrians_cross_factor`) use jaywalk edges. Before stepping
+//! onto a crossing or jaywalk edge a walker waits while a vehicle moving
+//! faster than 0.5 m/s is within `wait_vehicle_m` of the crossing (or
+//! `wait_time_gap_s` seconds at its speed) or any
+//! vehicle stands on it, for at most `max_wait_s`, then goes anyway. On the
+//! road it stops rather than step into the next 1.5 s of a moving vehicle's
+//! path; a walker held up by a vehicle for half a second turns back.
+
+use crate::actor::ActorKind;
+use crate::ahead::ActorView;
+use crate::town::Town;
+use glam::Vec2;
+use rand::RngExt;
+use rand_chacha::ChaCha8Rng;
+use std::cmp::Ordering;
+use std::collections::BinaryHeap;
+
+/// Parameters of the walkers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PedestrianParams {
+    /// Slowest walking speed (metres per second).
+    pub min_speed_mps: f32,
+    /// Fastest walking speed (metres per second).
+    pub max_speed_mps: f32,
+    /// Probability per tick of choosing a new goal.
+    pub regoal_p: f32,
+    /// Share of walkers that also cross the road between crosswalks (0..=1).
+    pub cross_factor: f32,
+    /// Distance within which sidewalk ends are joined at corners (metres).
+    pub corner_link_m: f32,
+    /// A walker waits to cross while a moving vehicle is this close to the crossing (metres).
+    pub wait_vehicle_m: f32,
+    /// ... or would reach it within this many seconds at its speed (seconds).
+    pub wait_time_gap_s: f32,
+    /// Longest wait before crossing anyway (seconds).
+    pub max_wait_s: f32,
+    /// A spawn spot is refused when a vehicle or walker is this close (metres).
+    pub spawn_clearance_m: f32,
+}
+
+impl Default for PedestrianParams {
+    fn default() -> Self {
+        PedestrianParams {
+            min_speed_mps: 1.2,
+            max_speed_mps: 1.8,
+            regoal_p: 0.02,
+            cross_factor: 0.1,
+            corner_link_m: 8.0,
+            wait_vehicle_m: 12.0,
+            wait_time_gap_s: 4.0,
+            max_wait_s: 10.0,
+            spawn_clearance_m: 0.5,
+        }
+    }
+}
+
+/// How a walk edge is walked.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EdgeKind {
+    /// Along a sidewalk or round a corner.
+    Sidewalk,
+    /// Over a crosswalk.
+    Crosswalk,
+    /// Straight over the road (jaywalkers only).
+    Jaywalk,
+}
+
+/// A node of the walk graph.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WalkNode {
+    /// Position (metres, ground plane).
+    pub position: Vec2,
+    /// Height of the walking surface (metres).
+    pub z: f32,
+    /// The sidewalk it lies on.
+    pub sidewalk: u32,
+}
+
+/// Where pedestrians can walk.
+#[derive(Debug, Clone, Default)]
+pub struct WalkGraph {
+    /// The nodes.
+    pub nodes: Vec<WalkNode>,
+    /// Out-edges per node: (to, length in metres, kind).
+    pub edges: Vec<Vec<(u32, f32, EdgeKind)>>,
+}
+
+impl WalkGraph {
+    /// Builds the walk graph of a town (see the module docs).
+    pub fn new(town: &Town, params: &PedestrianParams) -> WalkGraph {
+        let mut g = WalkGraph::default();
+        let mut ends: Vec<(u32, u32)> = Vec::new(); // (node, sidewalk)
+        for (si, sw) in town.sidewalks.iter().enumerate() {
+            let n = sw.inner.len().min(sw.outer.len());
+            if n < 2 {
+                continue;
+            }
+            let mid = |i: usize| {
+                (
+                    (sw.inner[i] + sw.outer[i]) * 0.5,
+                    sw.inner[i].z + sw.height_m,
+                )
+            };
+            let first = g.nodes.len() as u32;
+            let mut last_kept = mid(0).0.truncate();
+            g.add_node(last_kept, mid(0).1, si as u32);
+            for i in 1..n {
+                let (p, z) = mid(i);
+                if (p.truncate() - last_kept).length() >= 3.0 || i == n - 1 {
+                    let prev = g.nodes.len() as u32 - 1;
+                    let id = g.add_node(p.truncate(), z, si as u32);
+                    g.link(prev, id, EdgeKind::Sidewalk);
+                    last_kept = p.truncate();
+                }
+            }
+            ends.push((first, si as u32));
+            ends.push((g.nodes.len() as u32 - 1, si as u32));
+        }
+        // Corners: join each sidewalk end to the nearest node of another sidewalk.
+        for &(e, si) in &ends {
+            let p = g.nodes[e as usize].position;
+            if let Some(j) = g.nearest(p, params.corner_link_m, |n| n.sidewalk != si) {
+                g.link(e, j, EdgeKind::Sidewalk);
+            }
+        }
+        // Crosswalks.
+        for cw in &town.crosswalks {
+            let c: Vec<Vec2> = cw.corners.iter().map(|p| p.truncate()).collect();
+            let m01 = (c[0] + c[1]) * 0.5;
+            let m23 = (c[2] + c[3]) * 0.5;
+            let m12 = (c[1] + c[2]) * 0.5;
+            let m30 = (c[3] + c[0]) * 0.5;
+            let (a, b) = if (m01 - m23).length() >= (m12 - m30).length() {
+                (m01, m23)
+            } else {
+                (m12, m30)
+            };
+            let na = g.nearest(a, 4.0, |_| true);
+            let nb = na
+                .and_then(|na| g.nearest(b, 4.0, |n| n.sidewalk != g.nodes[na as usize].sidewalk));
+            if let (Some(na), Some(nb)) = (na, nb) {
+                g.link(na, nb, EdgeKind::Crosswalk);
+            }
+        }
+        // Jaywalk edges from every second node to a facing sidewalk.
+        let count = g.nodes.len();
+        for i in (0..count).step_by(2) {
+            let n = g.nodes[i];
+            let dir = g.edges[i]
+                .iter()
+                .find(|e| e.2 == EdgeKind::Sidewalk && g.nodes[e.0 as usize].sidewalk == n.sidewalk)
+                .map(|e| (g.nodes[e.0 as usize].position - n.position).normalize_or_zero());
+            let Some(dir) = dir else { continue };
+            let mut best: Option<(f32, u32)> = None;
+            for (j, m) in g.nodes.iter().enumerate() {
+                if m.sidewalk == n.sidewalk {
+                    continue;
+                }
+                let d = m.position - n.position;
+                let len = d.length();
+                if !(5.0..=14.0).contains(&len) || (d / len).dot(dir).abs() > 0.3 {
+                    continue;
+                }
+                if best.is_none_or(|b| len < b.0) {
+                    best = Some((len, j as u32));
+                }
+            }
+            if let Some((_, j)) = best
+                && !g.edges[i].iter().any(|e| e.0 == j)
+            {
+                g.link(i as u32, j, EdgeKind::Jaywalk);
+            }
+        }
+        g
+    }
+
+    fn add_node(&mut self, position: Vec2, z: f32, sidewalk: u32) -> u32 {
+        self.nodes.push(WalkNode {
+            position,
+            z,
+            sidewalk,
+        });
+        self.edges.push(Vec::new());
+        self.nodes.len() as u32 - 1
+    }
+
+    fn link(&mut self, a: u32, b: u32, kind: EdgeKind) {
+        if a == b || self.edges[a as usize].iter().any(|e| e.0 == b) {
+            return;
+        }
+        let len = (self.nodes[a as usize].position - self.nodes[b as usize].position).length();
+        self.edges[a as usize].push((b, len, kind));
+        self.edges[b as usize].push((a, len, kind));
+    }
+
+    fn nearest(&self, p: Vec2, max_m: f32, ok: impl Fn(&WalkNode) -> bool) -> Option<u32> {
+        let mut best: Option<(f32, u32)> = None;
+        for (i, n) in self.nodes.iter().enumerate() {
+            let d = (n.position - p).length();
+            if d <= max_m && ok(n) && best.is_none_or(|b| d < b.0) {
+                best = Some((d, i as u32));
+            }
+        }
+        best.map(|b| b.1)
+    }
+
+    /// Counts of edges by kind: (sidewalk, crosswalk, jaywalk).
+    pub fn edge_counts(&self) -> (usize, usize, usize) {
+        let mut c = (0, 0, 0);
+        for e in self.edges.iter().flatten() {
+            match e.2 {
+                EdgeKind::Sidewalk => c.0 += 1,
+                EdgeKind::Crosswalk => c.1 += 1,
+                EdgeKind::Jaywalk => c.2 += 1,
+            }
+        }
+        (c.0 / 2, c.1 / 2, c.2 / 2)
+    }
+
+    /// A random goal within a bounded search from `start`, and the node path to it (excluding `start`).
+    pub fn random_route(&self, start: u32, jaywalker: bool, rng: &mut ChaCha8Rng) -> Vec<u32> {
+        const MAX_EXPAND: usize = 120;
+        let n = self.nodes.len();
+        let mut parent_of = vec![u32::MAX; n];
+        let mut done = vec![false; n];
+        let mut order: Vec<u32> = Vec::new(); // expansion order
+        let mut heap = BinaryHeap::new();
+        heap.push(QItem(0.0, start, u32::MAX));
+        while let Some(QItem(d, u, parent)) = heap.pop() {
+            if std::mem::replace(&mut done[u as usize], true) {
+                continue;
+            }
+            parent_of[u as usize] = parent;
+            order.push(u);
+            if order.len() >= MAX_EXPAND {
+                break;
+            }
+            for &(v, len, kind) in &self.edges[u as usize] {
+                if (kind != EdgeKind::Jaywalk || jaywalker) && !done[v as usize] {
+                    heap.push(QItem(d + len, v, u));
+                }
+            }
+        }
+        let prev = order;
+        if prev.len() < 2 {
+            return Vec::new();
+        }
+        let goal_k = rng.random_range(1..prev.len());
+        let mut route = vec![prev[goal_k]];
+        let mut parent = parent_of[prev[goal_k] as usize];
+        while parent != start && parent != u32::MAX {
+            route.push(parent);
+            parent = parent_of[parent as usize];
+        }
+        route.reverse();
+        route
+    }
+}
+
+#[derive(PartialEq)]
+struct QItem(f32, u32, u32);
+impl Eq for QItem {}
+impl PartialOrd for QItem {
+    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for QItem {
+    fn cmp(&self, o: &Self) -> Ordering {
+        // Min-heap on distance, ties by node id: deterministic.
+        o.0.total_cmp(&self.0).then(o.1.cmp(&self.1))
+    }
+}
+
+/// One pedestrian.
+#[derive(Debug, Clone)]
+pub struct Pedestrian {
+    /// Actor id.
+    pub id: u32,
+    /// Position (metres, ground plane).
+    pub position: Vec2,
+    /// Height of the ground under it (metres).
+    pub z: f32,
+    /// Heading (radians).
+    pub yaw: f32,
+    /// Its walking speed (metres per second).
+    pub speed_mps: f32,
+    /// Its current speed (metres per second; 0 while waiting or blocked).
+    pub current_speed_mps: f32,
+    /// Whether it also crosses between crosswalks.
+    pub jaywalker: bool,
+    /// The node it came from.
+    pub from: u32,
+    /// Nodes still to visit, next first.
+    pub route: Vec<u32>,
+    /// Ticks spent waiting at the current curb.
+    pub wait_ticks: u32,
+    /// Consecutive ticks its walk was blocked by a vehicle.
+    pub blocked_ticks: u32,
+    /// Crosswalks it has walked over.
+    pub crosswalk_legs: u32,
+    /// Times it has crossed the road between crosswalks.
+    pub jaywalk_legs: u32,
+    /// Its own random stream.
+    pub rng: ChaCha8Rng,
+}
+
+impl Pedestrian {
+    /// The position it wants to reach this tick (metres); may wait, re-plan or pick a new goal.
+    pub fn decide(
+        &mut self,
+        g: &WalkGraph,
+        p: &PedestrianParams,
+        vehicles: &[ActorView],
+        dt_s: f32,
+    ) -> (Vec2, f32) {
+        if self.rng.random::<f32>() < p.regoal_p || self.route.is_empty() {
+            let start = self.route.first().copied().unwrap_or(self.from);
+            let mut r = g.random_route(start, self.jaywalker, &mut self.rng);
+            if start != self.from {
+                r.insert(0, start);
+            }
+            self.route = r;
+        }
+        let Some(&next) = self.route.first() else {
+            return (self.position, self.z);
+        };
+        let target = g.nodes[next as usize].position;
+        // Is the leg to `next` a road crossing, and are we still at its start?
+        let kind = g.edges[self.from as usize]
+            .iter()
+            .find(|e| e.0 == next)
+            .map(|e| e.2);
+        let at_curb = (self.position - g.nodes[self.from as usize].position).length() < 0.05;
+        if matches!(kind, Some(EdgeKind::Crosswalk | EdgeKind::Jaywalk))
+            && at_curb
+            && (self.wait_ticks as f32 * dt_s) < p.max_wait_s
+        {
+            let a = self.position;
+            let busy = vehicles.iter().any(|v| {
+                if v.kind == ActorKind::Pedestrian {
+                    return false;
+                }
+                let d = seg_dist(v.position, a, target);
+                // A moving vehicle nearby, or any vehicle standing on the crossing itself.
+                (v.speed_mps > 0.5 && d < p.wait_vehicle_m.max(v.speed_mps * p.wait_time_gap_s))
+                    || d < v.half_length_m + 1.0
+            });
+            if busy {
+                self.wait_ticks += 1;
+                return (self.position, self.z);
+            }
+        }
+        let to = target - self.position;
+        let d = to.length();
+        let step = self.speed_mps * dt_s;
+        // On the road: do not walk into the path of a moving vehicle.
+        if matches!(kind, Some(EdgeKind::Crosswalk | EdgeKind::Jaywalk)) && d > 1e-6 {
+            let ahead = self.position + to / d * (self.speed_mps * 1.0).min(d);
+            if vehicles.iter().any(|v| {
+                v.kind != ActorKind::Pedestrian && v.speed_mps > 0.3 && sweeps_over(v, ahead, 1.5)
+            }) {
+                return (self.position, self.z);
+            }
+        }
+        let z0 = g.nodes[self.from as usize].z;
+        let z1 = g.nodes[next as usize].z;
+        if d <= step {
+            (target, z1)
+        } else {
+            let np = self.position + to / d * step;
+            let total = (target - g.nodes[self.from as usize].position)
+                .length()
+                .max(1e-3);
+            let t = 1.0 - (d - step) / total;
+            (np, z0 + (z1 - z0) * t.clamp(0.0, 1.0))
+        }
+    }
+
+    /// Records where it got to; advances along its route when a node is reached.
+    pub fn arrive(&mut self, g: &WalkGraph, position: Vec2, z: f32, dt_s: f32) {
+        let moved = position - self.position;
+        self.current_speed_mps = moved.length() / dt_s;
+        if moved.length_squared() > 1e-8 {
+            self.yaw = moved.y.atan2(moved.x);
+            self.wait_ticks = 0;
+        }
+        self.position = position;
+        self.z = z;
+        if let Some(&next) = self.route.first()
+            && (g.nodes[next as usize].position - position).length() < 1e-3
+        {
+            match g.edges[self.from as usize]
+                .iter()
+                .find(|e| e.0 == next)
+                .map(|e| e.2)
+            {
+                Some(EdgeKind::Crosswalk) => self.crosswalk_legs += 1,
+                Some(EdgeKind::Jaywalk) => self.jaywalk_legs += 1,
+                _ => {}
+            }
+            self.from = next;
+            self.route.remove(0);
+        }
+    }
+}
+
+impl Pedestrian {
+    /// Counts a blocked step; after `patience` blocked ticks in a row it turns back to the node it came from.
+    pub fn note_blocked(&mut self, g: &WalkGraph, blocked: bool, patience: u32) {
+        if !blocked {
+            self.blocked_ticks = 0;
+            return;
+        }
+        self.blocked_ticks += 1;
+        if self.blocked_ticks > patience {
+            self.blocked_ticks = 0;
+            let back = g.nodes[self.from as usize].position;
+            self.route = if (back - self.position).length() > 1e-3 {
+                vec![self.from]
+            } else {
+                Vec::new()
+            };
+        }
+    }
+}
+
+/// Whether a vehicle keeping its speed and heading comes within 1 m of `p` in the next `horizon_s` seconds.
+fn sweeps_over(v: &ActorView, p: Vec2, horizon_s: f32) -> bool {
+    let dir = Vec2::from_angle(v.yaw);
+    let rel = p - v.position;
+    let along = rel.dot(dir);
+    let across = dir.perp_dot(rel).abs();
+    let margin = 1.0;
+    across < v.half_width_m + margin
+        && along > -(v.half_length_m + margin)
+        && along < v.half_length_m + margin + v.speed_mps * horizon_s
+}
+
+fn seg_dist(p: Vec2, a: Vec2, b: Vec2) -> f32 {
+    let ab = b - a;
+    let t = ((p - a).dot(ab) / ab.length_squared().max(1e-12)).clamp(0.0, 1.0);
+    (a + ab * t - p).length()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testtown::grid;
+    use rand::SeedableRng;
+
+    #[test]
+    fn walk_graph_joins_sidewalks_crosswalks_and_jaywalks() {
+        let t = grid(3, 3, 60.0);
+        let g = WalkGraph::new(&t, &PedestrianParams::default());
+        let (side, cross, jay) = g.edge_counts();
+        assert!(side > 100, "{side}");
+        assert_eq!(cross, t.crosswalks.len());
+        assert!(jay > 20, "{jay}");
+        // Connected without jaywalk edges: a flood fill reaches every node.
+        let mut seen = vec![false; g.nodes.len()];
+        let mut stack = vec![0u32];
+        while let Some(u) = stack.pop() {
+            if std::mem::replace(&mut seen[u as usize], true) {
+                continue;
+            }
+            for e in &g.edges[u as usize] {
+                if e.2 != EdgeKind::Jaywalk {
+                    stack.push(e.0);
+                }
+            }
+        }
+        assert!(seen.iter().all(|&s| s), "walk graph is not connected");
+    }
+
+    #[test]
+    fn walker_follows_its_route_at_its_speed() {
+        let t = grid(3, 3, 60.0);
+        let p = PedestrianParams::default();
+        let g = WalkGraph::new(&t, &p);
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let route = g.random_route(0, false, &mut rng);
+        assert!(!route.is_empty());
+        for w in std::iter::once(&0)
+            .chain(route.iter())
+            .collect::<Vec<_>>()
+            .windows(2)
+        {
+            let e = g.edges[*w[0] as usize]
+                .iter()
+                .find(|e| e.0 == *w[1])
+                .expect("route follows edges");
+            assert_ne!(e.2, EdgeKind::Jaywalk);
+        }
+        let mut ped = Pedestrian {
+            id: 1,
+            position: g.nodes[0].position,
+            z: g.nodes[0].z,
+            yaw: 0.0,
+            speed_mps: 1.5,
+            current_speed_mps: 0.0,
+            jaywalker: false,
+            from: 0,
+            route,
+            wait_ticks: 0,
+            blocked_ticks: 0,
+            crosswalk_legs: 0,
+            jaywalk_legs: 0,
+            rng,
+        };
+        let pp = PedestrianParams { regoal_p: 0.0, ..p };
+        let mut total = 0.0;
+        for _ in 0..40 {
+            let (np, z) = ped.decide(&g, &pp, &[], 0.025);
+            total += (np - ped.position).length();
+            ped.arrive(&g, np, z, 0.025);
+        }
+        assert!((total - 1.5).abs() < 1e-3, "{total}");
+    }
+}

@@ -1,0 +1,888 @@
+//! Contacts and collisions on rapier3d: static colliders for the town, swept kinematic actors.
+//!
+//! The town's static geometry is a rapier [`PhysicsWorld`] of fixed
+//! colliders: buildings (convex hulls of their footprints, extruded), traffic
+//! light poles (capsules) and curbs (a vertical wall along each sidewalk's
+//! road-side edge). Vehicles and pedestrians are kinematic, position-based
+//! bodies: their behaviour (the bicycle model, the walker) proposes a new pose
+//! each 40 Hz tick and [`Physics::move_actor`] realises as much of it as the
+//! world allows:
+//!
+//! 1. the new heading is taken if the turned shape at the old position
+//!    touches nothing;
+//! 2. the translation is swept (rapier's shape cast against the fixed
+//!    colliders, parry's `cast_shapes` against the other actors at their
+//!    current poses) and stops at the first contact, `SKIN_M` short of it;
+//! 3. the rest of the motion slides along the contact (its component into the
+//!    obstacle is dropped) and is swept again once.
+//!
+//! Actors move one after another in a fixed order, each against the others'
+//! already updated poses, so no actor ever ends a tick inside another body or
+//! a static collider, and the same inputs give the same poses bit for bit.
+//! Separating motion is never blocked, so a car that hit something can drive
+//! away by steering. Every blocked sweep is a contact; [`Physics::end_tick`]
+//! turns the tick's contacts into [`ContactEvent`]s that name both parties.
+//! After the moves the kinematic bodies get their new poses and the rapier
+//! pipeline steps (dt = 1/40 s), so rapier's broad phase and query pipeline
+//! ([`Physics::world`]) always reflect the current scene for ray and shape casts.
+//!
+//! Pedestrians do not collide with pedestrians, curbs or buildings (they
+//! walk on sidewalks and step off them at crossings); they do collide with
+//! vehicles, both ways.
+
+use crate::actor::ActorKind;
+use crate::town::Town;
+use glam::{Quat, Vec2, Vec3};
+use rapier3d::parry::query::{ShapeCastOptions, cast_shapes, intersection_test};
+use rapier3d::parry::shape::{Capsule, Cuboid, Shape};
+use rapier3d::prelude::*;
+use std::collections::BTreeMap;
+
+/// The fixed simulation step (seconds): 40 Hz.
+pub const DT_S: f32 = 0.025;
+/// Gap left between bodies when a sweep stops at a contact (metres).
+pub const SKIN_M: f32 = 0.02;
+/// Ground clearance of a vehicle's collision box (metres): low enough that curbs stop it.
+pub const VEHICLE_CLEARANCE_M: f32 = 0.02;
+/// Radius of a pedestrian's capsule (metres).
+pub const PEDESTRIAN_RADIUS_M: f32 = 0.3;
+/// Height of a pedestrian (metres).
+pub const PEDESTRIAN_HEIGHT_M: f32 = 1.8;
+
+/// What a static collider is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum StaticKind {
+    /// A building.
+    Building,
+    /// A pole (a traffic light's).
+    Pole,
+    /// A curb along a sidewalk.
+    Curb,
+}
+
+impl StaticKind {
+    fn code(self) -> u128 {
+        match self {
+            StaticKind::Building => 1,
+            StaticKind::Pole => 2,
+            StaticKind::Curb => 3,
+        }
+    }
+
+    fn from_code(c: u128) -> StaticKind {
+        match c {
+            1 => StaticKind::Building,
+            2 => StaticKind::Pole,
+            _ => StaticKind::Curb,
+        }
+    }
+}
+
+/// One side of a contact: an actor (by id and kind) or a piece of the static world.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Party {
+    /// A moving actor.
+    Actor {
+        /// The actor's id (the ego is 0).
+        id: u32,
+        /// Ego, vehicle or pedestrian.
+        kind: ActorKind,
+    },
+    /// A static collider.
+    Static(StaticKind),
+}
+
+impl Party {
+    /// A key that orders parties: actors by id, then statics by kind.
+    fn key(&self) -> (u8, u32) {
+        match self {
+            Party::Actor { id, .. } => (0, *id),
+            Party::Static(k) => (1, k.code() as u32),
+        }
+    }
+}
+
+/// What an actor touched: the party, and the collider when it is static.
+#[derive(Debug, Clone, Copy)]
+struct Touch {
+    party: Party,
+    collider: Option<ColliderHandle>,
+}
+
+impl Touch {
+    fn key(&self) -> (u8, u32) {
+        match self.collider {
+            Some(h) => (1, h.into_raw_parts().0),
+            None => self.party.key(),
+        }
+    }
+}
+
+/// A contact found during a tick: `a` moved into `b`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ContactEvent {
+    /// The actor whose motion was blocked.
+    pub a: Party,
+    /// What it touched.
+    pub b: Party,
+    /// True when this pair was not in contact on the previous tick.
+    pub started: bool,
+}
+
+/// What became of one requested move.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MoveOutcome {
+    /// Where the actor ended up (ground plane, metres).
+    pub position: Vec2,
+    /// Its heading (radians).
+    pub yaw: f32,
+    /// Distance realised along the requested motion over the distance requested (0..=1; 1 when no motion was asked).
+    pub fraction: f32,
+    /// What blocked the motion, if anything.
+    pub hit: Option<Party>,
+}
+
+#[derive(Debug, Clone)]
+struct Body {
+    kind: ActorKind,
+    shape: ShapeKind,
+    centre_z: f32,
+    ground_z: f32,
+    position: Vec2,
+    yaw: f32,
+    radius: f32,
+    handle: RigidBodyHandle,
+}
+
+#[derive(Debug, Clone, Copy)]
+enum ShapeKind {
+    Box(Cuboid),
+    Capsule(Capsule),
+}
+
+impl ShapeKind {
+    fn shape(&self) -> &dyn Shape {
+        match self {
+            ShapeKind::Box(c) => c,
+            ShapeKind::Capsule(c) => c,
+        }
+    }
+}
+
+fn pose(p: Vec2, z: f32, yaw: f32) -> Pose {
+    Pose::from_parts(p.extend(z), Quat::from_rotation_z(yaw))
+}
+
+/// The rapier world plus the swept kinematic actors (see the module docs).
+pub struct Physics {
+    /// The rapier world: fixed colliders of the town and one kinematic body per actor.
+    pub world: PhysicsWorld,
+    bodies: Vec<Option<Body>>,
+    contacts: BTreeMap<(u32, (u8, u32)), Touch>,
+    prev_contacts: BTreeMap<(u32, (u8, u32)), Touch>,
+    events: Vec<ContactEvent>,
+}
+
+impl Physics {
+    /// A world with the town's static colliders (buildings, light poles, curbs) and no actors.
+    pub fn new(town: &Town) -> Physics {
+        let mut world = PhysicsWorld::new();
+        world.gravity = Vec3::new(0.0, 0.0, -9.81);
+        world.integration_parameters.dt = DT_S;
+        let ground_z = town
+            .lanes
+            .first()
+            .and_then(|l| l.centerline.first())
+            .map_or(0.0, |p| p.z);
+        let fixed = |kind: StaticKind| kind.code();
+        for b in &town.buildings {
+            if b.footprint.len() < 3 || !(b.height_m > 0.0) {
+                continue;
+            }
+            let mut pts = Vec::with_capacity(b.footprint.len() * 2);
+            for p in &b.footprint {
+                pts.push(p.extend(ground_z - 1.0));
+                pts.push(p.extend(ground_z + b.height_m));
+            }
+            if let Some(c) = ColliderBuilder::convex_hull(&pts) {
+                world
+                    .colliders
+                    .insert(c.user_data(fixed(StaticKind::Building)));
+            }
+        }
+        for l in &town.lights {
+            let half = (l.head_height_m + 0.5) * 0.5;
+            let c = ColliderBuilder::capsule_z(half, 0.15)
+                .translation(l.position + Vec3::new(0.0, 0.0, half))
+                .user_data(fixed(StaticKind::Pole));
+            world.colliders.insert(c);
+        }
+        for sw in &town.sidewalks {
+            if sw.inner.len() < 2 {
+                continue;
+            }
+            let mut v = Vec::with_capacity(sw.inner.len() * 2);
+            let mut idx = Vec::with_capacity(sw.inner.len() * 2);
+            for (i, p) in sw.inner.iter().enumerate() {
+                v.push(*p);
+                v.push(*p + Vec3::new(0.0, 0.0, sw.height_m.max(0.1)));
+                if i > 0 {
+                    let k = (2 * i) as u32;
+                    idx.push([k - 2, k - 1, k]);
+                    idx.push([k - 1, k + 1, k]);
+                }
+            }
+            if let Ok(c) = ColliderBuilder::trimesh(v, idx) {
+                world.colliders.insert(c.user_data(fixed(StaticKind::Curb)));
+            }
+        }
+        world.step();
+        Physics {
+            world,
+            bodies: Vec::new(),
+            contacts: BTreeMap::new(),
+            prev_contacts: BTreeMap::new(),
+            events: Vec::new(),
+        }
+    }
+
+    /// Adds a static box (street furniture, a parked obstacle): centre on the ground, size (metres), yaw (radians).
+    pub fn add_static_box(
+        &mut self,
+        centre: Vec2,
+        ground_z: f32,
+        size: Vec3,
+        yaw: f32,
+        kind: StaticKind,
+    ) {
+        let half = size * 0.5;
+        let c = ColliderBuilder::cuboid(half.x, half.y, half.z)
+            .position(pose(centre, ground_z + half.z, yaw))
+            .user_data(kind.code());
+        self.world.colliders.insert(c);
+        // Refresh the broad phase so queries see it at once.
+        self.world.step();
+    }
+
+    fn new_body(&mut self, id: u32, body: Body) {
+        let i = id as usize;
+        if self.bodies.len() <= i {
+            self.bodies.resize(i + 1, None);
+        }
+        if let Some(old) = self.bodies[i].take() {
+            self.world.remove_body_with_colliders(old.handle, true);
+        }
+        self.bodies[i] = Some(body);
+    }
+
+    fn insert_rapier(
+        &mut self,
+        p: Vec2,
+        z: f32,
+        yaw: f32,
+        collider: ColliderBuilder,
+    ) -> RigidBodyHandle {
+        // Actors take no part in rapier's own contact solving (they are
+        // moved by sweeps); they are in the world so its queries see them.
+        let groups = InteractionGroups::new(Group::GROUP_2, Group::NONE, InteractionTestMode::And);
+        let rb = RigidBodyBuilder::kinematic_position_based().pose(pose(p, z, yaw));
+        self.world.insert(rb, collider.collision_groups(groups)).0
+    }
+
+    /// Adds (or replaces) a vehicle body: a box of `size` (length, width, height, metres) standing on `ground_z`.
+    pub fn add_vehicle(
+        &mut self,
+        id: u32,
+        kind: ActorKind,
+        size: Vec3,
+        position: Vec2,
+        ground_z: f32,
+        yaw: f32,
+    ) {
+        let half = size * 0.5;
+        let centre_z = ground_z + VEHICLE_CLEARANCE_M + half.z;
+        let handle = self.insert_rapier(
+            position,
+            centre_z,
+            yaw,
+            ColliderBuilder::cuboid(half.x, half.y, half.z),
+        );
+        self.new_body(
+            id,
+            Body {
+                kind,
+                shape: ShapeKind::Box(Cuboid::new(half)),
+                centre_z,
+                ground_z,
+                position,
+                yaw,
+                radius: half.truncate().length(),
+                handle,
+            },
+        );
+    }
+
+    /// Adds (or replaces) a pedestrian body: an upright capsule standing on `ground_z`.
+    pub fn add_pedestrian(&mut self, id: u32, position: Vec2, ground_z: f32) {
+        let half_h = PEDESTRIAN_HEIGHT_M * 0.5 - PEDESTRIAN_RADIUS_M;
+        let centre_z = ground_z + PEDESTRIAN_HEIGHT_M * 0.5;
+        let handle = self.insert_rapier(
+            position,
+            centre_z,
+            0.0,
+            ColliderBuilder::capsule_z(half_h, PEDESTRIAN_RADIUS_M),
+        );
+        self.new_body(
+            id,
+            Body {
+                kind: ActorKind::Pedestrian,
+                shape: ShapeKind::Capsule(Capsule::new_z(half_h, PEDESTRIAN_RADIUS_M)),
+                centre_z,
+                ground_z,
+                position,
+                yaw: 0.0,
+                radius: PEDESTRIAN_RADIUS_M,
+                handle,
+            },
+        );
+    }
+
+    /// Removes an actor's body.
+    pub fn remove(&mut self, id: u32) {
+        if let Some(b) = self.bodies.get_mut(id as usize).and_then(Option::take) {
+            self.world.remove_body_with_colliders(b.handle, true);
+        }
+    }
+
+    /// Pose of an actor: (position, yaw) (metres, radians).
+    pub fn pose_of(&self, id: u32) -> Option<(Vec2, f32)> {
+        self.body(id).map(|b| (b.position, b.yaw))
+    }
+
+    fn body(&self, id: u32) -> Option<&Body> {
+        self.bodies.get(id as usize).and_then(Option::as_ref)
+    }
+
+    fn collides(&self, mover: &Body, other: &Body) -> bool {
+        let ped = |b: &Body| b.kind == ActorKind::Pedestrian;
+        !(ped(mover) && ped(other))
+    }
+
+    /// Whether a vehicle box of `size` (metres) at a pose fits: it touches no static collider, and no actor (other than `ignore`) comes within `actor_margin_m` of it.
+    pub fn vehicle_fits(
+        &self,
+        size: Vec3,
+        position: Vec2,
+        ground_z: f32,
+        yaw: f32,
+        actor_margin_m: f32,
+        ignore: Option<u32>,
+    ) -> bool {
+        let half = size * 0.5;
+        let shape = Cuboid::new(half);
+        let pz = ground_z + VEHICLE_CLEARANCE_M + half.z;
+        let ps = pose(position, pz, yaw);
+        let qp = self
+            .world
+            .query_pipeline_with_filter(QueryFilter::only_fixed());
+        if qp.intersect_shape(ps, &shape).next().is_some() {
+            return false;
+        }
+        let r = half.truncate().length() + actor_margin_m;
+        for (i, b) in self.bodies.iter().enumerate() {
+            let Some(b) = b else { continue };
+            if Some(i as u32) == ignore || (b.position - position).length() > r + b.radius {
+                continue;
+            }
+            let pb = pose(b.position, b.centre_z, b.yaw);
+            if rapier3d::parry::query::distance(&ps, &shape, &pb, b.shape.shape())
+                .is_ok_and(|d| d.distance <= actor_margin_m)
+            {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// Whether a pedestrian at a spot would touch a vehicle or another pedestrian (within `margin_m`).
+    pub fn pedestrian_fits(&self, position: Vec2, margin_m: f32) -> bool {
+        self.bodies.iter().flatten().all(|b| {
+            let d = (b.position - position).length();
+            match b.shape {
+                ShapeKind::Capsule(_) => d > 2.0 * PEDESTRIAN_RADIUS_M + margin_m,
+                ShapeKind::Box(c) => {
+                    // Distance to the box in its own frame.
+                    let local = Vec2::from_angle(-b.yaw).rotate(position - b.position);
+                    let q = local.abs() - c.half_extents.truncate();
+                    q.max(Vec2::ZERO).length() > PEDESTRIAN_RADIUS_M + margin_m
+                }
+            }
+        })
+    }
+
+    fn static_blocked(&self, b: &Body) -> bool {
+        b.kind != ActorKind::Pedestrian
+    }
+
+    /// Intersection of actor `id`'s shape at a pose with anything it collides with.
+    fn touches_at(&self, id: u32, b: &Body, p: Vec2, yaw: f32) -> bool {
+        let ps = pose(p, b.centre_z, yaw);
+        if self.static_blocked(b) {
+            let qp = self
+                .world
+                .query_pipeline_with_filter(QueryFilter::only_fixed());
+            if qp.intersect_shape(ps, b.shape.shape()).next().is_some() {
+                return true;
+            }
+        }
+        for (j, o) in self.bodies.iter().enumerate() {
+            let Some(o) = o else { continue };
+            if j as u32 == id
+                || !self.collides(b, o)
+                || (o.position - p).length() > b.radius + o.radius + SKIN_M
+            {
+                continue;
+            }
+            let po = pose(o.position, o.centre_z, o.yaw);
+            if intersection_test(&ps, b.shape.shape(), &po, o.shape.shape())
+                .is_ok_and(|h| h.intersecting)
+            {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// First contact of actor `id` swept from `p` by `motion` at heading `yaw`: (time of impact in 0..=1, world normal out of the mover, party).
+    fn sweep(
+        &self,
+        id: u32,
+        b: &Body,
+        p: Vec2,
+        yaw: f32,
+        motion: Vec2,
+    ) -> Option<(f32, Vec2, Touch)> {
+        let ps = pose(p, b.centre_z, yaw);
+        let vel = motion.extend(0.0);
+        let opts = ShapeCastOptions {
+            max_time_of_impact: 1.0,
+            target_distance: SKIN_M,
+            stop_at_penetration: false,
+            compute_impact_geometry_on_penetration: true,
+        };
+        let mut best: Option<(f32, Vec2, Touch)> = None;
+        if self.static_blocked(b) {
+            let qp = self
+                .world
+                .query_pipeline_with_filter(QueryFilter::only_fixed());
+            if let Some((h, hit)) = qp.cast_shape(&ps, vel, b.shape.shape(), opts) {
+                let kind = self
+                    .world
+                    .colliders
+                    .get(h)
+                    .map_or(StaticKind::Curb, |c| StaticKind::from_code(c.user_data));
+                // normal1 is the hit collider's outward normal (world frame).
+                let touch = Touch {
+                    party: Party::Static(kind),
+                    collider: Some(h),
+                };
+                best = Some((hit.time_of_impact, -hit.normal1.truncate(), touch));
+            }
+        }
+        let reach = motion.length();
+        for (j, o) in self.bodies.iter().enumerate() {
+            let Some(o) = o else { continue };
+            if j as u32 == id
+                || !self.collides(b, o)
+                || (o.position - p).length() > b.radius + o.radius + reach + SKIN_M
+            {
+                continue;
+            }
+            let po = pose(o.position, o.centre_z, o.yaw);
+            if let Ok(Some(hit)) = cast_shapes(
+                &ps,
+                vel,
+                b.shape.shape(),
+                &po,
+                Vec3::ZERO,
+                o.shape.shape(),
+                opts,
+            ) && best.is_none_or(|(t, _, _)| hit.time_of_impact < t)
+            {
+                // normal1 is the mover's outward normal in its local frame.
+                let n = (ps.rotation * hit.normal1).truncate();
+                let touch = Touch {
+                    party: Party::Actor {
+                        id: j as u32,
+                        kind: o.kind,
+                    },
+                    collider: None,
+                };
+                best = Some((hit.time_of_impact, n, touch));
+            }
+        }
+        best
+    }
+
+    /// Moves actor `id` toward a pose as far as the world allows (see the module docs); records contacts.
+    pub fn move_actor(&mut self, id: u32, target: Vec2, target_yaw: f32) -> MoveOutcome {
+        let Some(b) = self.body(id).cloned() else {
+            return MoveOutcome {
+                position: target,
+                yaw: target_yaw,
+                fraction: 1.0,
+                hit: None,
+            };
+        };
+        let mut hit: Option<Touch> = None;
+        let mut yaw = b.yaw;
+        if target_yaw != b.yaw {
+            if self.touches_at(id, &b, b.position, target_yaw)
+                && !self.touches_at(id, &b, b.position, b.yaw)
+            {
+                hit = Some(self.blocker(id, &b, b.position, target_yaw));
+            } else {
+                yaw = target_yaw;
+            }
+        }
+        let asked = target - b.position;
+        let asked_len = asked.length();
+        let mut p = b.position;
+        let mut moved = 0.0f32;
+        if asked_len > 0.0 {
+            let mut motion = asked;
+            for _ in 0..2 {
+                if motion.length_squared() < 1e-12 {
+                    break;
+                }
+                match self.sweep(id, &b, p, yaw, motion) {
+                    None => {
+                        p += motion;
+                        moved += motion.length();
+                        break;
+                    }
+                    Some((toi, n, touch)) => {
+                        let step = motion * toi;
+                        p += step;
+                        moved += step.length();
+                        hit = Some(touch);
+                        let rest = motion - step;
+                        let nn = n.normalize_or_zero();
+                        motion = rest - nn * rest.dot(nn).max(0.0);
+                    }
+                }
+            }
+        }
+        if let Some(t) = hit {
+            self.contacts.insert((id, t.key()), t);
+        }
+        let body = self.bodies[id as usize].as_mut().expect("body exists");
+        body.position = p;
+        body.yaw = yaw;
+        MoveOutcome {
+            position: p,
+            yaw,
+            fraction: if asked_len > 0.0 {
+                (moved / asked_len).min(1.0)
+            } else {
+                1.0
+            },
+            hit: hit.map(|t| t.party),
+        }
+    }
+
+    fn blocker(&self, id: u32, b: &Body, p: Vec2, yaw: f32) -> Touch {
+        let ps = pose(p, b.centre_z, yaw);
+        for (j, o) in self.bodies.iter().enumerate() {
+            let Some(o) = o else { continue };
+            if j as u32 == id || !self.collides(b, o) {
+                continue;
+            }
+            let po = pose(o.position, o.centre_z, o.yaw);
+            if intersection_test(&ps, b.shape.shape(), &po, o.shape.shape())
+                .is_ok_and(|h| h.intersecting)
+            {
+                let party = Party::Actor {
+                    id: j as u32,
+                    kind: o.kind,
+                };
+                return Touch {
+                    party,
+                    collider: None,
+                };
+            }
+        }
+        let qp = self
+            .world
+            .query_pipeline_with_filter(QueryFilter::only_fixed());
+        let found = qp.intersect_shape(ps, b.shape.shape()).next();
+        Touch {
+            party: Party::Static(found.map_or(StaticKind::Curb, |(_, c)| {
+                StaticKind::from_code(c.user_data)
+            })),
+            collider: found.map(|(h, _)| h),
+        }
+    }
+
+    /// Distance from actor `id` to what it touched (metres).
+    fn touch_distance(&self, id: u32, t: &Touch) -> Option<f32> {
+        match (t.collider, t.party) {
+            (Some(h), _) => {
+                let b = self.body(id)?;
+                let c = self.world.colliders.get(h)?;
+                let ps = pose(b.position, b.centre_z, b.yaw);
+                rapier3d::parry::query::distance(&ps, b.shape.shape(), c.position(), c.shape())
+                    .ok()
+                    .map(|d| d.distance)
+            }
+            (None, Party::Actor { id: other, .. }) => self.distance(id, other),
+            (None, Party::Static(_)) => None,
+        }
+    }
+
+    /// Places an actor at a pose without sweeping (spawning, respawning); the caller checks it fits.
+    pub fn teleport(&mut self, id: u32, position: Vec2, yaw: f32) {
+        if let Some(b) = self.bodies.get_mut(id as usize).and_then(Option::as_mut) {
+            b.position = position;
+            b.yaw = yaw;
+        }
+    }
+
+    /// Ground height under an actor (metres).
+    pub fn ground_z(&self, id: u32) -> Option<f32> {
+        self.body(id).map(|b| b.ground_z)
+    }
+
+    /// Ends a tick: hands the actors' poses to rapier, steps it, and returns the tick's contact events.
+    pub fn end_tick(&mut self) -> &[ContactEvent] {
+        for b in self.bodies.iter().flatten() {
+            if let Some(rb) = self.world.bodies.get_mut(b.handle) {
+                rb.set_next_kinematic_position(pose(b.position, b.centre_z, b.yaw));
+            }
+        }
+        self.world.step();
+        self.events.clear();
+        for (&(id, key), t) in &self.contacts {
+            let kind = self.body(id).map_or(ActorKind::Vehicle, |b| b.kind);
+            self.events.push(ContactEvent {
+                a: Party::Actor { id, kind },
+                b: t.party,
+                started: !self.prev_contacts.contains_key(&(id, key)),
+            });
+        }
+        // A pair stays in contact while the two stay within two skins of each other,
+        // even on ticks where neither pushed (so resting contact does not restart).
+        let keep: Vec<_> = self
+            .prev_contacts
+            .iter()
+            .filter(|(k, t)| {
+                !self.contacts.contains_key(k)
+                    && self
+                        .touch_distance(k.0, t)
+                        .is_some_and(|d| d <= 2.0 * SKIN_M)
+            })
+            .map(|(k, t)| (*k, *t))
+            .collect();
+        self.contacts.extend(keep);
+        std::mem::swap(&mut self.prev_contacts, &mut self.contacts);
+        self.contacts.clear();
+        &self.events
+    }
+
+    /// Distance between two actors' shapes (metres; 0 when they touch or overlap).
+    pub fn distance(&self, a: u32, b: u32) -> Option<f32> {
+        let (x, y) = (self.body(a)?, self.body(b)?);
+        let px = pose(x.position, x.centre_z, x.yaw);
+        let py = pose(y.position, y.centre_z, y.yaw);
+        rapier3d::parry::query::distance(&px, x.shape.shape(), &py, y.shape.shape())
+            .ok()
+            .map(|d| d.distance)
+    }
+
+    /// Whether two actors' shapes overlap (penetrate) right now.
+    pub fn overlapping(&self, a: u32, b: u32) -> bool {
+        self.distance(a, b).is_some_and(|d| d <= 0.0)
+    }
+
+    /// Distance from an actor's shape to the nearest static collider it collides with (metres; infinity when none is near).
+    pub fn static_clearance(&self, id: u32) -> f32 {
+        let Some(b) = self.body(id) else {
+            return f32::INFINITY;
+        };
+        let ps = pose(b.position, b.centre_z, b.yaw);
+        let qp = self
+            .world
+            .query_pipeline_with_filter(QueryFilter::only_fixed());
+        let probe = Cuboid::new(Vec3::splat(b.radius + 5.0));
+        let mut best = f32::INFINITY;
+        for (_, c) in qp.intersect_shape(ps, &probe) {
+            if let Ok(d) =
+                rapier3d::parry::query::distance(&ps, b.shape.shape(), c.position(), c.shape())
+            {
+                best = best.min(d.distance);
+            }
+        }
+        best
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::town::{Building, Mesh, Town};
+
+    fn walled_town() -> Town {
+        // A single building whose west wall is the plane x = 20.
+        Town {
+            name: "wall".into(),
+            lanes: Vec::new(),
+            markings: Vec::new(),
+            sidewalks: Vec::new(),
+            crosswalks: Vec::new(),
+            junctions: Vec::new(),
+            lights: Vec::new(),
+            buildings: vec![Building {
+                footprint: vec![
+                    Vec2::new(20.0, -20.0),
+                    Vec2::new(30.0, -20.0),
+                    Vec2::new(30.0, 20.0),
+                    Vec2::new(20.0, 20.0),
+                ],
+                height_m: 10.0,
+            }],
+            road_surface: Mesh::default(),
+            bounds: (Vec2::splat(-50.0), Vec2::splat(50.0)),
+        }
+    }
+
+    fn car() -> Vec3 {
+        Vec3::new(4.79, 2.16, 1.45)
+    }
+
+    #[test]
+    fn car_driven_into_a_wall_stops_without_penetrating() {
+        let mut ph = Physics::new(&walled_town());
+        ph.add_vehicle(0, ActorKind::Ego, car(), Vec2::new(0.0, 0.0), 0.0, 0.0);
+        let mut hit_at = None;
+        for t in 0..200 {
+            let (p, yaw) = ph.pose_of(0).unwrap();
+            let out = ph.move_actor(0, p + Vec2::new(0.25, 0.0), yaw);
+            let ev = ph.end_tick().to_vec();
+            if out.hit.is_some() && hit_at.is_none() {
+                hit_at = Some(t);
+                assert_eq!(ev.len(), 1);
+                assert_eq!(
+                    ev[0].a,
+                    Party::Actor {
+                        id: 0,
+                        kind: ActorKind::Ego
+                    }
+                );
+                assert_eq!(ev[0].b, Party::Static(StaticKind::Building));
+                assert!(ev[0].started);
+            }
+        }
+        assert!(hit_at.is_some());
+        let (p, _) = ph.pose_of(0).unwrap();
+        // Front bumper at x + 2.395, the wall at 20: stopped just short of it.
+        let front = p.x + 4.79 / 2.0;
+        assert!(front <= 20.0 && front > 20.0 - 0.05, "front at {front}");
+        assert!(ph.static_clearance(0) >= 0.0);
+        // Still in contact, not newly.
+        let (p, yaw) = ph.pose_of(0).unwrap();
+        ph.move_actor(0, p + Vec2::new(0.25, 0.0), yaw);
+        assert!(!ph.end_tick()[0].started);
+    }
+
+    #[test]
+    fn car_hitting_a_wall_at_an_angle_slides_and_can_steer_away() {
+        let mut ph = Physics::new(&walled_town());
+        let yaw0 = 0.5f32;
+        ph.add_vehicle(0, ActorKind::Ego, car(), Vec2::new(14.0, 0.0), 0.0, yaw0);
+        let mut hit = false;
+        for _ in 0..40 {
+            let (p, yaw) = ph.pose_of(0).unwrap();
+            let out = ph.move_actor(0, p + Vec2::from_angle(yaw) * 0.2, yaw);
+            hit |= out.hit.is_some();
+            ph.end_tick();
+        }
+        assert!(hit);
+        assert!(ph.static_clearance(0) >= 0.0);
+        let (p0, _) = ph.pose_of(0).unwrap();
+        // Steer away (turn left, toward -x side) while moving: yaw increases, car leaves the wall.
+        for _ in 0..80 {
+            let (p, yaw) = ph.pose_of(0).unwrap();
+            let new_yaw = (yaw + 0.03).min(2.5);
+            ph.move_actor(0, p + Vec2::from_angle(new_yaw) * 0.2, new_yaw);
+            ph.end_tick();
+        }
+        let (p1, yaw1) = ph.pose_of(0).unwrap();
+        assert!(yaw1 > 2.0, "yaw {yaw1}");
+        assert!(p1.x < p0.x - 2.0, "did not drive away: {p0} -> {p1}");
+        assert!(ph.static_clearance(0) > 0.5);
+    }
+
+    #[test]
+    fn car_driven_into_another_car_stops_and_names_both() {
+        let mut ph = Physics::new(&walled_town());
+        ph.add_vehicle(0, ActorKind::Ego, car(), Vec2::new(-20.0, 0.0), 0.0, 0.0);
+        ph.add_vehicle(3, ActorKind::Vehicle, car(), Vec2::new(-8.0, 0.5), 0.0, 0.2);
+        let mut events = Vec::new();
+        for _ in 0..100 {
+            let (p, yaw) = ph.pose_of(0).unwrap();
+            ph.move_actor(0, p + Vec2::new(0.3, 0.0), yaw);
+            events.extend(ph.end_tick().iter().copied());
+            assert!(!ph.overlapping(0, 3));
+        }
+        let first = events.first().expect("a contact");
+        assert_eq!(
+            first.a,
+            Party::Actor {
+                id: 0,
+                kind: ActorKind::Ego
+            }
+        );
+        assert_eq!(
+            first.b,
+            Party::Actor {
+                id: 3,
+                kind: ActorKind::Vehicle
+            }
+        );
+        assert!(first.started);
+        assert_eq!(events.iter().filter(|e| e.started).count(), 1);
+        // The other car did not move.
+        assert_eq!(ph.pose_of(3).unwrap(), (Vec2::new(-8.0, 0.5), 0.2));
+        // Rapier's query pipeline sees the moved ego.
+        let (p, _) = ph.pose_of(0).unwrap();
+        let ray = Ray::new(Vec3::new(p.x, 10.0, 0.7), Vec3::new(0.0, -1.0, 0.0));
+        assert!(
+            ph.world
+                .query_pipeline()
+                .cast_ray(&ray, 20.0, true)
+                .is_some()
+        );
+    }
+
+    #[test]
+    fn pedestrians_pass_each_other_but_not_cars() {
+        let mut ph = Physics::new(&walled_town());
+        ph.add_pedestrian(5, Vec2::new(0.0, 0.0), 0.0);
+        ph.add_pedestrian(6, Vec2::new(0.3, 0.0), 0.0);
+        let out = ph.move_actor(5, Vec2::new(1.0, 0.0), 0.0);
+        assert!(out.hit.is_none() && out.fraction == 1.0);
+        ph.add_vehicle(1, ActorKind::Vehicle, car(), Vec2::new(5.0, 0.0), 0.0, 0.0);
+        let out = ph.move_actor(5, Vec2::new(3.0, 0.0), 0.0);
+        assert_eq!(
+            out.hit,
+            Some(Party::Actor {
+                id: 1,
+                kind: ActorKind::Vehicle
+            })
+        );
+        assert!(out.position.x < 5.0 - 2.395 - 0.3 + 1e-3 && out.position.x > 2.2);
+        assert!(!ph.overlapping(5, 1));
+        assert!(!ph.pedestrian_fits(Vec2::new(5.0, 1.2), 0.1));
+        assert!(ph.pedestrian_fits(Vec2::new(5.0, 3.0), 0.1));
+    }
+}

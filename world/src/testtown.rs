@@ -1,0 +1,358 @@
+//! A hand-made town for tests and the traffic soak: a grid of two-way roads.
+//!
+//! `grid(nx, ny, block_m)` lays `nx * ny` junctions on a square grid
+//! `block_m` apart and joins neighbours with straight two-way roads (one
+//! 3.5 m lane per direction, right-hand traffic). Every junction gets
+//! connecting lanes from each approach to each exit except U-turns (cubic
+//! Bezier curves, sampled at about 1 m). Junctions where three or four roads
+//! meet are lit: one light per approach, group 0 for approaches along x,
+//! group 1 along y, stop line 4 m before the junction, a crosswalk between the
+//! stop line and the junction. Sidewalks (2.5 m wide, 0.15 m high) line every
+//! road and end at the junction areas, one building fills each block. No
+//! markings or road mesh: this town is for traffic, not for the camera.
+//!
+//! [`FixtureLights`] cycles the lit junctions on a fixed timetable, standing
+//! in for the real controller in tests.
+
+use crate::town::*;
+use glam::{Vec2, Vec3};
+
+/// Half the side of a junction's square area (metres): lanes end this far from the node.
+pub const JUNCTION_HALF_M: f32 = 10.0;
+/// Width of one lane (metres).
+pub const LANE_WIDTH_M: f32 = 3.5;
+/// Distance from the end of an approach lane back to its stop line (metres).
+pub const STOP_LINE_BACK_M: f32 = 4.0;
+/// Speed limit on every lane of the fixture (metres per second; 30 km/h).
+pub const SPEED_LIMIT_MPS: f32 = 30.0 / 3.6;
+
+const SIDEWALK_IN_M: f32 = LANE_WIDTH_M;
+const SIDEWALK_OUT_M: f32 = LANE_WIDTH_M + 2.5;
+const SIDEWALK_H_M: f32 = 0.15;
+
+/// Resamples a dense polyline to points about `step_m` apart (keeps both ends).
+fn resample(dense: &[Vec2], step_m: f32) -> Vec<Vec2> {
+    let mut cum = vec![0.0f32];
+    for w in dense.windows(2) {
+        cum.push(cum.last().unwrap() + (w[1] - w[0]).length());
+    }
+    let total = *cum.last().unwrap();
+    let n = ((total / step_m).ceil() as usize).max(1);
+    let mut out = Vec::with_capacity(n + 1);
+    let mut j = 0;
+    for i in 0..=n {
+        let target = total * i as f32 / n as f32;
+        while j + 2 < cum.len() && cum[j + 1] < target {
+            j += 1;
+        }
+        let seg = (cum[j + 1] - cum[j]).max(1e-9);
+        let t = ((target - cum[j]) / seg).clamp(0.0, 1.0);
+        out.push(dense[j].lerp(dense[j + 1], t));
+    }
+    out
+}
+
+fn make_lane(
+    points: &[Vec2],
+    junction: Option<JunctionIdx>,
+    road_id: String,
+    od_lane: i32,
+) -> DriveLane {
+    let centerline: Vec<Vec3> = points.iter().map(|p| p.extend(0.0)).collect();
+    let mut s = vec![0.0f32];
+    for w in points.windows(2) {
+        s.push(s.last().unwrap() + (w[1] - w[0]).length());
+    }
+    DriveLane {
+        road_id,
+        od_lane,
+        width: vec![LANE_WIDTH_M; points.len()],
+        centerline,
+        s,
+        speed_limit_mps: SPEED_LIMIT_MPS,
+        junction,
+        successors: Vec::new(),
+        predecessors: Vec::new(),
+        left: None,
+        right: None,
+    }
+}
+
+fn bezier(p0: Vec2, d0: Vec2, p3: Vec2, d3: Vec2) -> Vec<Vec2> {
+    let k = 0.55 * (p3 - p0).length();
+    let (p1, p2) = (p0 + d0 * k, p3 - d3 * k);
+    let dense: Vec<Vec2> = (0..=200)
+        .map(|i| {
+            let t = i as f32 / 200.0;
+            let u = 1.0 - t;
+            p0 * (u * u * u) + p1 * (3.0 * u * u * t) + p2 * (3.0 * u * t * t) + p3 * (t * t * t)
+        })
+        .collect();
+    resample(&dense, 1.0)
+}
+
+/// A grid town of `nx * ny` junctions `block_m` apart (see the module docs).
+pub fn grid(nx: usize, ny: usize, block_m: f32) -> Town {
+    assert!(nx >= 1 && ny >= 1 && nx * ny >= 2 && block_m > 2.0 * JUNCTION_HALF_M + 10.0);
+    let node = |i: usize, j: usize| Vec2::new(i as f32 * block_m, j as f32 * block_m);
+    let nid = |i: usize, j: usize| j * nx + i;
+    let mut lanes: Vec<DriveLane> = Vec::new();
+    // Per node: approach lanes (lane, direction of travel) and exit lanes.
+    let mut approaches: Vec<Vec<(usize, Vec2)>> = vec![Vec::new(); nx * ny];
+    let mut exits: Vec<Vec<(usize, Vec2)>> = vec![Vec::new(); nx * ny];
+    let mut sidewalks = Vec::new();
+    let mut crosswalks = Vec::new();
+    let mut road = 0;
+    for j in 0..ny {
+        for i in 0..nx {
+            for (di, dj) in [(1usize, 0usize), (0, 1)] {
+                let (i2, j2) = (i + di, j + dj);
+                if i2 >= nx || j2 >= ny {
+                    continue;
+                }
+                let (a, b) = (node(i, j), node(i2, j2));
+                let dir = (b - a).normalize();
+                let right = Vec2::new(dir.y, -dir.x);
+                let j_m = JUNCTION_HALF_M;
+                for (from, to, d, na, nb, od) in [
+                    (a, b, dir, nid(i, j), nid(i2, j2), -1),
+                    (b, a, -dir, nid(i2, j2), nid(i, j), 1),
+                ] {
+                    let r = Vec2::new(d.y, -d.x);
+                    let p0 = from + d * j_m + r * (LANE_WIDTH_M * 0.5);
+                    let p1 = to - d * j_m + r * (LANE_WIDTH_M * 0.5);
+                    let pts = resample(&[p0, p1], 1.0);
+                    let idx = lanes.len();
+                    lanes.push(make_lane(&pts, None, road.to_string(), od));
+                    exits[na].push((idx, d));
+                    approaches[nb].push((idx, d));
+                }
+                // Sidewalks on both sides, between the junction areas.
+                for side in [1.0f32, -1.0] {
+                    let n = right * side;
+                    let line = |off: f32| {
+                        resample(&[a + dir * j_m + n * off, b - dir * j_m + n * off], 3.0)
+                            .into_iter()
+                            .map(|p| p.extend(0.0))
+                            .collect::<Vec<_>>()
+                    };
+                    sidewalks.push(Sidewalk {
+                        inner: line(SIDEWALK_IN_M),
+                        outer: line(SIDEWALK_OUT_M),
+                        height_m: SIDEWALK_H_M,
+                    });
+                }
+                // Crosswalks at both ends, just outside the junction areas.
+                for (c, d) in [(a, dir), (b, -dir)] {
+                    let x0 = c + d * (j_m + 0.5);
+                    let x1 = c + d * (j_m + 3.5);
+                    let w = right * SIDEWALK_IN_M;
+                    crosswalks.push(Crosswalk {
+                        corners: [
+                            (x0 - w).extend(0.0),
+                            (x1 - w).extend(0.0),
+                            (x1 + w).extend(0.0),
+                            (x0 + w).extend(0.0),
+                        ],
+                        from_map: false,
+                    });
+                }
+                road += 1;
+            }
+        }
+    }
+    let mut junctions = Vec::new();
+    let mut lights = Vec::new();
+    for j in 0..ny {
+        for i in 0..nx {
+            let n = nid(i, j);
+            let c = node(i, j);
+            let jidx = JunctionIdx(junctions.len() as u32);
+            let h = JUNCTION_HALF_M;
+            let mut junction = Junction {
+                od_id: format!("J{i}_{j}"),
+                outline: vec![
+                    c + Vec2::new(-h, -h),
+                    c + Vec2::new(h, -h),
+                    c + Vec2::new(h, h),
+                    c + Vec2::new(-h, h),
+                ],
+                lights: Vec::new(),
+            };
+            let lit = approaches[n].len() >= 3;
+            for &(ain, din) in &approaches[n] {
+                for &(aout, dout) in &exits[n] {
+                    if din.dot(dout) < -0.5 {
+                        continue; // no U-turns
+                    }
+                    let p0 = lanes[ain].centerline.last().unwrap().truncate();
+                    let p3 = lanes[aout].centerline[0].truncate();
+                    let pts = bezier(p0, din, p3, dout);
+                    let idx = lanes.len();
+                    let mut l = make_lane(&pts, Some(jidx), format!("J{i}_{j}"), -1);
+                    l.predecessors.push(LaneIdx(ain as u32));
+                    l.successors.push(LaneIdx(aout as u32));
+                    lanes.push(l);
+                    lanes[ain].successors.push(LaneIdx(idx as u32));
+                    lanes[aout].predecessors.push(LaneIdx(idx as u32));
+                }
+                if lit {
+                    let lane = &lanes[ain];
+                    let len = *lane.s.last().unwrap();
+                    let s = len - STOP_LINE_BACK_M;
+                    let centre = lane.centerline[0].truncate() + din * s;
+                    let r = Vec2::new(din.y, -din.x);
+                    let half = r * (LANE_WIDTH_M * 0.5);
+                    let li = LightIdx(lights.len() as u32);
+                    lights.push(TrafficLight {
+                        od_id: format!("L{}", lights.len()),
+                        position: (centre + r * (SIDEWALK_IN_M + 1.0)).extend(0.0),
+                        heading: (-din.y).atan2(-din.x),
+                        head_height_m: 3.0,
+                        junction: Some(jidx),
+                        group: if din.x.abs() > 0.5 { 0 } else { 1 },
+                        stop_lines: vec![StopLine {
+                            lane: LaneIdx(ain as u32),
+                            s,
+                            ends: [(centre - half).extend(0.0), (centre + half).extend(0.0)],
+                        }],
+                    });
+                    junction.lights.push(li);
+                }
+            }
+            junctions.push(junction);
+        }
+    }
+    let mut buildings = Vec::new();
+    for j in 0..ny.saturating_sub(1) {
+        for i in 0..nx.saturating_sub(1) {
+            let lo = node(i, j) + Vec2::splat(SIDEWALK_OUT_M + 1.0);
+            let hi = node(i + 1, j + 1) - Vec2::splat(SIDEWALK_OUT_M + 1.0);
+            buildings.push(Building {
+                footprint: vec![lo, Vec2::new(hi.x, lo.y), hi, Vec2::new(lo.x, hi.y)],
+                height_m: 12.0,
+            });
+        }
+    }
+    let margin = Vec2::splat(SIDEWALK_OUT_M);
+    Town {
+        name: format!("fixture-grid-{nx}x{ny}"),
+        lanes,
+        markings: Vec::new(),
+        sidewalks,
+        crosswalks,
+        junctions,
+        lights,
+        buildings,
+        road_surface: Mesh::default(),
+        bounds: (node(0, 0) - margin, node(nx - 1, ny - 1) + margin),
+    }
+}
+
+/// A fixed-time light controller for the fixture: group 0 and group 1 take turns.
+///
+/// Each junction cycles green (`green_s`), yellow (`yellow_s`), all red
+/// (`all_red_s`) for group 0, then the same for group 1.
+#[derive(Debug, Clone)]
+pub struct FixtureLights {
+    /// Green time per group (seconds).
+    pub green_s: f32,
+    /// Yellow time per group (seconds).
+    pub yellow_s: f32,
+    /// All-red clearance after each yellow (seconds).
+    pub all_red_s: f32,
+    groups: Vec<u32>,
+}
+
+impl FixtureLights {
+    /// A controller for a town's lights with CARLA-like timings (10 s green, 3 s yellow, 2 s all red).
+    pub fn new(town: &Town) -> FixtureLights {
+        FixtureLights {
+            green_s: 10.0,
+            yellow_s: 3.0,
+            all_red_s: 2.0,
+            groups: town.lights.iter().map(|l| l.group).collect(),
+        }
+    }
+
+    /// The states at a tick (40 Hz), indexed by `LightIdx`.
+    pub fn states_at(&self, tick: u64, out: &mut Vec<LightState>) {
+        let t = tick as f32 * 0.025;
+        let half = self.green_s + self.yellow_s + self.all_red_s;
+        let phase = t % (2.0 * half);
+        let (active, p) = if phase < half {
+            (0, phase)
+        } else {
+            (1, phase - half)
+        };
+        out.clear();
+        out.extend(self.groups.iter().map(|&g| {
+            if g != active || p >= self.green_s + self.yellow_s {
+                LightState::Red
+            } else if p < self.green_s {
+                LightState::Green
+            } else {
+                LightState::Yellow
+            }
+        }));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn grid_lane_graph_is_connected_and_dense() {
+        let t = grid(3, 3, 60.0);
+        // 12 roads x 2 lanes, plus connecting lanes.
+        let plain = t.lanes.iter().filter(|l| l.junction.is_none()).count();
+        assert_eq!(plain, 24);
+        for (i, l) in t.lanes.iter().enumerate() {
+            assert!(!l.successors.is_empty(), "lane {i} is a dead end");
+            for w in l.centerline.windows(2) {
+                let d = (w[1] - w[0]).length();
+                assert!(d > 0.3 && d <= 1.01, "lane {i} spacing {d}");
+            }
+            for &s in &l.successors {
+                let gap =
+                    (t.lanes[s.0 as usize].centerline[0] - *l.centerline.last().unwrap()).length();
+                assert!(gap < 1e-3, "lane {i} -> {} gap {gap}", s.0);
+            }
+        }
+        // The centre junction has 4 approaches -> 4 lights; corners are unlit.
+        assert_eq!(t.junctions[4].lights.len(), 4);
+        assert!(t.junctions[0].lights.is_empty());
+        assert_eq!(t.lights.len(), 4 + 4 * 3);
+    }
+
+    #[test]
+    fn fixture_lights_alternate_groups() {
+        let t = grid(3, 3, 60.0);
+        let c = FixtureLights::new(&t);
+        let mut s = Vec::new();
+        c.states_at(0, &mut s);
+        for (l, st) in t.lights.iter().zip(&s) {
+            assert_eq!(
+                *st,
+                if l.group == 0 {
+                    LightState::Green
+                } else {
+                    LightState::Red
+                }
+            );
+        }
+        c.states_at(40 * 11, &mut s);
+        assert!(
+            s.iter()
+                .zip(&t.lights)
+                .all(|(st, l)| l.group == 1 || *st == LightState::Yellow)
+        );
+        c.states_at(40 * 16, &mut s);
+        assert!(
+            s.iter()
+                .zip(&t.lights)
+                .all(|(st, l)| (l.group == 1) == (*st == LightState::Green))
+        );
+    }
+}

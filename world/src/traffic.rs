@@ -1,0 +1,1046 @@
+//! The moving part of the world: ego, NPC vehicles and pedestrians in one physics world.
+//!
+//! [`Traffic`] owns the [`Physics`], the NPC vehicles and the pedestrians.
+//! It spawns the requested counts from a seed (reporting what it realised),
+//! and [`Traffic::step`] advances everything one 40 Hz tick given the light
+//! states (indexed by `LightIdx`). Within a tick the order is fixed:
+//! everyone decides from the start-of-tick state; junction reservations are
+//! granted; the ego, then the NPCs (by id), then the pedestrians (by id) are
+//! moved through the physics; NPC paths advance; stuck NPCs are respawned;
+//! contact events are collected. Ids: the ego is 0, NPC vehicles are
+//! `1..=n_vehicles`, pedestrians follow.
+//!
+//! Random streams: every actor has its own `ChaCha8Rng` derived from the
+//! seed and its id, so the same seed gives the same run bit for bit.
+
+use crate::actor::{ActorKind, ActorSnapshot};
+use crate::ahead::{ActorView, Ahead, nearest_ahead};
+use crate::lane_path::{LaneIndex, LanePath, lane_len, lane_point};
+use crate::npc::{self, Npc, NpcParams, Reservations, RoadRules, Scratch};
+use crate::pedestrian::{Pedestrian, PedestrianParams, WalkGraph};
+use crate::physics::{
+    ContactEvent, DT_S, PEDESTRIAN_HEIGHT_M, PEDESTRIAN_RADIUS_M, Party, Physics,
+};
+use crate::town::{LaneIdx, LightState, Town};
+use crate::vehicle::{VehicleControl, VehicleParams, VehicleState};
+use glam::{Vec2, Vec3};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use std::sync::Arc;
+
+/// What to put in the town.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrafficConfig {
+    /// NPC vehicles requested.
+    pub vehicles: usize,
+    /// Pedestrians requested.
+    pub pedestrians: usize,
+    /// The traffic seed (derived from the scenario's).
+    pub seed: u64,
+    /// The vehicle model (ego and NPCs).
+    pub vehicle: VehicleParams,
+    /// The NPC driver.
+    pub npc: NpcParams,
+    /// The walkers.
+    pub pedestrian: PedestrianParams,
+}
+
+impl Default for TrafficConfig {
+    fn default() -> Self {
+        TrafficConfig {
+            vehicles: 0,
+            pedestrians: 0,
+            seed: 0,
+            vehicle: VehicleParams::default(),
+            npc: NpcParams::default(),
+            pedestrian: PedestrianParams::default(),
+        }
+    }
+}
+
+/// The ego's starting pose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EgoStart {
+    /// Position of the body centre (metres, ground plane).
+    pub position: Vec2,
+    /// Ground height (metres).
+    pub z: f32,
+    /// Heading (radians).
+    pub yaw: f32,
+}
+
+/// Counters the soak and the reports read.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct TrafficStats {
+    /// Ticks stepped.
+    pub ticks: u64,
+    /// NPC respawns (stuck for more than `stuck_ticks`, or off their path).
+    pub respawns: u64,
+    /// Stop lines crossed by an NPC's front bumper while the light was red.
+    pub npc_red_runs: u64,
+    /// Contacts started between two NPC vehicles.
+    pub npc_npc_collisions: u64,
+    /// Contacts started by an NPC vehicle driving into a pedestrian.
+    pub npc_pedestrian_collisions: u64,
+    /// Contacts started by a pedestrian walking into a vehicle (NPC or ego).
+    pub pedestrian_vehicle_bumps: u64,
+    /// Contacts started between an NPC vehicle and a static collider.
+    pub npc_static_collisions: u64,
+    /// Times an NPC had been stopped for more than 60 s.
+    pub deadlocks: u64,
+}
+
+/// The ego vehicle.
+#[derive(Debug, Clone)]
+pub struct Ego {
+    /// Pose, speed, actuators.
+    pub state: VehicleState,
+    /// Ground height (metres).
+    pub z: f32,
+    /// The control in force.
+    pub control: VehicleControl,
+    /// The lane it is on (lane, arc length), if any.
+    pub lane: Option<(LaneIdx, f32)>,
+}
+
+/// Ego, NPC vehicles and pedestrians in one physics world (see the module docs).
+pub struct Traffic {
+    town: Arc<Town>,
+    cfg: TrafficConfig,
+    /// The physics world.
+    pub physics: Physics,
+    rules: RoadRules,
+    reservations: Reservations,
+    lane_index: LaneIndex,
+    walk: WalkGraph,
+    ego: Option<Ego>,
+    /// The NPC vehicles, by id.
+    pub npcs: Vec<Npc>,
+    /// The pedestrians, by id.
+    pub pedestrians: Vec<Pedestrian>,
+    views: Vec<ActorView>,
+    events: Vec<ContactEvent>,
+    stats: TrafficStats,
+    scratch: Scratch,
+    spawn_lanes: Vec<LaneIdx>,
+}
+
+fn actor_rng(seed: u64, id: u32) -> ChaCha8Rng {
+    let mut r = ChaCha8Rng::seed_from_u64(seed ^ 0x7261_6666_6963_0000);
+    r.set_stream(id as u64 + 1);
+    r
+}
+
+impl Traffic {
+    /// Builds the world and spawns the ego (if given), then the NPCs and pedestrians from the seed.
+    pub fn new(town: Arc<Town>, cfg: TrafficConfig, ego: Option<EgoStart>) -> Traffic {
+        let physics = Physics::new(&town);
+        let rules = RoadRules::new(&town);
+        let reservations = Reservations::new(town.lanes.len());
+        let lane_index = LaneIndex::new(&town, 5.0);
+        let walk = WalkGraph::new(&town, &cfg.pedestrian);
+        let min_len = cfg.vehicle.length_m + 4.0;
+        let spawn_lanes = (0..town.lanes.len())
+            .filter(|&i| {
+                town.lanes[i].junction.is_none()
+                    && lane_len(&town, LaneIdx(i as u32)) > min_len
+                    && !town.lanes[i].successors.is_empty()
+            })
+            .map(|i| LaneIdx(i as u32))
+            .collect();
+        let mut t = Traffic {
+            town,
+            cfg,
+            physics,
+            rules,
+            reservations,
+            lane_index,
+            walk,
+            ego: None,
+            npcs: Vec::new(),
+            pedestrians: Vec::new(),
+            views: Vec::new(),
+            events: Vec::new(),
+            stats: TrafficStats::default(),
+            scratch: Scratch::default(),
+            spawn_lanes,
+        };
+        if let Some(e) = ego {
+            let size = t.vehicle_size();
+            t.physics
+                .add_vehicle(0, ActorKind::Ego, size, e.position, e.z, e.yaw);
+            t.ego = Some(Ego {
+                state: VehicleState::at_rest(e.position, e.yaw),
+                z: e.z,
+                control: VehicleControl::BRAKE,
+                lane: t
+                    .lane_index
+                    .locate(&t.town, e.position, e.yaw, 0.5)
+                    .map(|(l, s, _)| (l, s)),
+            });
+        }
+        t.spawn_vehicles();
+        t.spawn_pedestrians();
+        t.refresh_views();
+        t
+    }
+
+    fn vehicle_size(&self) -> Vec3 {
+        let v = &self.cfg.vehicle;
+        Vec3::new(v.length_m, v.width_m, v.height_m)
+    }
+
+    /// A free spot on a random lane: (lane, s, position, yaw, z); None after `tries` failures.
+    fn free_spot(
+        &self,
+        rng: &mut ChaCha8Rng,
+        tries: usize,
+        ignore: Option<u32>,
+    ) -> Option<(LaneIdx, f32, Vec2, f32, f32)> {
+        if self.spawn_lanes.is_empty() {
+            return None;
+        }
+        let half = self.cfg.vehicle.length_m * 0.5;
+        for _ in 0..tries {
+            let lane = self.spawn_lanes[rng.random_range(0..self.spawn_lanes.len())];
+            let len = lane_len(&self.town, lane);
+            let s = rng.random_range(half + 1.0..len - half - 1.0);
+            let (p, yaw, z) = lane_point(&self.town, lane, s);
+            if self.physics.vehicle_fits(
+                self.vehicle_size(),
+                p,
+                z,
+                yaw,
+                self.cfg.npc.min_gap_m,
+                ignore,
+            ) {
+                return Some((lane, s, p, yaw, z));
+            }
+        }
+        None
+    }
+
+    fn spawn_vehicles(&mut self) {
+        for k in 0..self.cfg.vehicles {
+            let id = self.npcs.len() as u32 + 1;
+            let mut rng = actor_rng(self.cfg.seed, id);
+            // A requested vehicle that finds no free spot in 50 tries is not spawned.
+            let Some((lane, s, p, yaw, z)) = self.free_spot(&mut rng, 50, None) else {
+                continue;
+            };
+            let mut path = LanePath::new(lane, s);
+            npc::extend_path(&self.town, &mut path, &mut rng, 80.0);
+            self.physics
+                .add_vehicle(id, ActorKind::Vehicle, self.vehicle_size(), p, z, yaw);
+            self.npcs.push(Npc {
+                id,
+                state: VehicleState::at_rest(p, yaw),
+                ground_z: z,
+                path,
+                reservation: None,
+                request: None,
+                stuck_ticks: 0,
+                stopped_ticks: 0,
+                control: VehicleControl::BRAKE,
+                color: (k % 8) as u8,
+                rng,
+            });
+        }
+    }
+
+    fn spawn_pedestrians(&mut self) {
+        let first = self.cfg.vehicles as u32 + 1;
+        let n_nodes = self.walk.nodes.len();
+        for k in 0..self.cfg.pedestrians {
+            let id = first + k as u32;
+            let mut rng = actor_rng(self.cfg.seed, id);
+            if n_nodes == 0 {
+                break;
+            }
+            // One try per requested walker, like a batch spawn: an unsafe spot is refused.
+            let node = rng.random_range(0..n_nodes) as u32;
+            let n = self.walk.nodes[node as usize];
+            if !self
+                .physics
+                .pedestrian_fits(n.position, self.cfg.pedestrian.spawn_clearance_m)
+            {
+                continue;
+            }
+            let p = &self.cfg.pedestrian;
+            let speed = rng.random_range(p.min_speed_mps..=p.max_speed_mps);
+            let jaywalker = rng.random::<f32>() < p.cross_factor;
+            self.physics.add_pedestrian(id, n.position, n.z);
+            self.pedestrians.push(Pedestrian {
+                id,
+                position: n.position,
+                z: n.z,
+                yaw: 0.0,
+                speed_mps: speed,
+                current_speed_mps: 0.0,
+                jaywalker,
+                from: node,
+                route: Vec::new(),
+                wait_ticks: 0,
+                blocked_ticks: 0,
+                crosswalk_legs: 0,
+                jaywalk_legs: 0,
+                rng,
+            });
+        }
+    }
+
+    /// The town.
+    pub fn town(&self) -> &Town {
+        &self.town
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &TrafficConfig {
+        &self.cfg
+    }
+
+    /// NPC vehicles actually spawned.
+    pub fn realised_vehicles(&self) -> usize {
+        self.npcs.len()
+    }
+
+    /// Pedestrians actually spawned.
+    pub fn realised_pedestrians(&self) -> usize {
+        self.pedestrians.len()
+    }
+
+    /// The counters so far.
+    pub fn stats(&self) -> TrafficStats {
+        self.stats
+    }
+
+    /// The walk graph.
+    pub fn walk_graph(&self) -> &WalkGraph {
+        &self.walk
+    }
+
+    /// The ego, if there is one.
+    pub fn ego(&self) -> Option<&Ego> {
+        self.ego.as_ref()
+    }
+
+    /// Sets the ego's control; it stays in force until changed.
+    pub fn set_ego_control(&mut self, control: VehicleControl) {
+        if let Some(e) = &mut self.ego {
+            e.control = control.clamped();
+        }
+    }
+
+    /// Moves the ego to a pose at rest (no sweep; for scenario starts).
+    pub fn teleport_ego(&mut self, start: EgoStart) {
+        let size = self.vehicle_size();
+        self.physics
+            .add_vehicle(0, ActorKind::Ego, size, start.position, start.z, start.yaw);
+        self.ego = Some(Ego {
+            state: VehicleState::at_rest(start.position, start.yaw),
+            z: start.z,
+            control: VehicleControl::BRAKE,
+            lane: self
+                .lane_index
+                .locate(&self.town, start.position, start.yaw, 0.5)
+                .map(|(l, s, _)| (l, s)),
+        });
+        self.refresh_views();
+    }
+
+    /// Every actor as the behaviours see it (start of the next tick).
+    pub fn actor_views(&self) -> &[ActorView] {
+        &self.views
+    }
+
+    /// The nearest actor other than the ego ahead along a path (points ~1 m apart from the ego's centre): see [`crate::ahead`].
+    pub fn nearest_ahead_of_ego(
+        &self,
+        path: &[Vec2],
+        corridor_half_m: f32,
+        max_m: f32,
+    ) -> Option<Ahead> {
+        nearest_ahead(path, &self.views, Some(0), corridor_half_m, max_m)
+    }
+
+    /// The lane under a point for a heading: (lane, arc length) (metres).
+    pub fn locate_lane(&self, p: Vec2, heading: f32) -> Option<(LaneIdx, f32)> {
+        self.lane_index
+            .locate(&self.town, p, heading, 0.5)
+            .map(|(l, s, _)| (l, s))
+    }
+
+    /// The contact events of the last tick.
+    pub fn contacts(&self) -> &[ContactEvent] {
+        &self.events
+    }
+
+    fn refresh_views(&mut self) {
+        self.views.clear();
+        let (hl, hw) = (
+            self.cfg.vehicle.length_m * 0.5,
+            self.cfg.vehicle.width_m * 0.5,
+        );
+        if let Some(e) = &self.ego {
+            self.views.push(ActorView {
+                id: 0,
+                kind: ActorKind::Ego,
+                position: e.state.position,
+                yaw: e.state.yaw,
+                speed_mps: e.state.speed_mps,
+                half_length_m: hl,
+                half_width_m: hw,
+            });
+        }
+        for n in &self.npcs {
+            self.views.push(ActorView {
+                id: n.id,
+                kind: ActorKind::Vehicle,
+                position: n.state.position,
+                yaw: n.state.yaw,
+                speed_mps: n.state.speed_mps,
+                half_length_m: hl,
+                half_width_m: hw,
+            });
+        }
+        for p in &self.pedestrians {
+            self.views.push(ActorView {
+                id: p.id,
+                kind: ActorKind::Pedestrian,
+                position: p.position,
+                yaw: p.yaw,
+                speed_mps: p.current_speed_mps,
+                half_length_m: PEDESTRIAN_RADIUS_M,
+                half_width_m: PEDESTRIAN_RADIUS_M,
+            });
+        }
+    }
+
+    /// Snapshots of every actor for the camera, monitors and logs (ego first, then by id).
+    pub fn snapshots(&self, out: &mut Vec<ActorSnapshot>) {
+        out.clear();
+        let size = self.vehicle_size();
+        if let Some(e) = &self.ego {
+            out.push(ActorSnapshot {
+                id: 0,
+                kind: ActorKind::Ego,
+                position: e.state.position.extend(e.z),
+                heading: e.state.yaw,
+                extent: size,
+                speed_mps: e.state.speed_mps,
+                color: 0,
+            });
+        }
+        for n in &self.npcs {
+            out.push(ActorSnapshot {
+                id: n.id,
+                kind: ActorKind::Vehicle,
+                position: n.state.position.extend(n.ground_z),
+                heading: n.state.yaw,
+                extent: size,
+                speed_mps: n.state.speed_mps,
+                color: n.color,
+            });
+        }
+        for p in &self.pedestrians {
+            out.push(ActorSnapshot {
+                id: p.id,
+                kind: ActorKind::Pedestrian,
+                position: p.position.extend(p.z),
+                heading: p.yaw,
+                extent: Vec3::new(
+                    2.0 * PEDESTRIAN_RADIUS_M,
+                    2.0 * PEDESTRIAN_RADIUS_M,
+                    PEDESTRIAN_HEIGHT_M,
+                ),
+                speed_mps: p.current_speed_mps,
+                color: (p.id % 8) as u8,
+            });
+        }
+    }
+
+    /// Whether an NPC must stop for the light ahead: (must stop, distance from its front to the stop line).
+    fn light_stop(
+        &self,
+        n: &Npc,
+        lights: &[LightState],
+    ) -> Option<(bool, f32, crate::town::LightIdx)> {
+        let v = n.state.speed_mps;
+        npc::next_stop_line(&self.town, &self.rules, n, &self.cfg.vehicle, 80.0).map(
+            |(d, light)| {
+                let st = lights
+                    .get(light.0 as usize)
+                    .copied()
+                    .unwrap_or(LightState::Green);
+                let stop = match st {
+                    LightState::Red => true,
+                    LightState::Yellow => d > v * v / (2.0 * self.cfg.npc.comfort_decel_mps2) - 0.5,
+                    LightState::Green => false,
+                };
+                (stop, d, light)
+            },
+        )
+    }
+
+    /// Where each vehicle's rear is on the lane graph (for the box check).
+    fn occupants(&self) -> Vec<(LaneIdx, f32)> {
+        let half = self.cfg.vehicle.length_m * 0.5;
+        let mut occ: Vec<(LaneIdx, f32)> = self
+            .npcs
+            .iter()
+            .map(|n| (n.path.lane(), n.path.s_m - half))
+            .collect();
+        if let Some((l, s)) = self.ego.as_ref().and_then(|e| e.lane) {
+            occ.push((l, s - half));
+        }
+        occ
+    }
+
+    fn update_reservations(&mut self, lights: &[LightState]) {
+        let tick = self.stats.ticks;
+        let vp = self.cfg.vehicle;
+        let half = vp.length_m * 0.5;
+        // Release: left the junction, or now stopping for a light before it.
+        for i in 0..self.npcs.len() {
+            let n = &self.npcs[i];
+            let Some(res) = n.reservation else { continue };
+            let inside_or_ahead = n.path.lanes.contains(&res);
+            let left = !inside_or_ahead && n.path.s_m > half + 1.0;
+            let lost =
+                !inside_or_ahead && !left && n.path.lanes[0] != town_successor_of(&self.town, res);
+            let before = inside_or_ahead && n.path.lane() != res;
+            let entry = npc::next_junction_lane(&self.town, n, &vp)
+                .filter(|(l, _)| *l == res)
+                .map(|(_, d)| d);
+            let stop_for_light = before
+                && entry.is_some_and(|d_entry| {
+                    self.light_stop(n, lights)
+                        .is_some_and(|(stop, d, _)| stop && d > 0.5 && d <= d_entry + 0.1)
+                });
+            if left || lost || stop_for_light {
+                let id = n.id;
+                self.reservations.release(res, id);
+                self.npcs[i].reservation = None;
+            }
+        }
+        // Requests.
+        let occ = self.occupants();
+        let mut requests: Vec<(u64, u32, usize, LaneIdx)> = Vec::new();
+        for (i, n) in self.npcs.iter_mut().enumerate() {
+            let Some((lane, d)) = npc::next_junction_lane(&self.town, n, &vp) else {
+                n.request = None;
+                continue;
+            };
+            if n.reservation.is_some() {
+                // One reservation at a time: the next is asked for once the last is released.
+                n.request = None;
+                continue;
+            }
+            let v = n.state.speed_mps;
+            let near = d < v * v / (2.0 * self.cfg.npc.comfort_decel_mps2) + 10.0;
+            if !near {
+                n.request = None;
+                continue;
+            }
+            let since = match n.request {
+                Some((l, t)) if l == lane => t,
+                _ => tick,
+            };
+            n.request = Some((lane, since));
+            requests.push((since, n.id, i, lane));
+        }
+        requests.sort();
+        let min_room = vp.length_m + self.cfg.npc.min_gap_m;
+        let mut waiting: Vec<LaneIdx> = Vec::new();
+        for (_, id, i, lane) in requests {
+            let n = &self.npcs[i];
+            // A red (or stoppable yellow) light before this junction's entry: wait for it.
+            let d_entry =
+                npc::next_junction_lane(&self.town, n, &vp).map_or(f32::INFINITY, |(_, d)| d);
+            if self
+                .light_stop(n, lights)
+                .is_some_and(|(stop, d, _)| stop && d > -0.3 && d <= d_entry + 0.1)
+            {
+                continue;
+            }
+            // An older request that is waiting for a conflicting lane goes first: no overtaking it.
+            let queued_behind = waiting.iter().any(|&w: &LaneIdx| {
+                w == lane || self.rules.conflicts[lane.0 as usize].contains(&w)
+            });
+            if queued_behind || !self.reservations.free_for(&self.rules, lane, id) {
+                waiting.push(lane);
+                continue;
+            }
+            // Only the first vehicle of its lane may reserve: one behind it could not enter anyway
+            // and would block the lanes the first one needs.
+            let (my_lane, my_rear) = occ[i];
+            if occ
+                .iter()
+                .enumerate()
+                .any(|(k, &(l, rear))| k != i && l == my_lane && rear > my_rear)
+            {
+                continue;
+            }
+            // Don't block the box: the exit lane needs room for this car.
+            let exit = town_successor_of(&self.town, lane);
+            let exit_on_path = n
+                .path
+                .lanes
+                .iter()
+                .skip_while(|&&l| l != lane)
+                .nth(1)
+                .copied()
+                .unwrap_or(exit);
+            let room = occ.iter().enumerate().all(|(k, &(l, rear))| {
+                let other = if k < self.npcs.len() {
+                    self.npcs[k].id
+                } else {
+                    0
+                };
+                other == id || l != exit_on_path || rear >= min_room
+            });
+            if !room {
+                continue;
+            }
+            self.reservations.grant(lane, id);
+            let n = &mut self.npcs[i];
+            n.reservation = Some(lane);
+            n.request = None;
+        }
+    }
+
+    /// Advances the world one 40 Hz tick; `lights` are the light states by `LightIdx`. Returns the tick's contacts.
+    pub fn step(&mut self, lights: &[LightState]) -> &[ContactEvent] {
+        let vp = self.cfg.vehicle;
+        self.update_reservations(lights);
+        // Decide.
+        let mut decisions = Vec::with_capacity(self.npcs.len());
+        for n in &self.npcs {
+            decisions.push(npc::decide(
+                &self.town,
+                &self.rules,
+                &self.cfg.npc,
+                &vp,
+                n,
+                &self.views,
+                lights,
+                &mut self.scratch,
+            ));
+        }
+        let mut ped_targets = Vec::with_capacity(self.pedestrians.len());
+        for p in &mut self.pedestrians {
+            ped_targets.push(p.decide(&self.walk, &self.cfg.pedestrian, &self.views, DT_S));
+        }
+        // Move: ego, NPCs, pedestrians.
+        if let Some(e) = &mut self.ego {
+            let mut s = e.state;
+            s.step(&vp, e.control, DT_S);
+            let out = self.physics.move_actor(0, s.position, s.yaw);
+            s.position = out.position;
+            s.yaw = out.yaw;
+            if out.hit.is_some() {
+                s.speed_mps *= out.fraction;
+            }
+            e.state = s;
+        }
+        for (n, d) in self.npcs.iter_mut().zip(&decisions) {
+            let stop_before = npc::next_stop_line(&self.town, &self.rules, n, &vp, 20.0);
+            n.control = d.control;
+            let mut s = n.state;
+            s.step(&vp, d.control, DT_S);
+            let out = self.physics.move_actor(n.id, s.position, s.yaw);
+            s.position = out.position;
+            s.yaw = out.yaw;
+            if out.hit.is_some() {
+                s.speed_mps *= out.fraction;
+            }
+            n.state = s;
+            let travelled = n.path.advance_to(&self.town, s.position);
+            if let Some((dist, light)) = stop_before
+                && dist >= 0.0
+                && travelled > dist
+                && lights.get(light.0 as usize) == Some(&LightState::Red)
+            {
+                self.stats.npc_red_runs += 1;
+            }
+            npc::extend_path(&self.town, &mut n.path, &mut n.rng, 80.0);
+            // Stuck / stopped bookkeeping.
+            if s.speed_mps < 0.1 {
+                n.stopped_ticks += 1;
+                if n.stopped_ticks == (60.0 / DT_S) as u32 + 1 {
+                    self.stats.deadlocks += 1;
+                }
+                if d.accel_mps2 > 0.3 {
+                    n.stuck_ticks += 1;
+                } else {
+                    n.stuck_ticks = 0;
+                }
+            } else {
+                n.stopped_ticks = 0;
+                n.stuck_ticks = 0;
+            }
+        }
+        for (p, (target, z)) in self.pedestrians.iter_mut().zip(ped_targets) {
+            let out = self.physics.move_actor(p.id, target, p.yaw);
+            let z = if out.fraction >= 1.0 { z } else { p.z };
+            p.arrive(&self.walk, out.position, z, DT_S);
+            // A walker held up by a vehicle for half a second turns back (cars wait for walkers
+            // in front of them; this keeps the two from waiting for each other).
+            p.note_blocked(&self.walk, out.hit.is_some() && out.fraction < 0.5, 20);
+        }
+        // Respawn NPCs stuck too long or pushed off their path.
+        for i in 0..self.npcs.len() {
+            let n = &self.npcs[i];
+            let (lp, _, _) = lane_point(&self.town, n.path.lane(), n.path.s_m);
+            let off_path = (lp - n.state.position).length() > 4.0;
+            if n.stuck_ticks > self.cfg.npc.stuck_ticks || off_path {
+                self.respawn(i);
+            }
+        }
+        if let Some(e) = &mut self.ego {
+            e.lane = self
+                .lane_index
+                .locate(&self.town, e.state.position, e.state.yaw, 0.5)
+                .map(|(l, s, _)| (l, s));
+        }
+        self.events.clear();
+        self.events.extend_from_slice(self.physics.end_tick());
+        for ev in &self.events {
+            if !ev.started {
+                continue;
+            }
+            let kind = |p: Party| match p {
+                Party::Actor { kind, .. } => Some(kind),
+                Party::Static(_) => None,
+            };
+            match (kind(ev.a), kind(ev.b)) {
+                (Some(ActorKind::Vehicle), Some(ActorKind::Vehicle)) => {
+                    self.stats.npc_npc_collisions += 1
+                }
+                (Some(ActorKind::Vehicle), Some(ActorKind::Pedestrian)) => {
+                    self.stats.npc_pedestrian_collisions += 1
+                }
+                (Some(ActorKind::Vehicle), None) => self.stats.npc_static_collisions += 1,
+                (Some(ActorKind::Pedestrian), Some(_)) => self.stats.pedestrian_vehicle_bumps += 1,
+                _ => {}
+            }
+        }
+        self.stats.ticks += 1;
+        self.refresh_views();
+        &self.events
+    }
+
+    fn respawn(&mut self, i: usize) {
+        let id = self.npcs[i].id;
+        let mut rng = self.npcs[i].rng.clone();
+        let spot = self.free_spot(&mut rng, 20, Some(id));
+        let n = &mut self.npcs[i];
+        n.rng = rng;
+        let Some((lane, s, p, yaw, z)) = spot else {
+            return;
+        };
+        if let Some(r) = n.reservation.take() {
+            self.reservations.release(r, id);
+        }
+        n.state = VehicleState::at_rest(p, yaw);
+        n.ground_z = z;
+        n.path = LanePath::new(lane, s);
+        n.request = None;
+        n.stuck_ticks = 0;
+        n.stopped_ticks = 0;
+        npc::extend_path(&self.town, &mut n.path, &mut n.rng, 80.0);
+        self.physics.teleport(id, p, yaw);
+        self.stats.respawns += 1;
+    }
+}
+
+fn town_successor_of(town: &Town, lane: LaneIdx) -> LaneIdx {
+    town.lanes[lane.0 as usize]
+        .successors
+        .first()
+        .copied()
+        .unwrap_or(lane)
+}
+
+pub use crate::soak::{SoakReport, TableOneRow, soak, table_one};
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testtown::{FixtureLights, grid};
+
+    fn town() -> Arc<Town> {
+        Arc::new(grid(3, 3, 60.0))
+    }
+
+    fn cfg(v: usize, p: usize, seed: u64) -> TrafficConfig {
+        TrafficConfig {
+            vehicles: v,
+            pedestrians: p,
+            seed,
+            ..Default::default()
+        }
+    }
+
+    fn trace(seed: u64, ticks: u64) -> Vec<u32> {
+        let t = town();
+        let lights = FixtureLights::new(&t);
+        let ego = EgoStart {
+            position: Vec2::new(30.0, -1.75),
+            z: 0.0,
+            yaw: 0.0,
+        };
+        let mut tr = Traffic::new(t, cfg(10, 20, seed), Some(ego));
+        tr.set_ego_control(VehicleControl {
+            steer: 0.0,
+            throttle: 0.5,
+            brake: 0.0,
+        });
+        let mut states = Vec::new();
+        let mut snaps = Vec::new();
+        let mut bits = Vec::new();
+        for tick in 0..ticks {
+            lights.states_at(tick, &mut states);
+            tr.step(&states);
+            tr.snapshots(&mut snaps);
+            for s in &snaps {
+                bits.extend([
+                    s.id,
+                    s.position.x.to_bits(),
+                    s.position.y.to_bits(),
+                    s.position.z.to_bits(),
+                    s.heading.to_bits(),
+                    s.speed_mps.to_bits(),
+                ]);
+            }
+        }
+        bits
+    }
+
+    #[test]
+    fn same_seed_gives_identical_trajectories_bit_for_bit() {
+        let a = trace(11, 600);
+        let b = trace(11, 600);
+        assert_eq!(a.len(), b.len());
+        assert!(a == b, "trajectories differ");
+        let c = trace(12, 600);
+        assert!(a != c, "a different seed should give a different run");
+    }
+
+    #[test]
+    fn spawns_do_not_overlap_each_other_or_the_ego() {
+        let t = town();
+        let ego = EgoStart {
+            position: Vec2::new(30.0, -1.75),
+            z: 0.0,
+            yaw: 0.0,
+        };
+        let tr = Traffic::new(t, cfg(20, 40, 5), Some(ego));
+        assert_eq!(tr.realised_vehicles(), 20);
+        assert!(tr.realised_pedestrians() > 30 && tr.realised_pedestrians() <= 40);
+        let ids: Vec<u32> = std::iter::once(0)
+            .chain(tr.npcs.iter().map(|n| n.id))
+            .collect();
+        for &a in &ids {
+            for &b in &ids {
+                if a < b {
+                    let d = tr.physics.distance(a, b).unwrap();
+                    assert!(
+                        d > tr.config().npc.min_gap_m,
+                        "{a} and {b} spawned {d} m apart"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn npcs_stop_at_red_lights_at_the_stop_line() {
+        let t = town();
+        let mut tr = Traffic::new(t.clone(), cfg(16, 0, 3), None);
+        let red = vec![LightState::Red; t.lights.len()];
+        for _ in 0..(40 * 90) {
+            tr.step(&red);
+        }
+        assert_eq!(tr.stats().npc_red_runs, 0);
+        // Every NPC whose next stop line is near waits before it, stopped.
+        let vp = tr.config().vehicle;
+        let mut waiting_at_line = 0;
+        for n in &tr.npcs {
+            if let Some((d, _)) = npc::next_stop_line(&t, &tr.rules, n, &vp, 100.0) {
+                assert!(d >= -0.3, "NPC {} is past a red stop line by {}", n.id, -d);
+                if d < 2.0 {
+                    assert!(
+                        n.state.speed_mps < 0.1,
+                        "NPC {} at the line moving {}",
+                        n.id,
+                        n.state.speed_mps
+                    );
+                    waiting_at_line += 1;
+                }
+            }
+        }
+        assert!(
+            waiting_at_line >= 4,
+            "only {waiting_at_line} NPCs wait at a stop line"
+        );
+        // No NPC is inside a lit junction's lanes after 90 s of red... except unlit corners.
+        assert_eq!(tr.stats().npc_npc_collisions, 0);
+    }
+
+    #[test]
+    fn no_npc_npc_collisions_in_normal_flow() {
+        let t = town();
+        let lights = FixtureLights::new(&t);
+        let mut tr = Traffic::new(t, cfg(20, 20, 7), None);
+        let mut states = Vec::new();
+        let start: Vec<Vec2> = tr.npcs.iter().map(|n| n.state.position).collect();
+        for tick in 0..(40 * 120) {
+            lights.states_at(tick, &mut states);
+            tr.step(&states);
+        }
+        let s = tr.stats();
+        assert_eq!(s.npc_npc_collisions, 0, "{s:?}");
+        assert_eq!(s.npc_red_runs, 0, "{s:?}");
+        assert_eq!(s.deadlocks, 0, "{s:?}");
+        // They did drive.
+        let moved = tr
+            .npcs
+            .iter()
+            .zip(&start)
+            .filter(|(n, p)| (n.state.position - **p).length() > 20.0)
+            .count();
+        assert!(moved >= 15, "only {moved} NPCs moved: {s:?}");
+    }
+
+    #[test]
+    fn ego_drives_from_controls_and_its_contacts_name_both_actors() {
+        let t = town();
+        // Park an NPC 20 m ahead of the ego on its lane by spawning none and placing the ego behind a wall of NPC... use a single NPC.
+        let ego = EgoStart {
+            position: Vec2::new(20.0, -1.75),
+            z: 0.0,
+            yaw: 0.0,
+        };
+        let mut tr = Traffic::new(t.clone(), cfg(1, 0, 1), Some(ego));
+        // Move the NPC in front of the ego and freeze it with red lights... simply teleport it.
+        let id = tr.npcs[0].id;
+        tr.npcs[0].state = VehicleState::at_rest(Vec2::new(38.0, -1.75), 0.0);
+        tr.npcs[0].path = LanePath::new(LaneIdx(0), 28.0);
+        tr.physics.teleport(id, Vec2::new(38.0, -1.75), 0.0);
+        tr.refresh_views();
+        tr.set_ego_control(VehicleControl {
+            steer: 0.0,
+            throttle: 1.0,
+            brake: 0.0,
+        });
+        let red = vec![LightState::Red; t.lights.len()];
+        let mut hit = None;
+        for _ in 0..200 {
+            let ev = tr.step(&red).to_vec();
+            if let Some(e) = ev.iter().find(|e| {
+                e.started
+                    && e.a
+                        == Party::Actor {
+                            id: 0,
+                            kind: ActorKind::Ego,
+                        }
+            }) {
+                hit = Some(*e);
+                break;
+            }
+        }
+        let e = hit.expect("the ego hit the NPC");
+        assert!(matches!(
+            e.b,
+            Party::Actor {
+                kind: ActorKind::Vehicle,
+                ..
+            }
+        ));
+        assert!(!tr.physics.overlapping(0, id));
+        // The query sees the NPC ahead of the ego.
+        let path: Vec<Vec2> = (0..30)
+            .map(|i| Vec2::new(tr.ego().unwrap().state.position.x + i as f32, -1.75))
+            .collect();
+        let a = tr
+            .nearest_ahead_of_ego(&path, 1.5, 40.0)
+            .expect("something ahead");
+        assert!(
+            a.kind == ActorKind::Vehicle && a.distance_m < 2.4 + 0.3,
+            "{a:?}"
+        );
+    }
+
+    #[test]
+    fn a_stuck_npc_is_respawned_after_40_ticks() {
+        let t = town();
+        let mut tr = Traffic::new(t.clone(), cfg(1, 0, 2), None);
+        // Put the NPC on lane 0 and a box it cannot see (not an actor) 8 m ahead of it.
+        let id = tr.npcs[0].id;
+        let start = Vec2::new(20.0, -1.75);
+        tr.npcs[0].state = VehicleState::at_rest(start, 0.0);
+        tr.npcs[0].path = LanePath::new(LaneIdx(0), 10.0);
+        let n = &mut tr.npcs[0];
+        npc::extend_path(&t, &mut n.path, &mut n.rng, 80.0);
+        tr.physics.teleport(id, start, 0.0);
+        tr.physics.add_static_box(
+            Vec2::new(30.0, -1.75),
+            0.0,
+            Vec3::new(1.0, 3.0, 1.0),
+            0.0,
+            crate::physics::StaticKind::Pole,
+        );
+        tr.refresh_views();
+        let green = vec![LightState::Green; t.lights.len()];
+        let mut hit_tick = None;
+        let mut respawn_tick = None;
+        for tick in 0..400u32 {
+            let ev = tr.step(&green).to_vec();
+            if hit_tick.is_none()
+                && ev
+                    .iter()
+                    .any(|e| e.started && matches!(e.b, Party::Static(_)))
+            {
+                hit_tick = Some(tick);
+            }
+            if tr.stats().respawns > 0 {
+                respawn_tick = Some(tick);
+                break;
+            }
+        }
+        let (h, r) = (
+            hit_tick.expect("hit the box"),
+            respawn_tick.expect("respawned"),
+        );
+        // Respawned once stuck for more than 40 ticks (it needs a few ticks to come to a stop).
+        assert!(r > h + 40 && r < h + 60, "hit at {h}, respawned at {r}");
+        assert!((tr.npcs[0].state.position - Vec2::new(27.0, -1.75)).length() > 3.0);
+        assert_eq!(tr.stats().npc_static_collisions, 1);
+    }
+
+    #[test]
+    fn the_cross_factor_decides_who_crosses_between_crosswalks() {
+        let t = town();
+        let legs = |cross: f32| {
+            let mut c = cfg(0, 40, 9);
+            c.pedestrian.cross_factor = cross;
+            let mut tr = Traffic::new(t.clone(), c, None);
+            let lights = vec![LightState::Red; t.lights.len()];
+            for _ in 0..(40 * 120) {
+                tr.step(&lights);
+            }
+            let cw: u32 = tr.pedestrians.iter().map(|p| p.crosswalk_legs).sum();
+            let jw: u32 = tr.pedestrians.iter().map(|p| p.jaywalk_legs).sum();
+            let jaywalkers = tr.pedestrians.iter().filter(|p| p.jaywalker).count();
+            assert!(tr.pedestrians.iter().all(|p| p.jaywalker == (cross >= 1.0)));
+            (cw, jw, jaywalkers)
+        };
+        let (cw0, jw0, j0) = legs(0.0);
+        assert!(cw0 > 5, "{cw0} crosswalk legs");
+        assert_eq!((jw0, j0), (0, 0));
+        let (_, jw1, j1) = legs(1.0);
+        assert!(j1 > 30, "{j1} jaywalkers");
+        assert!(jw1 > 5, "{jw1} jaywalk legs");
+    }
+}
