@@ -15,6 +15,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Drive one scenario and print its result table.
+    Run(cli::run::RunArgs),
     /// Maps: summary, picture, town generator.
     #[command(subcommand)]
     Map(cli::map::MapCommand),
@@ -27,6 +29,7 @@ enum Command {
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
+        Command::Run(a) => cli::run::run(a),
         Command::Map(c) => cli::map::run(c),
         Command::Routes(a) => cli::routes::run(a),
         Command::Traffic(a) => cli::traffic::run(a),

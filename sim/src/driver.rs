@@ -37,6 +37,28 @@ pub struct Observation<'a> {
     pub scale: f32,
     /// The stitched camera rig image at that scale, if the driver asked for it.
     pub image: Option<&'a RgbImage>,
+    /// The simulator's exact state, for drivers that declare they need it.
+    pub privileged: Option<&'a Privileged<'a>>,
+}
+
+/// The simulator's exact state at a control boundary: what the privileged
+/// expert drives from. Learned drivers never get it.
+#[derive(Debug, Clone, Copy)]
+pub struct Privileged<'a> {
+    /// The town.
+    pub town: &'a world::Town,
+    /// The dense route being driven.
+    pub route: &'a world::planner::DenseRoute,
+    /// The route point the ego has reached.
+    pub route_index: usize,
+    /// The ego.
+    pub ego: world::ActorSnapshot,
+    /// Every light's state, by `LightIdx`.
+    pub lights: &'a [world::LightState],
+    /// The nearest actor ahead along the route, if any within range.
+    pub ahead: Option<world::ahead::Ahead>,
+    /// The ego's vehicle model.
+    pub vehicle: &'a world::vehicle::VehicleParams,
 }
 
 /// What a driver needs the loop to provide.

@@ -4,9 +4,11 @@
 
 pub mod delay;
 pub mod driver;
+pub mod expert;
 pub mod monitors;
 pub mod record;
 pub mod recorder;
+pub mod runner;
 pub mod scenario;
 pub mod sweep;
 

@@ -107,15 +107,13 @@ pub struct RunPerf {
     pub wall_s: f64,
     /// Simulated seconds per wall second.
     pub real_time_factor: f64,
-    /// Time in physics (seconds).
-    pub physics_s: f64,
-    /// Time in NPC and pedestrian behaviours and lights (seconds).
-    pub behaviour_s: f64,
+    /// Time in NPC and pedestrian behaviours and physics (seconds).
+    pub traffic_s: f64,
     /// Time rendering the camera (seconds).
     pub render_s: f64,
     /// Time in the driver (seconds).
     pub driver_s: f64,
-    /// Time in monitors and recording (seconds).
+    /// Time in lights, monitors and recording (seconds).
     pub other_s: f64,
 }
 

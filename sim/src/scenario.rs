@@ -59,8 +59,23 @@ pub struct RouteSpec {
     /// A CARLA leaderboard route XML or a native TOML route file, relative to
     /// the scenario file.
     pub file: PathBuf,
-    /// The route's id in that file.
-    pub id: u32,
+    /// The route's id in that file (`id = 0` and `id = "0"` are the same).
+    #[serde(deserialize_with = "id_string")]
+    pub id: String,
+}
+
+/// Reads a route id written as a number or a string.
+fn id_string<'de, D: serde::Deserializer<'de>>(d: D) -> Result<String, D::Error> {
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum Id {
+        Number(u64),
+        Text(String),
+    }
+    Ok(match Id::deserialize(d)? {
+        Id::Number(n) => n.to_string(),
+        Id::Text(t) => t,
+    })
 }
 
 /// The traffic to spawn.
@@ -460,7 +475,7 @@ mod tests {
     #[test]
     fn minimal_scenario_takes_the_protocol_defaults() {
         let s = parse(MINIMAL).unwrap();
-        assert_eq!(s.route.id, 3);
+        assert_eq!(s.route.id, "3");
         assert_eq!(s.timing.tick_s, 0.025);
         assert_eq!(s.ticks_per_frame(), 2);
         assert_eq!(s.timing.control_period_ms, 50.0);

@@ -2,4 +2,5 @@
 
 pub mod map;
 pub mod routes;
+pub mod run;
 pub mod traffic;

@@ -1,0 +1,212 @@
+//! `mrdrive run SCENARIO`: drive one scenario and print its result.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use clap::Args;
+use sim::driver::Driver;
+use sim::expert::{Expert, ExpertParams};
+use sim::record::RunRecord;
+use sim::recorder::{RecordOptions, Recorder};
+use sim::runner::{self, FixedScale, Overrides, Prepared, RunInputs, Selector};
+use sim::scenario::{DriverKind, Scenario, SelectorKind};
+
+/// `run` arguments.
+#[derive(Args)]
+pub struct RunArgs {
+    /// The scenario file (see scenarios/README.md).
+    #[arg(default_value = "scenarios/default.toml")]
+    pub scenario: PathBuf,
+    /// Injected delay D (milliseconds), over the scenario's.
+    #[arg(long)]
+    pub delay_ms: Option<f64>,
+    /// A fixed input scale (fraction of S0), over the scenario's selector.
+    #[arg(long)]
+    pub scale: Option<f64>,
+    /// The traffic seed, over the scenario's.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Write the result record as JSON to this file.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Record an MCAP log to this file (Foxglove opens it).
+    #[arg(long)]
+    pub record: Option<PathBuf>,
+    /// With --record: also log the class image.
+    #[arg(long)]
+    pub labels: bool,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// The selector a scenario asks for (the scale flag overrides it).
+pub fn selector_for(scenario: &Scenario, scale: Option<f64>) -> anyhow::Result<Box<dyn Selector>> {
+    if let Some(s) = scale {
+        anyhow::ensure!(
+            s > 0.0 && s <= 1.0,
+            "--scale {s}: scales are fractions of S0 in (0, 1]"
+        );
+        return Ok(Box::new(FixedScale(s)));
+    }
+    let r = &scenario.resolution;
+    match r.selector {
+        SelectorKind::Fixed => Ok(Box::new(FixedScale(r.scale))),
+        other => anyhow::bail!(
+            "scenario {}: resolution.selector = {other:?} is not available in this build yet; use \"fixed\"",
+            scenario.name
+        ),
+    }
+}
+
+/// The driver a scenario asks for.
+pub fn driver_for(scenario: &Scenario, prepared: &Prepared) -> anyhow::Result<Box<dyn Driver>> {
+    match scenario.driver.kind {
+        DriverKind::Expert => Ok(Box::new(Expert::new(
+            &prepared.town,
+            &prepared.route,
+            ExpertParams::default(),
+        ))),
+        DriverKind::Policy => anyhow::bail!(
+            "scenario {}: driver.kind = \"policy\" is not available in this build yet; use \"expert\"",
+            scenario.name
+        ),
+    }
+}
+
+/// Runs one scenario file with overrides: the shared path of `run` and `sweep`.
+pub fn run_one(
+    path: &Path,
+    overrides: &Overrides,
+    scale: Option<f64>,
+    record: Option<(&Path, RecordOptions)>,
+    progress: &mut dyn FnMut(f64),
+) -> anyhow::Result<RunRecord> {
+    let scenario = Scenario::from_file(path)?;
+    let scenario = overrides.apply(&scenario);
+    let prepared =
+        runner::prepare(&scenario).with_context(|| format!("scenario {}", path.display()))?;
+    let mut driver = driver_for(&scenario, &prepared)?;
+    let mut selector = selector_for(&scenario, scale)?;
+    let record_path = record.map(|(p, o)| (p.to_path_buf(), o)).or_else(|| {
+        scenario.outputs.record.clone().map(|p| {
+            (
+                p,
+                RecordOptions {
+                    labels: scenario.outputs.record_labels,
+                    ..Default::default()
+                },
+            )
+        })
+    });
+    let mut recorder = match &record_path {
+        Some((p, o)) => Some(Recorder::create(p, *o, &prepared.town)?),
+        None => None,
+    };
+    let record = runner::run(
+        &scenario,
+        path,
+        RunInputs {
+            prepared: &prepared,
+            driver: driver.as_mut(),
+            selector: selector.as_mut(),
+            camera: None,
+            recorder: recorder.as_mut(),
+            progress,
+            max_ticks: None,
+        },
+    )?;
+    if let Some(rec) = recorder {
+        rec.finish(&record.result)?;
+    }
+    Ok(record)
+}
+
+/// Runs `run`.
+pub fn run(a: RunArgs) -> anyhow::Result<()> {
+    let overrides = Overrides {
+        delay_ms: a.delay_ms,
+        seed: a.seed,
+        ..Default::default()
+    };
+    let bar = if a.quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(100)
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:40}] {pos:>3}% of the route {msg}",
+        )
+        .expect("a valid template")
+        .progress_chars("=> "),
+    );
+    let record_opts = RecordOptions {
+        labels: a.labels,
+        ..Default::default()
+    };
+    let record = run_one(
+        &a.scenario,
+        &overrides,
+        a.scale,
+        a.record.as_deref().map(|p| (p, record_opts)),
+        &mut |pct| bar.set_position(pct.floor() as u64),
+    )?;
+    bar.finish_and_clear();
+    print_result(&record);
+    if let Some(path) = &a.json {
+        sim::record::write_atomically(path, &record)
+            .with_context(|| format!("writing {}", path.display()))?;
+        println!("record: {}", path.display());
+    }
+    if let Some(path) = &a.record {
+        println!("log: {}", path.display());
+    }
+    Ok(())
+}
+
+/// Prints a run's result as a small table.
+pub fn print_result(record: &RunRecord) {
+    let r = &record.result;
+    let p = &record.perf;
+    println!(
+        "scenario      {} ({})",
+        r.provenance.scenario, r.provenance.route
+    );
+    println!(
+        "driver        {}   resolution {}",
+        r.provenance.driver, r.settings.resolution
+    );
+    println!(
+        "delay         {} ms (max latency in force {} ms)",
+        r.settings.delay_ms, r.max_latency_ms
+    );
+    println!(
+        "traffic       {} vehicles, {} pedestrians (asked {}, {}), seed {}",
+        r.traffic.vehicles,
+        r.traffic.pedestrians,
+        r.settings.vehicles,
+        r.settings.pedestrians,
+        r.settings.seed
+    );
+    println!(
+        "result        {}  completion {:.1} % of {:.0} m  driving score {:.1}",
+        if r.success { "SUCCESS" } else { "FAILURE" },
+        r.completion_pct,
+        r.route_length_m,
+        r.driving_score
+    );
+    if let Some(t) = r.termination {
+        println!("ended by      {}", t.name());
+    }
+    println!("infractions");
+    for (kind, n) in &r.counts {
+        if !kind.terminates() || *n > 0 {
+            println!("  {:<22} {n}", kind.name());
+        }
+    }
+    println!(
+        "time          {:.1} s simulated in {:.2} s wall ({:.0}x real time): traffic {:.2} s, render {:.2} s, driver {:.2} s, other {:.2} s",
+        r.sim_time_s, p.wall_s, p.real_time_factor, p.traffic_s, p.render_s, p.driver_s, p.other_s
+    );
+}
