@@ -521,6 +521,18 @@ impl Builder<'_> {
             if lane.layer != Layer::Permanent {
                 continue;
             }
+            // Junction connecting roads carry road marks in many exports
+            // (CARLA's towns: hundreds of `broken` ones) that are not
+            // painted: they are the overlapping virtual boundaries of the
+            // paths through the junction. Nothing is drawn there and no
+            // crossing of them counts.
+            let in_junction = net
+                .road_lane(lane.id)
+                .and_then(|rl| net.road(rl.road))
+                .is_some_and(|r| r.junction().is_some());
+            if in_junction {
+                continue;
+            }
             let edge = edge_points(lane, side);
             // Clip to the stretch of road the mark covers.
             let points = match self
