@@ -463,6 +463,100 @@ mod tests {
     }
 
     #[test]
+    fn stop_lines_sit_at_the_junction_entry_and_markings_bound_the_lane() {
+        use crate::geometry::{OrientedBox, box_touches_polyline, crosses_stop_line};
+        use glam::Vec2;
+        // Nodes at x = 0, 60, 120 and y = 0, 60; junction squares 10 m half size.
+        let p = GridTownParams {
+            name: "t".into(),
+            blocks_x: 2,
+            blocks_y: 1,
+            block_size_m: 60.0,
+            seed: 0,
+        };
+        let (town, _) = load_xodr_str(
+            &generate_grid_town(&p).unwrap(),
+            "t",
+            &LoadOptions::default(),
+        )
+        .unwrap();
+        // The eastbound lane of the street from (0, 0) to (60, 0) runs along
+        // y = -1.75 and enters the T junction at (60, 0) at x = 50.
+        let sl = town
+            .lights
+            .iter()
+            .flat_map(|l| l.stop_lines.iter())
+            .find(|sl| sl.ends[0].truncate().distance(Vec2::new(50.0, 0.0)) < 0.5)
+            .expect("a stop line at (50, 0)");
+        assert!(
+            sl.ends[0].truncate().distance(Vec2::new(50.0, 0.0)) < 0.02,
+            "left end {:?}",
+            sl.ends[0]
+        );
+        assert!(
+            sl.ends[1].truncate().distance(Vec2::new(50.0, -3.5)) < 0.02,
+            "right end {:?}",
+            sl.ends[1]
+        );
+        let lane = town.lane(sl.lane);
+        assert!((sl.s - lane.length_m()).abs() < 1e-3 && (lane.length_m() - 40.0).abs() < 0.01);
+        let ends = [sl.ends[0].truncate(), sl.ends[1].truncate()];
+        assert!(crosses_stop_line(
+            Vec2::new(49.8, -1.75),
+            Vec2::new(50.2, -1.75),
+            ends
+        ));
+        assert!(!crosses_stop_line(
+            Vec2::new(49.0, -1.75),
+            Vec2::new(49.9, -1.75),
+            ends
+        ));
+        // A 4.8 m x 2.1 m car centred in that lane touches no marking; moved
+        // 1.0 m left (its left side at y = 0.3) it touches the centre line.
+        let car = OrientedBox {
+            center: Vec2::new(25.0, -1.75),
+            heading: 0.0,
+            half_length: 2.4,
+            half_width: 1.05,
+        };
+        assert!(
+            !town
+                .markings
+                .iter()
+                .any(|m| box_touches_polyline(&car, &m.points))
+        );
+        let over = OrientedBox {
+            center: Vec2::new(25.0, -0.75),
+            ..car
+        };
+        let touched: Vec<_> = town
+            .markings
+            .iter()
+            .filter(|m| box_touches_polyline(&over, &m.points))
+            .collect();
+        assert_eq!(touched.len(), 1);
+        assert_eq!(
+            (touched[0].kind, touched[0].color),
+            (crate::MarkKind::Broken, crate::MarkColor::Yellow)
+        );
+        // Moved 1.0 m right it touches the solid white edge line at y = -3.5.
+        let right = OrientedBox {
+            center: Vec2::new(25.0, -2.75),
+            ..car
+        };
+        let touched: Vec<_> = town
+            .markings
+            .iter()
+            .filter(|m| box_touches_polyline(&right, &m.points))
+            .collect();
+        assert_eq!(touched.len(), 1);
+        assert_eq!(
+            (touched[0].kind, touched[0].color),
+            (crate::MarkKind::Solid, crate::MarkColor::White)
+        );
+    }
+
+    #[test]
     fn same_seed_same_bytes_other_seed_other_buildings() {
         let p = GridTownParams::gen02();
         assert_eq!(

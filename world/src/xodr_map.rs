@@ -288,8 +288,7 @@ impl Ctx<'_> {
             }
             let w = lane.width;
             if !w.is_finite()
-                || w < 0.0
-                || w > 100.0
+                || !(0.0..=100.0).contains(&w)
                 || lane
                     .widths
                     .iter()
@@ -695,16 +694,16 @@ impl Builder<'_> {
             }
         }
         for area in net.junction_areas() {
-            if let Some(&ji) = self.junction_of.get(&area.od_id) {
-                if area.boundary.len() >= 3 {
-                    let mut poly: Vec<Vec2> =
-                        area.boundary.iter().map(|p| Vec2::new(p.x, p.y)).collect();
-                    if signed_area(&poly) < 0.0 {
-                        poly.reverse();
-                    }
-                    self.town.junctions[ji.0 as usize].outline = poly;
-                    pts.remove(&ji);
+            if let Some(&ji) = self.junction_of.get(&area.od_id)
+                && area.boundary.len() >= 3
+            {
+                let mut poly: Vec<Vec2> =
+                    area.boundary.iter().map(|p| Vec2::new(p.x, p.y)).collect();
+                if signed_area(&poly) < 0.0 {
+                    poly.reverse();
                 }
+                self.town.junctions[ji.0 as usize].outline = poly;
+                pts.remove(&ji);
             }
         }
         for (ji, p) in pts {
