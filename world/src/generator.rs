@@ -342,6 +342,15 @@ pub fn generate_grid_town(p: &GridTownParams) -> Result<String, GeneratorError> 
         let mut conns = String::new();
         let mut k = 0;
         for (dir_in, st_in, in_is_b) in list {
+            // The sidewalk on the right of travel continues toward the
+            // rightmost way out (a right turn, else straight, else left).
+            let travel_in = wrap(dir_in + PI);
+            let rightmost = list
+                .iter()
+                .filter(|(_, st, _)| !std::ptr::eq(*st, *st_in))
+                .map(|(d, _, _)| wrap(d - travel_in))
+                .filter(|t| (t.abs() - PI).abs() >= 0.1)
+                .fold(f64::MAX, f64::min);
             for (dir_out, st_out, out_is_b) in list {
                 if std::ptr::eq(*st_in, *st_out) {
                     continue;
@@ -395,6 +404,32 @@ pub fn generate_grid_town(p: &GridTownParams) -> Result<String, GeneratorError> 
                     st_in.id
                 );
                 k += 1;
+                if (turn - rightmost).abs() < 1e-9 {
+                    // A sidewalk round the corner (or across a missing arm),
+                    // on the same reference line, outside a bare 3.5 m strip.
+                    let wid = next_conn;
+                    next_conn += 1;
+                    let (wp, ws) = (2 * pred_lane, 2 * succ_lane);
+                    let _ = writeln!(
+                        out,
+                        "    <road name=\"walk{wid}\" length=\"{len:.6}\" id=\"{wid}\" junction=\"{jid}\">\n        <link>\n            <predecessor elementType=\"road\" elementId=\"{}\" contactPoint=\"{pred_cp}\"/>\n            <successor elementType=\"road\" elementId=\"{}\" contactPoint=\"{succ_cp}\"/>\n        </link>",
+                        st_in.id, st_out.id
+                    );
+                    let _ = writeln!(
+                        out,
+                        "        <planView>\n            <geometry s=\"0\" x=\"{sx:.6}\" y=\"{sy:.6}\" hdg=\"{travel:.9}\" length=\"{len:.6}\">\n                {shape}\n            </geometry>\n        </planView>\n        <elevationProfile>\n            <elevation s=\"0\" a=\"0\" b=\"0\" c=\"0\" d=\"0\"/>\n        </elevationProfile>\n        <lateralProfile/>"
+                    );
+                    let _ = writeln!(
+                        out,
+                        "        <lanes>\n            <laneSection s=\"0\">\n                <center>\n                    <lane id=\"0\" type=\"none\" level=\"false\"/>\n                </center>\n                <right>\n                    <lane id=\"-1\" type=\"none\" level=\"false\">\n                        <link/>\n                        <width sOffset=\"0\" a=\"{LANE_WIDTH_M}\" b=\"0\" c=\"0\" d=\"0\"/>\n                    </lane>\n                    <lane id=\"-2\" type=\"sidewalk\" level=\"false\">\n                        <link>\n                            <predecessor id=\"{wp}\"/>\n                            <successor id=\"{ws}\"/>\n                        </link>\n                        <width sOffset=\"0\" a=\"{SIDEWALK_WIDTH_M}\" b=\"0\" c=\"0\" d=\"0\"/>\n                        <height sOffset=\"0\" inner=\"{SIDEWALK_HEIGHT_M}\" outer=\"{SIDEWALK_HEIGHT_M}\"/>\n                    </lane>\n                </right>\n            </laneSection>\n        </lanes>\n    </road>"
+                    );
+                    let _ = writeln!(
+                        conns,
+                        "        <connection id=\"{k}\" incomingRoad=\"{}\" connectingRoad=\"{wid}\" contactPoint=\"start\">\n            <laneLink from=\"{wp}\" to=\"-2\"/>\n        </connection>",
+                        st_in.id
+                    );
+                    k += 1;
+                }
             }
         }
         let ctrl = junction_ctrls.get(node).cloned().unwrap_or_default();
@@ -449,7 +484,23 @@ mod tests {
                 .all(|l| l.stop_lines.len() == 1 && l.junction.is_some())
         );
         assert!(!town.buildings.is_empty());
-        assert!(!town.sidewalks.is_empty());
+        // Street sidewalks (2 per street, 12 streets) plus one piece per
+        // junction arm joining it to the next street's (24 arms).
+        assert_eq!(town.sidewalks.len(), 48);
+        // Every sidewalk end meets another sidewalk's end: a closed network.
+        let ends: Vec<glam::Vec3> = town
+            .sidewalks
+            .iter()
+            .flat_map(|w| [w.inner[0], *w.inner.last().unwrap()])
+            .collect();
+        for (i, e) in ends.iter().enumerate() {
+            let near = ends
+                .iter()
+                .enumerate()
+                .filter(|(j, f)| *j != i && f.truncate().distance(e.truncate()) < 0.05)
+                .count();
+            assert_eq!(near, 1, "sidewalk end {e:?} meets {near} others");
+        }
         assert!(
             town.markings
                 .iter()

@@ -673,11 +673,9 @@ impl Builder<'_> {
     fn junction_outlines(&mut self) {
         let net = self.ctx.net;
         let mut pts: BTreeMap<JunctionIdx, Vec<Vec2>> = BTreeMap::new();
-        for l in net
-            .lanes()
-            .iter()
-            .filter(|l| l.layer == Layer::Permanent && l.kind != LaneType::Sidewalk)
-        {
+        for l in net.lanes().iter().filter(|l| {
+            l.layer == Layer::Permanent && !matches!(l.kind, LaneType::Sidewalk | LaneType::None)
+        }) {
             let Some(j) = net
                 .road_lane(l.id)
                 .and_then(|rl| net.road(rl.road))
