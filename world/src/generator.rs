@@ -342,6 +342,15 @@ pub fn generate_grid_town(p: &GridTownParams) -> Result<String, GeneratorError> 
         let mut conns = String::new();
         let mut k = 0;
         for (dir_in, st_in, in_is_b) in list {
+            // The sidewalk on the right of travel continues toward the
+            // rightmost way out (a right turn, else straight, else left).
+            let travel_in = wrap(dir_in + PI);
+            let rightmost = list
+                .iter()
+                .filter(|(_, st, _)| !std::ptr::eq(*st, *st_in))
+                .map(|(d, _, _)| wrap(d - travel_in))
+                .filter(|t| (t.abs() - PI).abs() >= 0.1)
+                .fold(f64::MAX, f64::min);
             for (dir_out, st_out, out_is_b) in list {
                 if std::ptr::eq(*st_in, *st_out) {
                     continue;
@@ -395,6 +404,32 @@ pub fn generate_grid_town(p: &GridTownParams) -> Result<String, GeneratorError> 
                     st_in.id
                 );
                 k += 1;
+                if (turn - rightmost).abs() < 1e-9 {
+                    // A sidewalk round the corner (or across a missing arm),
+                    // on the same reference line, outside a bare 3.5 m strip.
+                    let wid = next_conn;
+                    next_conn += 1;
+                    let (wp, ws) = (2 * pred_lane, 2 * succ_lane);
+                    let _ = writeln!(
+                        out,
+                        "    <road name=\"walk{wid}\" length=\"{len:.6}\" id=\"{wid}\" junction=\"{jid}\">\n        <link>\n            <predecessor elementType=\"road\" elementId=\"{}\" contactPoint=\"{pred_cp}\"/>\n            <successor elementType=\"road\" elementId=\"{}\" contactPoint=\"{succ_cp}\"/>\n        </link>",
+                        st_in.id, st_out.id
+                    );
+                    let _ = writeln!(
+                        out,
+                        "        <planView>\n            <geometry s=\"0\" x=\"{sx:.6}\" y=\"{sy:.6}\" hdg=\"{travel:.9}\" length=\"{len:.6}\">\n                {shape}\n            </geometry>\n        </planView>\n        <elevationProfile>\n            <elevation s=\"0\" a=\"0\" b=\"0\" c=\"0\" d=\"0\"/>\n        </elevationProfile>\n        <lateralProfile/>"
+                    );
+                    let _ = writeln!(
+                        out,
+                        "        <lanes>\n            <laneSection s=\"0\">\n                <center>\n                    <lane id=\"0\" type=\"none\" level=\"false\"/>\n                </center>\n                <right>\n                    <lane id=\"-1\" type=\"none\" level=\"false\">\n                        <link/>\n                        <width sOffset=\"0\" a=\"{LANE_WIDTH_M}\" b=\"0\" c=\"0\" d=\"0\"/>\n                    </lane>\n                    <lane id=\"-2\" type=\"sidewalk\" level=\"false\">\n                        <link>\n                            <predecessor id=\"{wp}\"/>\n                            <successor id=\"{ws}\"/>\n                        </link>\n                        <width sOffset=\"0\" a=\"{SIDEWALK_WIDTH_M}\" b=\"0\" c=\"0\" d=\"0\"/>\n                        <height sOffset=\"0\" inner=\"{SIDEWALK_HEIGHT_M}\" outer=\"{SIDEWALK_HEIGHT_M}\"/>\n                    </lane>\n                </right>\n            </laneSection>\n        </lanes>\n    </road>"
+                    );
+                    let _ = writeln!(
+                        conns,
+                        "        <connection id=\"{k}\" incomingRoad=\"{}\" connectingRoad=\"{wid}\" contactPoint=\"start\">\n            <laneLink from=\"{wp}\" to=\"-2\"/>\n        </connection>",
+                        st_in.id
+                    );
+                    k += 1;
+                }
             }
         }
         let ctrl = junction_ctrls.get(node).cloned().unwrap_or_default();
@@ -449,7 +484,23 @@ mod tests {
                 .all(|l| l.stop_lines.len() == 1 && l.junction.is_some())
         );
         assert!(!town.buildings.is_empty());
-        assert!(!town.sidewalks.is_empty());
+        // Street sidewalks (2 per street, 12 streets) plus one piece per
+        // junction arm joining it to the next street's (24 arms).
+        assert_eq!(town.sidewalks.len(), 48);
+        // Every sidewalk end meets another sidewalk's end: a closed network.
+        let ends: Vec<glam::Vec3> = town
+            .sidewalks
+            .iter()
+            .flat_map(|w| [w.inner[0], *w.inner.last().unwrap()])
+            .collect();
+        for (i, e) in ends.iter().enumerate() {
+            let near = ends
+                .iter()
+                .enumerate()
+                .filter(|(j, f)| *j != i && f.truncate().distance(e.truncate()) < 0.05)
+                .count();
+            assert_eq!(near, 1, "sidewalk end {e:?} meets {near} others");
+        }
         assert!(
             town.markings
                 .iter()
@@ -459,6 +510,100 @@ mod tests {
             town.markings
                 .iter()
                 .any(|m| m.kind == crate::MarkKind::Solid && m.color == crate::MarkColor::White)
+        );
+    }
+
+    #[test]
+    fn stop_lines_sit_at_the_junction_entry_and_markings_bound_the_lane() {
+        use crate::geometry::{OrientedBox, box_touches_polyline, crosses_stop_line};
+        use glam::Vec2;
+        // Nodes at x = 0, 60, 120 and y = 0, 60; junction squares 10 m half size.
+        let p = GridTownParams {
+            name: "t".into(),
+            blocks_x: 2,
+            blocks_y: 1,
+            block_size_m: 60.0,
+            seed: 0,
+        };
+        let (town, _) = load_xodr_str(
+            &generate_grid_town(&p).unwrap(),
+            "t",
+            &LoadOptions::default(),
+        )
+        .unwrap();
+        // The eastbound lane of the street from (0, 0) to (60, 0) runs along
+        // y = -1.75 and enters the T junction at (60, 0) at x = 50.
+        let sl = town
+            .lights
+            .iter()
+            .flat_map(|l| l.stop_lines.iter())
+            .find(|sl| sl.ends[0].truncate().distance(Vec2::new(50.0, 0.0)) < 0.5)
+            .expect("a stop line at (50, 0)");
+        assert!(
+            sl.ends[0].truncate().distance(Vec2::new(50.0, 0.0)) < 0.02,
+            "left end {:?}",
+            sl.ends[0]
+        );
+        assert!(
+            sl.ends[1].truncate().distance(Vec2::new(50.0, -3.5)) < 0.02,
+            "right end {:?}",
+            sl.ends[1]
+        );
+        let lane = town.lane(sl.lane);
+        assert!((sl.s - lane.length_m()).abs() < 1e-3 && (lane.length_m() - 40.0).abs() < 0.01);
+        let ends = [sl.ends[0].truncate(), sl.ends[1].truncate()];
+        assert!(crosses_stop_line(
+            Vec2::new(49.8, -1.75),
+            Vec2::new(50.2, -1.75),
+            ends
+        ));
+        assert!(!crosses_stop_line(
+            Vec2::new(49.0, -1.75),
+            Vec2::new(49.9, -1.75),
+            ends
+        ));
+        // A 4.8 m x 2.1 m car centred in that lane touches no marking; moved
+        // 1.0 m left (its left side at y = 0.3) it touches the centre line.
+        let car = OrientedBox {
+            center: Vec2::new(25.0, -1.75),
+            heading: 0.0,
+            half_length: 2.4,
+            half_width: 1.05,
+        };
+        assert!(
+            !town
+                .markings
+                .iter()
+                .any(|m| box_touches_polyline(&car, &m.points))
+        );
+        let over = OrientedBox {
+            center: Vec2::new(25.0, -0.75),
+            ..car
+        };
+        let touched: Vec<_> = town
+            .markings
+            .iter()
+            .filter(|m| box_touches_polyline(&over, &m.points))
+            .collect();
+        assert_eq!(touched.len(), 1);
+        assert_eq!(
+            (touched[0].kind, touched[0].color),
+            (crate::MarkKind::Broken, crate::MarkColor::Yellow)
+        );
+        // Moved 1.0 m right it touches the solid white edge line at y = -3.5.
+        let right = OrientedBox {
+            center: Vec2::new(25.0, -2.75),
+            ..car
+        };
+        let touched: Vec<_> = town
+            .markings
+            .iter()
+            .filter(|m| box_touches_polyline(&right, &m.points))
+            .collect();
+        assert_eq!(touched.len(), 1);
+        assert_eq!(
+            (touched[0].kind, touched[0].color),
+            (crate::MarkKind::Solid, crate::MarkColor::White)
         );
     }
 

@@ -492,10 +492,11 @@ fn densify(
         s: f32,
         command: Command,
     ) {
-        if let Some(last) = pts.last() {
-            if last.position.distance(position) < 0.05 {
-                return;
-            }
+        if pts
+            .last()
+            .is_some_and(|last| last.position.distance(position) < 0.05)
+        {
+            return;
         }
         pts.push(RoutePoint {
             position,

@@ -265,8 +265,8 @@ mod tests {
         assert!((all_red - 6.0).abs() < 0.2, "all red {all_red}");
         // Green is followed by yellow, never straight by red.
         for w in tr.windows(2) {
-            for g in 0..3 {
-                assert!(!(w[0][g] == LightState::Green && w[1][g] == LightState::Red));
+            for (a, b) in w[0].iter().zip(&w[1]) {
+                assert!(!(*a == LightState::Green && *b == LightState::Red));
             }
         }
     }

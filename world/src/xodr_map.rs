@@ -288,8 +288,7 @@ impl Ctx<'_> {
             }
             let w = lane.width;
             if !w.is_finite()
-                || w < 0.0
-                || w > 100.0
+                || !(0.0..=100.0).contains(&w)
                 || lane
                     .widths
                     .iter()
@@ -686,11 +685,9 @@ impl Builder<'_> {
     fn junction_outlines(&mut self) {
         let net = self.ctx.net;
         let mut pts: BTreeMap<JunctionIdx, Vec<Vec2>> = BTreeMap::new();
-        for l in net
-            .lanes()
-            .iter()
-            .filter(|l| l.layer == Layer::Permanent && l.kind != LaneType::Sidewalk)
-        {
+        for l in net.lanes().iter().filter(|l| {
+            l.layer == Layer::Permanent && !matches!(l.kind, LaneType::Sidewalk | LaneType::None)
+        }) {
             let Some(j) = net
                 .road_lane(l.id)
                 .and_then(|rl| net.road(rl.road))
@@ -707,16 +704,16 @@ impl Builder<'_> {
             }
         }
         for area in net.junction_areas() {
-            if let Some(&ji) = self.junction_of.get(&area.od_id) {
-                if area.boundary.len() >= 3 {
-                    let mut poly: Vec<Vec2> =
-                        area.boundary.iter().map(|p| Vec2::new(p.x, p.y)).collect();
-                    if signed_area(&poly) < 0.0 {
-                        poly.reverse();
-                    }
-                    self.town.junctions[ji.0 as usize].outline = poly;
-                    pts.remove(&ji);
+            if let Some(&ji) = self.junction_of.get(&area.od_id)
+                && area.boundary.len() >= 3
+            {
+                let mut poly: Vec<Vec2> =
+                    area.boundary.iter().map(|p| Vec2::new(p.x, p.y)).collect();
+                if signed_area(&poly) < 0.0 {
+                    poly.reverse();
                 }
+                self.town.junctions[ji.0 as usize].outline = poly;
+                pts.remove(&ji);
             }
         }
         for (ji, p) in pts {

@@ -52,6 +52,33 @@ fn carla_towns_load_with_all_their_lights() {
                 .collect();
             assert!(groups.windows(2).all(|w| w[0] < w[1]), "{name} {groups:?}");
         }
+        // The controllers: at most one group of a junction is not red at once,
+        // and every light is green at some time in a cycle.
+        let mut ctl = world::LightController::new(&town, world::LightTiming::default(), 5);
+        let mut was_green = vec![false; town.lights.len()];
+        for _ in 0..(60.0 / 0.05) as usize {
+            ctl.step(0.05);
+            for j in &town.junctions {
+                let live = j
+                    .lights
+                    .iter()
+                    .filter(|l| ctl.state(**l) != world::LightState::Red)
+                    .map(|l| town.lights[l.0 as usize].group)
+                    .collect::<std::collections::BTreeSet<_>>();
+                assert!(
+                    live.len() <= 1,
+                    "{name}: junction {} has groups {live:?} live",
+                    j.od_id
+                );
+            }
+            for (i, g) in was_green.iter_mut().enumerate() {
+                *g |= ctl.state(world::LightIdx(i as u32)) == world::LightState::Green;
+            }
+        }
+        assert!(
+            was_green.iter().all(|g| *g),
+            "{name}: a light never turned green in 60 s"
+        );
         assert!(town.is_strongly_connected(), "{name}");
         assert!(report.roads > 0 && town.lanes.len() > 50);
         assert!(
