@@ -17,6 +17,8 @@ struct Cli {
 enum Command {
     /// Drive one scenario and print its result table.
     Run(cli::run::RunArgs),
+    /// Run the cross product of scenarios, delays, scales, densities and seeds.
+    Sweep(cli::sweep::SweepArgs),
     /// Maps: summary, picture, town generator.
     #[command(subcommand)]
     Map(cli::map::MapCommand),
@@ -30,6 +32,7 @@ fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Run(a) => cli::run::run(a),
+        Command::Sweep(a) => cli::sweep::run(a),
         Command::Map(c) => cli::map::run(c),
         Command::Routes(a) => cli::routes::run(a),
         Command::Traffic(a) => cli::traffic::run(a),

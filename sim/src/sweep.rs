@@ -22,12 +22,12 @@ use crate::record::{self, RunRecord};
 pub struct RunSpec {
     /// The scenario file.
     pub scenario: PathBuf,
-    /// Injected delay (milliseconds).
-    pub delay_ms: f64,
+    /// Injected delay (milliseconds); `None` keeps the scenario's.
+    pub delay_ms: Option<f64>,
     /// Input scale (fraction of S0); `None` keeps the scenario's selector.
     pub scale: Option<f64>,
-    /// Target (vehicles, pedestrians).
-    pub density: (u32, u32),
+    /// Target (vehicles, pedestrians); `None` keeps the scenario's.
+    pub density: Option<(u32, u32)>,
     /// Traffic seed.
     pub seed: u64,
 }
@@ -41,13 +41,13 @@ impl RunSpec {
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_default();
         let scale = self.scale.map_or("sel".to_string(), |s| format!("{s:.3}"));
-        format!(
-            "{stem}__d{:03}_s{scale}_v{}p{}_seed{}",
-            self.delay_ms.round() as u64,
-            self.density.0,
-            self.density.1,
-            self.seed
-        )
+        let delay = self
+            .delay_ms
+            .map_or("sc".to_string(), |d| format!("{:03}", d.round() as u64));
+        let density = self
+            .density
+            .map_or("sc".to_string(), |(v, p)| format!("v{v}p{p}"));
+        format!("{stem}__d{delay}_s{scale}_{density}_seed{}", self.seed)
     }
 }
 
@@ -62,9 +62,9 @@ impl SweepPlan {
     /// The cross product, scenarios outermost, seeds innermost.
     pub fn cross(
         scenarios: &[PathBuf],
-        delays_ms: &[f64],
+        delays_ms: &[Option<f64>],
         scales: &[Option<f64>],
-        densities: &[(u32, u32)],
+        densities: &[Option<(u32, u32)>],
         seeds: &[u64],
     ) -> Self {
         let mut runs = Vec::new();
@@ -443,7 +443,7 @@ mod tests {
     /// A record whose counts are a function of the spec, standing in for a run.
     fn fake_record(spec: &RunSpec) -> RunRecord {
         let mut infractions = Vec::new();
-        for _ in 0..(spec.delay_ms as u64 / 50) {
+        for _ in 0..(spec.delay_ms.unwrap_or(0.0) as u64 / 50) {
             infractions.push(crate::monitors::Infraction {
                 tick: 1,
                 time_s: 0.025,
@@ -465,15 +465,15 @@ mod tests {
                 },
                 settings: RunSettings {
                     seed: spec.seed,
-                    delay_ms: spec.delay_ms,
+                    delay_ms: spec.delay_ms.unwrap_or(0.0),
                     control_period_ms: 50.0,
                     resolution: format!("{:?}", spec.scale),
-                    vehicles: spec.density.0,
-                    pedestrians: spec.density.1,
+                    vehicles: spec.density.unwrap_or((0, 0)).0,
+                    pedestrians: spec.density.unwrap_or((0, 0)).1,
                 },
                 traffic: RealisedTraffic {
-                    vehicles: spec.density.0,
-                    pedestrians: spec.density.1,
+                    vehicles: spec.density.unwrap_or((0, 0)).0,
+                    pedestrians: spec.density.unwrap_or((0, 0)).1,
                 },
                 completion_pct: 100.0,
                 success: spec.seed % 2 == 0,
@@ -494,9 +494,9 @@ mod tests {
     fn plan() -> SweepPlan {
         SweepPlan::cross(
             &["a.toml".into(), "b.toml".into()],
-            &[0.0, 100.0],
+            &[Some(0.0), Some(100.0)],
             &[Some(0.75), Some(1.0)],
-            &[(0, 0), (5, 10)],
+            &[Some((0, 0)), Some((5, 10))],
             &[1, 2],
         )
     }
@@ -596,7 +596,7 @@ mod tests {
             root: tmp.path().to_path_buf(),
         };
         dir.prepare(&plan()).unwrap();
-        let other = SweepPlan::cross(&["a.toml".into()], &[0.0], &[None], &[(0, 0)], &[1]);
+        let other = SweepPlan::cross(&["a.toml".into()], &[Some(0.0)], &[None], &[None], &[1]);
         assert!(dir.prepare(&other).unwrap_err().contains("different sweep"));
     }
 

@@ -3,4 +3,5 @@
 pub mod map;
 pub mod routes;
 pub mod run;
+pub mod sweep;
 pub mod traffic;

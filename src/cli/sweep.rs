@@ -1,0 +1,281 @@
+//! `mrdrive sweep SCENARIO... --delays ... --scales ... --densities ... --seeds ...`
+//! runs the cross product in parallel, one record per run; `sweep merge`
+//! joins shard folders; `sweep summary` prints a folder's tables.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use clap::{Args, Subcommand};
+use sim::record::RunRecord;
+use sim::recorder::RecordOptions;
+use sim::runner::Overrides;
+use sim::sweep::{self, RunSpec, SweepDir, SweepPlan};
+
+/// `sweep` arguments.
+#[derive(Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+pub struct SweepArgs {
+    #[command(subcommand)]
+    pub command: Option<SweepCommand>,
+    #[command(flatten)]
+    pub run: SweepRunArgs,
+}
+
+/// Sweep subcommands besides running one.
+#[derive(Subcommand)]
+pub enum SweepCommand {
+    /// Join shard folders into one and check that no run is missing.
+    Merge {
+        /// The shard folders.
+        #[arg(required = true)]
+        shards: Vec<PathBuf>,
+        /// The merged folder.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Print the aggregate tables of a sweep folder (and rewrite them).
+    Summary {
+        /// The sweep folder.
+        dir: PathBuf,
+    },
+}
+
+/// Arguments of a sweep run.
+#[derive(Args)]
+pub struct SweepRunArgs {
+    /// Scenario files.
+    #[arg(required = true)]
+    pub scenarios: Vec<PathBuf>,
+    /// Injected delays D (milliseconds), comma-separated; default: each scenario's.
+    #[arg(long, value_delimiter = ',')]
+    pub delays: Vec<f64>,
+    /// Fixed input scales, comma-separated; default: each scenario's selector.
+    #[arg(long, value_delimiter = ',')]
+    pub scales: Vec<f64>,
+    /// Traffic densities VEHICLES:PEDESTRIANS, comma-separated; default: each scenario's.
+    #[arg(long, value_delimiter = ',')]
+    pub densities: Vec<String>,
+    /// Traffic seeds, comma-separated (or a range A..B, B excluded).
+    #[arg(long, default_value = "0")]
+    pub seeds: String,
+    /// The sweep's folder (records, plan, tables).
+    #[arg(long, default_value = "out/sweep")]
+    pub out: PathBuf,
+    /// Run only shard INDEX/COUNT of the plan (for array jobs).
+    #[arg(long)]
+    pub shard: Option<String>,
+    /// Runs at a time.
+    #[arg(long, default_value_t = 2)]
+    pub jobs: usize,
+    /// Also record an MCAP log per run (in OUT/logs).
+    #[arg(long)]
+    pub record: bool,
+}
+
+fn parse_density(text: &str) -> anyhow::Result<(u32, u32)> {
+    let (v, p) = text
+        .split_once(':')
+        .with_context(|| format!("--densities {text}: write VEHICLES:PEDESTRIANS, e.g. 20:40"))?;
+    Ok((
+        v.trim()
+            .parse()
+            .with_context(|| format!("--densities {text}: VEHICLES must be a number"))?,
+        p.trim()
+            .parse()
+            .with_context(|| format!("--densities {text}: PEDESTRIANS must be a number"))?,
+    ))
+}
+
+fn parse_seeds(text: &str) -> anyhow::Result<Vec<u64>> {
+    if let Some((a, b)) = text.split_once("..") {
+        let (a, b): (u64, u64) = (
+            a.trim()
+                .parse()
+                .with_context(|| format!("--seeds {text}: the range start must be a number"))?,
+            b.trim()
+                .parse()
+                .with_context(|| format!("--seeds {text}: the range end must be a number"))?,
+        );
+        anyhow::ensure!(a < b, "--seeds {text}: the range is empty");
+        return Ok((a..b).collect());
+    }
+    text.split(',')
+        .map(|s| {
+            s.trim()
+                .parse()
+                .with_context(|| format!("--seeds {text}: seeds are numbers"))
+        })
+        .collect()
+}
+
+/// Runs `sweep`.
+pub fn run(a: SweepArgs) -> anyhow::Result<()> {
+    match a.command {
+        Some(SweepCommand::Merge { shards, out }) => {
+            let missing = sweep::merge(&shards, &out).map_err(anyhow::Error::msg)?;
+            write_tables(&SweepDir { root: out.clone() })?;
+            if !missing.is_empty() {
+                anyhow::bail!(
+                    "{} run(s) missing from the merged sweep {}:\n  {}",
+                    missing.len(),
+                    out.display(),
+                    missing.join("\n  ")
+                );
+            }
+            println!(
+                "merged {} shard folders into {}: complete",
+                shards.len(),
+                out.display()
+            );
+            Ok(())
+        }
+        Some(SweepCommand::Summary { dir }) => write_tables(&SweepDir { root: dir }),
+        None => run_sweep(a.run),
+    }
+}
+
+fn run_sweep(a: SweepRunArgs) -> anyhow::Result<()> {
+    for s in &a.scenarios {
+        sim::scenario::Scenario::from_file(s)?;
+    }
+    let opt = |v: Vec<f64>| {
+        if v.is_empty() {
+            vec![None]
+        } else {
+            v.into_iter().map(Some).collect()
+        }
+    };
+    let densities: Vec<Option<(u32, u32)>> = if a.densities.is_empty() {
+        vec![None]
+    } else {
+        a.densities
+            .iter()
+            .map(|d| parse_density(d).map(Some))
+            .collect::<anyhow::Result<_>>()?
+    };
+    let plan = SweepPlan::cross(
+        &a.scenarios,
+        &opt(a.delays),
+        &opt(a.scales),
+        &densities,
+        &parse_seeds(&a.seeds)?,
+    );
+    let (index, count) = match &a.shard {
+        Some(s) => sweep::parse_shard(s).map_err(anyhow::Error::msg)?,
+        None => (0, 1),
+    };
+    let dir = SweepDir {
+        root: a.out.clone(),
+    };
+    dir.prepare(&plan).map_err(anyhow::Error::msg)?;
+    let mine = plan.shard(index, count);
+    let logs = a.out.join("logs");
+    if a.record {
+        std::fs::create_dir_all(&logs).with_context(|| format!("creating {}", logs.display()))?;
+    }
+    let done_before = mine.iter().filter(|s| dir.is_done(s)).count();
+    let bar = indicatif::ProgressBar::new(mine.len() as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:40}] {pos}/{len} runs {msg}",
+        )
+        .expect("a valid template")
+        .progress_chars("=> "),
+    );
+    bar.set_position(done_before as u64);
+    eprintln!(
+        "sweep: {} runs in the plan, {} in this shard ({index}/{count}), {done_before} already done, {} jobs",
+        plan.runs.len(),
+        mine.len(),
+        a.jobs
+    );
+    let outcome = sweep::execute(
+        &dir,
+        &mine,
+        a.jobs,
+        |spec: &RunSpec| {
+            let overrides = Overrides {
+                delay_ms: spec.delay_ms,
+                seed: Some(spec.seed),
+                vehicles: spec.density.map(|d| d.0),
+                pedestrians: spec.density.map(|d| d.1),
+            };
+            let log = logs.join(format!("{}.mcap", spec.key()));
+            let record = a
+                .record
+                .then_some((log.as_path(), RecordOptions::default()));
+            super::run::run_one(&spec.scenario, &overrides, spec.scale, record, &mut |_| {})
+                .map_err(|e| format!("{e:#}"))
+        },
+        |_| bar.inc(1),
+    );
+    bar.finish_and_clear();
+    for (key, why) in &outcome.failed {
+        eprintln!("sweep: run {key} failed: {why}");
+    }
+    eprintln!(
+        "sweep: {} finished now, {} skipped (done before), {} failed",
+        outcome.finished,
+        outcome.skipped,
+        outcome.failed.len()
+    );
+    write_tables(&dir)?;
+    anyhow::ensure!(
+        outcome.failed.is_empty(),
+        "{} run(s) failed; rerun the same command to retry them",
+        outcome.failed.len()
+    );
+    Ok(())
+}
+
+/// The configuration a record belongs to in the main table: delay and resolution.
+fn by_delay_and_scale(r: &RunRecord) -> String {
+    format!(
+        "D={} ms, {}",
+        r.result.settings.delay_ms, r.result.settings.resolution
+    )
+}
+
+/// The fine-grained configuration: scenario, density, delay, resolution.
+fn by_run_setting(r: &RunRecord) -> String {
+    format!(
+        "{} ({}, {}), D={} ms, {}",
+        r.result.provenance.scenario,
+        r.result.settings.vehicles,
+        r.result.settings.pedestrians,
+        r.result.settings.delay_ms,
+        r.result.settings.resolution
+    )
+}
+
+/// Writes `summary.md`, `summary.csv` and `detail.csv` and prints the main table.
+fn write_tables(dir: &SweepDir) -> anyhow::Result<()> {
+    let records = sweep::read_records(dir).map_err(anyhow::Error::msg)?;
+    let rows = sweep::summarise(&records, by_delay_and_scale);
+    let detail = sweep::summarise(&records, by_run_setting);
+    let md = format!(
+        "# Sweep summary ({} runs)\n\n## By delay and resolution\n\n{}\n## By scenario, density, delay and resolution\n\n{}",
+        records.len(),
+        sweep::summary_markdown(&rows),
+        sweep::summary_markdown(&detail)
+    );
+    let write = |name: &str, text: &str| -> anyhow::Result<()> {
+        let path: PathBuf = Path::new(&dir.root).join(name);
+        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))
+    };
+    write("summary.md", &md)?;
+    write(
+        "summary.csv",
+        &sweep::summary_csv(&rows).map_err(anyhow::Error::msg)?,
+    )?;
+    write(
+        "detail.csv",
+        &sweep::summary_csv(&detail).map_err(anyhow::Error::msg)?,
+    )?;
+    println!("{}", sweep::summary_markdown(&rows));
+    println!(
+        "tables: {}/summary.md, summary.csv, detail.csv",
+        dir.root.display()
+    );
+    Ok(())
+}
