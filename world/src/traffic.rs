@@ -29,7 +29,7 @@ use rand_chacha::ChaCha8Rng;
 use std::sync::Arc;
 
 /// What to put in the town.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct TrafficConfig {
     /// NPC vehicles requested.
     pub vehicles: usize,
@@ -43,19 +43,6 @@ pub struct TrafficConfig {
     pub npc: NpcParams,
     /// The walkers.
     pub pedestrian: PedestrianParams,
-}
-
-impl Default for TrafficConfig {
-    fn default() -> Self {
-        TrafficConfig {
-            vehicles: 0,
-            pedestrians: 0,
-            seed: 0,
-            vehicle: VehicleParams::default(),
-            npc: NpcParams::default(),
-            pedestrian: PedestrianParams::default(),
-        }
-    }
 }
 
 /// The ego's starting pose.
