@@ -596,7 +596,7 @@ impl Traffic {
         }
     }
 
-    /// Advances the world one 40 Hz tick; `lights` are the light states by `LightIdx`. Returns the tick's contacts.
+    /// Advances the world one 40 Hz tick; `lights` are the light states by `LightIdx` (a light beyond the slice's end counts as green). Returns the tick's contacts.
     pub fn step(&mut self, lights: &[LightState]) -> &[ContactEvent] {
         let vp = self.cfg.vehicle;
         self.update_reservations(lights);
