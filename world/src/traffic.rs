@@ -884,8 +884,23 @@ mod tests {
             waiting_at_line >= 4,
             "only {waiting_at_line} NPCs wait at a stop line"
         );
-        // No NPC is inside a lit junction's lanes after 90 s of red... except unlit corners.
         assert_eq!(tr.stats().npc_npc_collisions, 0);
+        // Queues keep about 3.0 m bumper to bumper (IDM minimum gap).
+        let mut gaps = Vec::new();
+        for a in &tr.npcs {
+            for b in &tr.npcs {
+                if a.id != b.id && a.path.lane() == b.path.lane() && b.path.s_m > a.path.s_m {
+                    let gap = b.path.s_m - a.path.s_m - vp.length_m;
+                    if gap < 8.0 {
+                        gaps.push(gap);
+                    }
+                }
+            }
+        }
+        assert!(gaps.len() >= 3, "no queues formed: {gaps:?}");
+        for g in &gaps {
+            assert!(*g > 2.7 && *g < 4.0, "queue gap {g} m: {gaps:?}");
+        }
     }
 
     #[test]
@@ -1120,5 +1135,34 @@ mod tests {
             tr.npcs[0].state.position.x > entry_x + 10.0,
             "NPC did not go after the ego left"
         );
+    }
+
+    #[test]
+    fn a_free_npc_drives_at_the_speed_limit() {
+        // A straight road through unlit junctions: 4 x 1 junctions 200 m apart.
+        let t = Arc::new(grid(4, 1, 200.0));
+        let mut tr = Traffic::new(t.clone(), cfg(1, 0, 8), None);
+        let n = &mut tr.npcs[0];
+        let start = lane_point(&t, LaneIdx(0), 1.0);
+        n.state = VehicleState::at_rest(start.0, start.1);
+        n.path = LanePath::new(LaneIdx(0), 1.0);
+        npc::extend_path(&t, &mut n.path, &mut n.rng, 80.0);
+        let id = n.id;
+        tr.physics.teleport(id, start.0, start.1);
+        tr.refresh_views();
+        let green = vec![LightState::Green; t.lights.len()];
+        let limit = t.lanes[0].speed_limit_mps;
+        let mut top = 0.0f32;
+        for _ in 0..(40 * 15) {
+            tr.step(&green);
+            top = top.max(tr.npcs[0].state.speed_mps);
+        }
+        assert!(
+            top > 0.95 * limit && top < 1.02 * limit,
+            "top speed {top} vs limit {limit}"
+        );
+        // Tracking: it stays near its lane's centre.
+        let (lp, _, _) = lane_point(&t, tr.npcs[0].path.lane(), tr.npcs[0].path.s_m);
+        assert!((lp - tr.npcs[0].state.position).length() < 0.3);
     }
 }
