@@ -7,6 +7,12 @@
 //! form and densified by the [`planner`] into a [`DenseRoute`] tagged with
 //! high-level commands.
 //!
+//! The moving part lives in [`traffic::Traffic`]: the ego and NPC vehicles
+//! share one [`vehicle`] model (a kinematic bicycle), NPCs drive the lane graph
+//! ([`npc`]), pedestrians walk sidewalks and crossings ([`pedestrian`]), and
+//! [`physics`] (rapier3d) keeps every body out of every other. [`testtown`]
+//! builds a small grid town for tests.
+//!
 //! Coordinates are OpenDRIVE's: right-handed, x east, y north, z up, metres;
 //! headings in radians counter-clockwise from +x. CARLA's left-handed route
 //! files are converted on reading (`y_xodr = -y`, `yaw_xodr = -yaw`).

@@ -196,7 +196,7 @@ impl Physics {
             .map_or(0.0, |p| p.z);
         let fixed = |kind: StaticKind| kind.code();
         for b in &town.buildings {
-            if b.footprint.len() < 3 || !(b.height_m > 0.0) {
+            if b.footprint.len() < 3 || b.height_m.is_nan() || b.height_m <= 0.0 {
                 continue;
             }
             let mut pts = Vec::with_capacity(b.footprint.len() * 2);

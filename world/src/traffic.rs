@@ -29,7 +29,7 @@ use rand_chacha::ChaCha8Rng;
 use std::sync::Arc;
 
 /// What to put in the town.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct TrafficConfig {
     /// NPC vehicles requested.
     pub vehicles: usize,
@@ -43,19 +43,6 @@ pub struct TrafficConfig {
     pub npc: NpcParams,
     /// The walkers.
     pub pedestrian: PedestrianParams,
-}
-
-impl Default for TrafficConfig {
-    fn default() -> Self {
-        TrafficConfig {
-            vehicles: 0,
-            pedestrians: 0,
-            seed: 0,
-            vehicle: VehicleParams::default(),
-            npc: NpcParams::default(),
-            pedestrian: PedestrianParams::default(),
-        }
-    }
 }
 
 /// The ego's starting pose.
@@ -552,6 +539,16 @@ impl Traffic {
         requests.sort();
         let min_room = vp.length_m + self.cfg.npc.min_gap_m;
         let mut waiting: Vec<LaneIdx> = Vec::new();
+        // The ego reserves nothing, but while it is on a connecting lane NPCs treat that lane as held.
+        let ego_junction_lane = self
+            .ego
+            .as_ref()
+            .and_then(|e| e.lane)
+            .map(|(l, _)| l)
+            .filter(|l| self.town.lanes[l.0 as usize].junction.is_some());
+        if let Some(l) = ego_junction_lane {
+            self.reservations.grant(l, 0);
+        }
         for (_, id, i, lane) in requests {
             let n = &self.npcs[i];
             // A red (or stoppable yellow) light before this junction's entry: wait for it.
@@ -607,9 +604,12 @@ impl Traffic {
             n.reservation = Some(lane);
             n.request = None;
         }
+        if let Some(l) = ego_junction_lane {
+            self.reservations.release(l, 0);
+        }
     }
 
-    /// Advances the world one 40 Hz tick; `lights` are the light states by `LightIdx`. Returns the tick's contacts.
+    /// Advances the world one 40 Hz tick; `lights` are the light states by `LightIdx` (a light beyond the slice's end counts as green). Returns the tick's contacts.
     pub fn step(&mut self, lights: &[LightState]) -> &[ContactEvent] {
         let vp = self.cfg.vehicle;
         self.update_reservations(lights);
@@ -884,8 +884,23 @@ mod tests {
             waiting_at_line >= 4,
             "only {waiting_at_line} NPCs wait at a stop line"
         );
-        // No NPC is inside a lit junction's lanes after 90 s of red... except unlit corners.
         assert_eq!(tr.stats().npc_npc_collisions, 0);
+        // Queues keep about 3.0 m bumper to bumper (IDM minimum gap).
+        let mut gaps = Vec::new();
+        for a in &tr.npcs {
+            for b in &tr.npcs {
+                if a.id != b.id && a.path.lane() == b.path.lane() && b.path.s_m > a.path.s_m {
+                    let gap = b.path.s_m - a.path.s_m - vp.length_m;
+                    if gap < 8.0 {
+                        gaps.push(gap);
+                    }
+                }
+            }
+        }
+        assert!(gaps.len() >= 3, "no queues formed: {gaps:?}");
+        for g in &gaps {
+            assert!(*g > 2.7 && *g < 4.0, "queue gap {g} m: {gaps:?}");
+        }
     }
 
     #[test]
@@ -1042,5 +1057,112 @@ mod tests {
         let (_, jw1, j1) = legs(1.0);
         assert!(j1 > 30, "{j1} jaywalkers");
         assert!(jw1 > 5, "{jw1} jaywalk legs");
+    }
+
+    #[test]
+    fn npcs_do_not_enter_a_junction_across_the_ego() {
+        let t = town();
+        let rules = RoadRules::new(&t);
+        let dir_of = |l: usize| {
+            let c = &t.lanes[l].centerline;
+            (c[c.len() - 1] - c[0]).truncate().normalize()
+        };
+        let in_j4 = |l: usize| t.lanes[l].junction == Some(crate::town::JunctionIdx(4));
+        // The ego stands in the centre junction on the straight northbound lane.
+        let ego_lane = (0..t.lanes.len())
+            .find(|&l| in_j4(l) && dir_of(l).y > 0.99)
+            .unwrap();
+        let (p, yaw, _) = lane_point(
+            &t,
+            LaneIdx(ego_lane as u32),
+            lane_len(&t, LaneIdx(ego_lane as u32)) * 0.5,
+        );
+        let mut tr = Traffic::new(
+            t.clone(),
+            cfg(1, 0, 4),
+            Some(EgoStart {
+                position: p,
+                z: 0.0,
+                yaw,
+            }),
+        );
+        // One NPC approaches from the west and wants to go straight east, across the ego.
+        let approach = (0..t.lanes.len())
+            .find(|&l| {
+                t.lanes[l].junction.is_none()
+                    && dir_of(l).x > 0.99
+                    && t.lanes[l].successors.iter().any(|s| in_j4(s.0 as usize))
+            })
+            .unwrap();
+        let straight = *t.lanes[approach]
+            .successors
+            .iter()
+            .find(|s| dir_of(s.0 as usize).x > 0.99)
+            .unwrap();
+        assert!(rules.conflicts[ego_lane].contains(&straight));
+        let entry_x = t.lanes[straight.0 as usize].centerline[0].x;
+        let start = lane_point(&t, LaneIdx(approach as u32), 5.0);
+        let n = &mut tr.npcs[0];
+        n.state = VehicleState::at_rest(start.0, start.1);
+        n.path = LanePath::new(LaneIdx(approach as u32), 5.0);
+        n.path.lanes.push_back(straight);
+        npc::extend_path(&t, &mut n.path, &mut n.rng, 80.0);
+        let id = n.id;
+        tr.physics.teleport(id, start.0, start.1);
+        tr.refresh_views();
+        let green = vec![LightState::Green; t.lights.len()];
+        let half = tr.config().vehicle.length_m * 0.5;
+        for _ in 0..(40 * 20) {
+            tr.step(&green);
+            let front = tr.npcs[0].state.position.x + half;
+            assert!(
+                front < entry_x + 0.1,
+                "NPC entered the junction across the ego (front at {front})"
+            );
+            assert_ne!(tr.npcs[0].reservation, Some(straight));
+        }
+        // It waits at the entry, and goes once the ego has left.
+        assert!(tr.npcs[0].state.position.x + half > entry_x - 2.0);
+        tr.teleport_ego(EgoStart {
+            position: Vec2::new(-100.0, -100.0),
+            z: 0.0,
+            yaw: 0.0,
+        });
+        for _ in 0..(40 * 10) {
+            tr.step(&green);
+        }
+        assert!(
+            tr.npcs[0].state.position.x > entry_x + 10.0,
+            "NPC did not go after the ego left"
+        );
+    }
+
+    #[test]
+    fn a_free_npc_drives_at_the_speed_limit() {
+        // A straight road through unlit junctions: 4 x 1 junctions 200 m apart.
+        let t = Arc::new(grid(4, 1, 200.0));
+        let mut tr = Traffic::new(t.clone(), cfg(1, 0, 8), None);
+        let n = &mut tr.npcs[0];
+        let start = lane_point(&t, LaneIdx(0), 1.0);
+        n.state = VehicleState::at_rest(start.0, start.1);
+        n.path = LanePath::new(LaneIdx(0), 1.0);
+        npc::extend_path(&t, &mut n.path, &mut n.rng, 80.0);
+        let id = n.id;
+        tr.physics.teleport(id, start.0, start.1);
+        tr.refresh_views();
+        let green = vec![LightState::Green; t.lights.len()];
+        let limit = t.lanes[0].speed_limit_mps;
+        let mut top = 0.0f32;
+        for _ in 0..(40 * 15) {
+            tr.step(&green);
+            top = top.max(tr.npcs[0].state.speed_mps);
+        }
+        assert!(
+            top > 0.95 * limit && top < 1.02 * limit,
+            "top speed {top} vs limit {limit}"
+        );
+        // Tracking: it stays near its lane's centre.
+        let (lp, _, _) = lane_point(&t, tr.npcs[0].path.lane(), tr.npcs[0].path.s_m);
+        assert!((lp - tr.npcs[0].state.position).length() < 0.3);
     }
 }
