@@ -5,7 +5,9 @@ use clap::{Args, Subcommand};
 use std::path::PathBuf;
 use std::sync::Arc;
 use world::testtown::{FixtureLights, grid};
-use world::traffic::{TrafficConfig, soak, table_one};
+use world::traffic::{EgoStart, TrafficConfig, soak, table_one};
+use world::traffic_light::{LightController, LightTiming};
+use world::{LightIdx, PlannerConfig, RouteFile, plan_route};
 
 /// Traffic commands.
 #[derive(Debug, Args)]
@@ -25,7 +27,7 @@ enum TrafficCommand {
 /// Which town to run.
 #[derive(Debug, Args)]
 struct TownArgs {
-    /// OpenDRIVE map file (needs the map loader).
+    /// OpenDRIVE map file.
     #[arg(long, conflicts_with = "fixture")]
     map: Option<PathBuf>,
     /// Use the built-in test grid town instead of a map: NXxNY junctions, e.g. 4x4.
@@ -61,14 +63,17 @@ struct TableArgs {
     /// Resets (seeds 0..N) per density.
     #[arg(long, default_value_t = 10)]
     resets: u64,
+    /// Route file: one column per route, the ego at the route's start (as the paper's Table I).
+    #[arg(long, requires = "map")]
+    routes: Option<PathBuf>,
+    /// Route ids to use (default: 0 and 1).
+    #[arg(long, value_delimiter = ',', default_value = "0,1")]
+    ids: Vec<String>,
 }
 
 fn load_town(t: &TownArgs) -> Result<world::Town> {
     match (&t.map, &t.fixture) {
-        (Some(path), _) => bail!(
-            "{}: loading OpenDRIVE maps is not wired into `mrdrive traffic` yet (the map loader lands on another branch); run with --fixture for the built-in grid town",
-            path.display()
-        ),
+        (Some(path), _) => Ok(world::Town::from_xodr_file(path)?),
         (None, Some(spec)) => {
             let (nx, ny) = spec
                 .split_once('x')
@@ -94,12 +99,12 @@ pub fn run(args: TrafficArgs) -> Result<()> {
     match args.command {
         TrafficCommand::Soak(a) => {
             let town = load_town(&a.town)?;
-            let label = if a.town.fixture.is_some() {
-                "FIXTURE town"
-            } else {
-                "map"
-            };
-            let lights = FixtureLights::new(&town);
+            let fixture = a.town.fixture.is_some();
+            let label = if fixture { "FIXTURE town" } else { "map" };
+            let fixed = FixtureLights::new(&town);
+            // Maps get the real controller (seeded like a run); the fixture
+            // its fixed-time test lights.
+            let mut controller = LightController::new(&town, LightTiming::default(), a.seed);
             let cfg = TrafficConfig {
                 vehicles: a.vehicles,
                 pedestrians: a.pedestrians,
@@ -107,17 +112,27 @@ pub fn run(args: TrafficArgs) -> Result<()> {
                 ..Default::default()
             };
             println!(
-                "soak on {label} {} ({} lanes, {} lights, fixed-time lights), {} vehicles, {} pedestrians, {} min, seed {}",
+                "soak on {label} {} ({} lanes, {} lights, {} lights), {} vehicles, {} pedestrians, {} min, seed {}",
                 town.name,
                 town.lanes.len(),
                 town.lights.len(),
+                if fixture { "fixed-time" } else { "cycling" },
                 a.vehicles,
                 a.pedestrians,
                 a.minutes,
                 a.seed
             );
+            let n_lights = town.lights.len();
             let r = soak(Arc::new(town), cfg, a.minutes, &mut |tick, out| {
-                lights.states_at(tick, out)
+                if fixture {
+                    fixed.states_at(tick, out)
+                } else {
+                    if tick > 0 {
+                        controller.step(f64::from(world::physics::DT_S));
+                    }
+                    out.clear();
+                    out.extend((0..n_lights).map(|i| controller.state(LightIdx(i as u32))));
+                }
             });
             println!(
                 "realised vehicles       {} / {}",
@@ -161,11 +176,15 @@ pub fn run(args: TrafficArgs) -> Result<()> {
         TrafficCommand::Table(a) => {
             let town = Arc::new(load_town(&a.town)?);
             let seeds: Vec<u64> = (0..a.resets).collect();
+            let densities = [(0, 0), (5, 10), (20, 40)];
+            if let Some(routes) = &a.routes {
+                return table_per_route(&town, routes, &a.ids, &densities, &seeds);
+            }
             let rows = table_one(
                 town.clone(),
                 &TrafficConfig::default(),
                 None,
-                &[(0, 0), (5, 10), (20, 40)],
+                &densities,
                 &seeds,
             );
             println!("Table I on {} ({} resets per density)", town.name, a.resets);
@@ -184,6 +203,60 @@ pub fn run(args: TrafficArgs) -> Result<()> {
                 );
             }
         }
+    }
+    Ok(())
+}
+
+/// Table I as the paper lays it out: a column per route (the ego at its
+/// start), a row per density, realised counts as mean +- sd over the resets.
+fn table_per_route(
+    town: &Arc<world::Town>,
+    routes: &std::path::Path,
+    ids: &[String],
+    densities: &[(usize, usize)],
+    seeds: &[u64],
+) -> Result<()> {
+    let file = RouteFile::load(routes)?;
+    let mut columns = Vec::new();
+    for id in ids {
+        let dense = plan_route(town, file.route(id)?, &PlannerConfig::default())?;
+        let p = dense
+            .points
+            .first()
+            .with_context(|| format!("{} route {id}: no points", routes.display()))?;
+        let ego = EgoStart {
+            position: p.position.truncate(),
+            z: p.position.z,
+            yaw: p.heading,
+        };
+        columns.push(table_one(
+            town.clone(),
+            &TrafficConfig::default(),
+            Some(ego),
+            densities,
+            seeds,
+        ));
+    }
+    println!(
+        "Table I on {} ({} resets per density; vehicles, pedestrians)",
+        town.name,
+        seeds.len()
+    );
+    print!("{:>10}", "target");
+    for id in ids {
+        print!(" | route {id:<22}");
+    }
+    println!();
+    for (row, d) in densities.iter().enumerate() {
+        print!("{:>10}", format!("({}, {})", d.0, d.1));
+        for col in &columns {
+            let r = &col[row];
+            print!(
+                " | {:>4.1} +- {:<3.1}  {:>4.1} +- {:<3.1}",
+                r.vehicles.mean, r.vehicles.sd, r.pedestrians.mean, r.pedestrians.sd
+            );
+        }
+        println!();
     }
     Ok(())
 }
