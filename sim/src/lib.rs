@@ -3,5 +3,6 @@
 //! [`Driver`].
 
 pub mod driver;
+pub mod render;
 
 pub use driver::*;

@@ -1,0 +1,3 @@
+//! The command-line subcommands, one file each.
+
+pub mod render;
