@@ -142,6 +142,20 @@ fn supersampling_keeps_a_sub_pixel_lamp_as_a_tinted_labelled_pixel() {
 }
 
 #[test]
+fn a_lamp_far_below_a_pixel_keeps_its_label_and_a_faint_tint() {
+    // 0.5 of the CPU rig, 40 m: the lamp is 0.26 px across.
+    let town = straight_road(40.0);
+    let mut r = Renderer::new(&town, RigConfig::cpu_default(), 1).unwrap();
+    let ego = EgoPose::default();
+    let dark = r.render_rig(&ego, &[], &[], 0.5).unwrap().0.clone();
+    let (rgb, labels) = r.render_rig(&ego, &[], &[LightState::Green], 0.5).unwrap();
+    assert!(labels.count(classes::LAMP_GREEN) >= 1, "lamp lost");
+    let rise = rgb.data.chunks_exact(3).zip(dark.data.chunks_exact(3)).map(|(a, b)| i32::from(a[1]) - i32::from(b[1]));
+    let best = rise.max().unwrap();
+    assert!((1..60).contains(&best), "tint should be faint but present (green rise {best})");
+}
+
+#[test]
 fn lamps_follow_the_light_state() {
     let town = straight_road(10.0);
     let mut r = Renderer::new(&town, RigConfig::cpu_default(), 1).unwrap();

@@ -4,10 +4,8 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
-use sim::RgbImage;
 use sim::render::image::save_png;
-use sim::render::measure::{bench_rig, lamp_sizes};
-use sim::render::{RigConfig, Renderer, demo};
+use sim::render::{RigConfig, demo, measure};
 
 /// `mrdrive render-demo`: a hand-made junction scene, rendered.
 #[derive(Debug, Args)]
@@ -83,22 +81,9 @@ pub enum BenchCmd {
 pub fn render_demo(a: &RenderDemoArgs) -> Result<()> {
     let base = if a.paper { RigConfig::paper() } else { RigConfig::cpu_default() };
     let rig = RigConfig { supersample: a.supersample, ..base };
-    let town = demo::grid_town(3, 3, 100.0, 7);
-    let (ego, actors, states) = demo::demo_state(&town);
-    let mut r = Renderer::new(&town, rig, 7)?;
-    let (rgb, labels) = match a.top_down {
-        Some(px) => r.render_top_down(&ego, &actors, &states, px, px, 60.0)?,
-        None => r.render_rig(&ego, &actors, &states, a.scale)?,
-    };
-    let mut picture = RgbImage::default();
-    let img = if a.labels {
-        labels.to_label_rgb(&mut picture);
-        &picture
-    } else {
-        rgb
-    };
-    save_png(img, &a.out).with_context(|| format!("writing {}", a.out.display()))?;
-    println!("wrote {} ({}x{}) on {}", a.out.display(), img.width, img.height, r.backend());
+    let (img, backend) = demo::render_demo(rig, a.scale, a.top_down, a.labels)?;
+    save_png(&img, &a.out).with_context(|| format!("writing {}", a.out.display()))?;
+    println!("wrote {} ({}x{}) on {backend}", a.out.display(), img.width, img.height);
     Ok(())
 }
 
@@ -106,27 +91,7 @@ pub fn render_demo(a: &RenderDemoArgs) -> Result<()> {
 pub fn render(a: &RenderArgs) -> Result<()> {
     match &a.cmd {
         RenderCmd::LampSize { scales, distances } => {
-            println!("lamp: 0.30 m disc, red, on the centre camera's axis; supersampling 2x");
-            println!(
-                "{:<10} {:>5} {:>9} {:>7} {:>10} {:>10} {:>9} {:>11} {:>10}",
-                "rig", "scale", "size", "dist_m", "class_px", "tinted_px", "peak_tint", "analytic_d", "analytic_a"
-            );
-            for (name, rig) in [("cpu-S0", RigConfig::cpu_default()), ("paper-S0", RigConfig::paper())] {
-                for s in lamp_sizes(rig, scales, distances)? {
-                    println!(
-                        "{:<10} {:>5.2} {:>9} {:>7.1} {:>10} {:>10} {:>9} {:>11.2} {:>10.2}",
-                        name,
-                        s.scale,
-                        format!("{}x{}", s.size.0, s.size.1),
-                        s.distance_m,
-                        s.class_px,
-                        s.tinted_px,
-                        s.peak_tint,
-                        s.analytic_diameter_px,
-                        s.analytic_area_px
-                    );
-                }
-            }
+            print!("{}", measure::lamp_size_report(scales, distances)?);
             Ok(())
         }
     }
@@ -136,36 +101,7 @@ pub fn render(a: &RenderArgs) -> Result<()> {
 pub fn bench(a: &BenchArgs) -> Result<()> {
     match &a.cmd {
         BenchCmd::Render { frames, repeats, supersample } => {
-            let town = demo::grid_town(4, 4, 100.0, 7);
-            let (ego, actors, states) = demo::demo_state(&town);
-            for (name, base, scales) in [
-                ("cpu-S0", RigConfig::cpu_default(), vec![1.0, 0.75]),
-                ("paper-S0", RigConfig::paper(), vec![1.0, 0.75]),
-            ] {
-                let rig = RigConfig { supersample: *supersample, ..base };
-                let mut r = Renderer::new(&town, rig, 7)?;
-                if name == "cpu-S0" {
-                    println!(
-                        "backend: {}; town {} with {} static triangles; {} actors; supersampling {}x",
-                        r.backend(),
-                        town.name,
-                        r.scene().triangle_count(),
-                        actors.len(),
-                        rig.supersample
-                    );
-                }
-                for s in bench_rig(&mut r, (ego, &actors, &states), &scales, *frames, *repeats)? {
-                    let fps: Vec<String> = s.fps.iter().map(|f| format!("{f:.0}")).collect();
-                    println!(
-                        "{name:<9} scale {:.2} {:>4}x{:<4} median {:>7.1} rig fps  (repeats: {})",
-                        s.scale,
-                        s.size.0,
-                        s.size.1,
-                        s.median_fps(),
-                        fps.join(" ")
-                    );
-                }
-            }
+            print!("{}", measure::bench_report(*frames, *repeats, *supersample)?);
             Ok(())
         }
     }

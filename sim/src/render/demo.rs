@@ -217,16 +217,23 @@ impl Builder {
     }
 }
 
-/// The demo moment: the ego 25 m before the origin junction's stop line on
-/// the eastbound lane, red for it, green for the cross street; cars and
-/// pedestrians around. Returns (ego, actors, light states).
+/// The demo moment at the junction nearest the town's middle: the ego 25 m
+/// before its stop line on the eastbound lane, red for it, green for the
+/// cross street; cars and pedestrians around. Returns (ego, actors, light states).
 pub fn demo_state(town: &Town) -> (EgoPose, Vec<ActorSnapshot>, Vec<LightState>) {
-    let lane_y = -LANE_W_M * 0.5;
-    let ego = EgoPose { position: Vec3::new(-33.0, lane_y, 0.0), heading: 0.0 };
+    let mid = (town.bounds.0 + town.bounds.1) * 0.5;
+    let c = town
+        .junctions
+        .iter()
+        .map(|j| j.outline.iter().copied().sum::<Vec2>() / j.outline.len().max(1) as f32)
+        .min_by(|a, b| a.distance(mid).total_cmp(&b.distance(mid)))
+        .unwrap_or(Vec2::ZERO);
+    let lane_y = c.y - LANE_W_M * 0.5;
+    let ego = EgoPose { position: Vec3::new(c.x - 33.0, lane_y, 0.0), heading: 0.0 };
     let car = |id: u32, x: f32, y: f32, heading: f32, color: u8| ActorSnapshot {
         id,
         kind: ActorKind::Vehicle,
-        position: Vec3::new(x, y, 0.0),
+        position: Vec3::new(c.x + x, c.y + y, 0.0),
         heading,
         extent: Vec3::new(4.6, 2.0, 1.5),
         speed_mps: 0.0,
@@ -235,7 +242,7 @@ pub fn demo_state(town: &Town) -> (EgoPose, Vec<ActorSnapshot>, Vec<LightState>)
     let walker = |id: u32, x: f32, y: f32, color: u8| ActorSnapshot {
         id,
         kind: ActorKind::Pedestrian,
-        position: Vec3::new(x, y, 0.15),
+        position: Vec3::new(c.x + x, c.y + y, 0.15),
         heading: 0.0,
         extent: Vec3::new(0.5, 0.5, 1.8),
         speed_mps: 1.4,
@@ -243,7 +250,7 @@ pub fn demo_state(town: &Town) -> (EgoPose, Vec<ActorSnapshot>, Vec<LightState>)
     };
     let pi = std::f32::consts::PI;
     let actors = vec![
-        ActorSnapshot { id: 0, kind: ActorKind::Ego, ..car(0, ego.position.x, lane_y, 0.0, 0) },
+        ActorSnapshot { id: 0, kind: ActorKind::Ego, ..car(0, -33.0, -LANE_W_M * 0.5, 0.0, 0) },
         car(1, -16.0, -LANE_W_M * 0.5 - 0.1, 0.0, 3),
         car(2, -20.0, LANE_W_M * 0.5, pi, 1),
         car(3, LANE_W_M * 0.5, -2.0, pi * 0.5, 0),
@@ -251,7 +258,7 @@ pub fn demo_state(town: &Town) -> (EgoPose, Vec<ActorSnapshot>, Vec<LightState>)
         car(5, 40.0, LANE_W_M * 0.5, pi, 2),
         walker(6, 6.0, -6.0, 0),
         walker(7, -12.0, 5.5, 1),
-        ActorSnapshot { position: Vec3::new(5.5, 1.0, 0.0), ..walker(8, 0.0, 0.0, 3) },
+        ActorSnapshot { position: Vec3::new(c.x + 5.5, c.y + 1.0, 0.0), ..walker(8, 0.0, 0.0, 3) },
         walker(9, -25.0, -5.0, 4),
     ];
     // Group 0 (traffic along x) red, group 1 (along y) green.
@@ -280,4 +287,30 @@ mod tests {
         }
         assert_eq!(t.buildings.len(), 4);
     }
+}
+
+/// Renders the demo moment on a 3 x 3 grid town: the rig at `scale`, or the
+/// top-down view `top_down_px` square and 60 m across; the class image in
+/// label colours when `labels`. Returns the picture and the backend's name.
+pub fn render_demo(
+    rig: super::rig::RigConfig,
+    scale: f32,
+    top_down_px: Option<u32>,
+    labels: bool,
+) -> Result<(crate::RgbImage, String), super::RenderError> {
+    let town = grid_town(3, 3, 100.0, 7);
+    let (ego, actors, states) = demo_state(&town);
+    let mut r = super::Renderer::new(&town, rig, 7)?;
+    let backend = r.backend();
+    let (rgb, class) = match top_down_px {
+        Some(px) => r.render_top_down(&ego, &actors, &states, px, px, 60.0)?,
+        None => r.render_rig(&ego, &actors, &states, scale)?,
+    };
+    let mut picture = crate::RgbImage::default();
+    if labels {
+        class.to_label_rgb(&mut picture);
+    } else {
+        picture = rgb.clone();
+    }
+    Ok((picture, backend))
 }

@@ -144,3 +144,80 @@ pub fn bench_rig(
     }
     Ok(out)
 }
+
+/// The `render lamp-size` table: lamp sizes for the CPU and the paper's S0.
+pub fn lamp_size_report(scales: &[f32], distances_m: &[f32]) -> Result<String, RenderError> {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "lamp: {LAMP_DIAMETER_M:.2} m disc, red, on the centre camera's axis; supersampling 2x\n\
+         class_px: pixels labelled lamp_red; tinted_px: red channel +30 or more over dark lamps;\n\
+         analytic_d / analytic_a: projected diameter (px) and disc area (px^2)"
+    );
+    let _ = writeln!(
+        s,
+        "{:<9} {:>5} {:>8} {:>6} {:>8} {:>9} {:>9} {:>10} {:>10}",
+        "rig", "scale", "size", "dist_m", "class_px", "tinted_px", "peak_rise", "analytic_d", "analytic_a"
+    );
+    for (name, rig) in [("cpu-S0", RigConfig::cpu_default()), ("paper-S0", RigConfig::paper())] {
+        for m in lamp_sizes(rig, scales, distances_m)? {
+            let _ = writeln!(
+                s,
+                "{:<9} {:>5.2} {:>8} {:>6.1} {:>8} {:>9} {:>9} {:>10.2} {:>10.2}",
+                name,
+                m.scale,
+                format!("{}x{}", m.size.0, m.size.1),
+                m.distance_m,
+                m.class_px,
+                m.tinted_px,
+                m.peak_tint,
+                m.analytic_diameter_px,
+                m.analytic_area_px
+            );
+        }
+    }
+    Ok(s)
+}
+
+/// The `bench render` figures: median rig fps at the CPU S0, 0.75 of it, and
+/// the paper's 480x192 (and 0.75 of that), on the 4x4 demo town.
+pub fn bench_report(frames: usize, repeats: usize, supersample: u32) -> Result<String, RenderError> {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let town = demo::grid_town(4, 4, 100.0, 7);
+    let (ego, actors, states) = demo::demo_state(&town);
+    for (name, base) in [("cpu-S0", RigConfig::cpu_default()), ("paper-S0", RigConfig::paper())] {
+        let rig = RigConfig { supersample, ..base };
+        let mut r = Renderer::new(&town, rig, 7)?;
+        if name == "cpu-S0" {
+            let _ = writeln!(
+                s,
+                "backend: {}\ntown {}: {} static triangles in {} cells, drawn within {} m; {} actors; \
+                 supersampling {}x; {} frames x {} repeats",
+                r.backend(),
+                town.name,
+                r.scene().triangle_count(),
+                r.scene().cells.len(),
+                super::renderer::DRAW_DISTANCE_M,
+                actors.len(),
+                r.rig().supersample,
+                frames,
+                repeats
+            );
+        }
+        for m in bench_rig(&mut r, (ego, &actors, &states), &[1.0, 0.75], frames, repeats)? {
+            let fps: Vec<String> = m.fps.iter().map(|f| format!("{f:.0}")).collect();
+            let _ = writeln!(
+                s,
+                "{name:<9} scale {:.2} {:>4}x{:<4} median {:>7.1} rig fps  (repeats: {})",
+                m.scale,
+                m.size.0,
+                m.size.1,
+                m.median_fps(),
+                fps.join(" ")
+            );
+        }
+    }
+    Ok(s)
+}

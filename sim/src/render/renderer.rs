@@ -9,6 +9,12 @@
 //! keeps small objects (a lit lamp in any subsample wins; otherwise the most
 //! frequent class, ties to the higher id). With k = 1 the scene pass writes
 //! the output directly.
+//!
+//! Lit lamps are drawn last and add their light to what lies behind them. A
+//! lamp smaller than [`MIN_LAMP_PX`] supersampled pixels is drawn at that
+//! size with its radiance cut by the area ratio, so no sample grid can miss
+//! it and the output pixel still integrates the lamp's true light (a faint
+//! tint at long range, as a real sensor gives).
 
 use std::num::NonZeroU64;
 
@@ -21,11 +27,15 @@ use super::classes;
 use super::gpu::{Gpu, GpuError};
 use super::image::ClassImage;
 use super::rig::{Camera, EgoPose, RigConfig};
-use super::scene::{Dynamic, Instance, StaticScene, UNIT_MESHES, Vertex};
+use super::scene::{Dynamic, Instance, StaticScene, UNIT_MESHES, UnitMesh, Vertex};
 use crate::driver::RgbImage;
 
 /// How far from the ego static geometry is drawn (metres).
 pub const DRAW_DISTANCE_M: f32 = 250.0;
+/// Smallest diameter a lit lamp is drawn at (supersampled pixels); its
+/// radiance is cut by the area ratio. 1.6 > sqrt(2) / cos(22.5 deg): an
+/// octagon this size always covers a sample point.
+pub const MIN_LAMP_PX: f32 = 1.6;
 /// Most views one frame may hold (three rig cameras, or one top-down).
 const MAX_VIEWS: usize = 4;
 const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
@@ -73,6 +83,7 @@ pub enum RenderError {
 struct CameraUniform {
     view_proj: [[f32; 4]; 4],
     eye: [f32; 4],
+    lamp: [f32; 4],
 }
 
 /// Render targets and readback for one output size.
@@ -100,6 +111,7 @@ pub struct Renderer {
     rig: RigConfig,
     scene: StaticScene,
     scene_pipeline: wgpu::RenderPipeline,
+    lamp_pipeline: wgpu::RenderPipeline,
     down_pipeline: wgpu::RenderPipeline,
     down_layout: wgpu::BindGroupLayout,
     down_params: wgpu::Buffer,
@@ -179,44 +191,63 @@ impl Renderer {
             Some(wgpu::ColorTargetState::from(COLOR_FORMAT)),
             Some(wgpu::ColorTargetState::from(CLASS_FORMAT)),
         ];
-        let scene_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("scene pipeline"),
-            layout: Some(&scene_layout),
-            vertex: wgpu::VertexState {
-                module: &scene_module,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[
-                    Some(wgpu::VertexBufferLayout {
-                        array_stride: std::mem::size_of::<Vertex>() as u64,
-                        step_mode: wgpu::VertexStepMode::Vertex,
-                        attributes: &vertex_attrs,
-                    }),
-                    Some(wgpu::VertexBufferLayout {
-                        array_stride: std::mem::size_of::<Instance>() as u64,
-                        step_mode: wgpu::VertexStepMode::Instance,
-                        attributes: &instance_attrs,
-                    }),
-                ],
-            },
-            primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Greater),
-                stencil: Default::default(),
-                bias: Default::default(),
+        let scene_pipe = |label, targets: &[Option<wgpu::ColorTargetState>], depth_write| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(&scene_layout),
+                vertex: wgpu::VertexState {
+                    module: &scene_module,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &[
+                        Some(wgpu::VertexBufferLayout {
+                            array_stride: std::mem::size_of::<Vertex>() as u64,
+                            step_mode: wgpu::VertexStepMode::Vertex,
+                            attributes: &vertex_attrs,
+                        }),
+                        Some(wgpu::VertexBufferLayout {
+                            array_stride: std::mem::size_of::<Instance>() as u64,
+                            step_mode: wgpu::VertexStepMode::Instance,
+                            attributes: &instance_attrs,
+                        }),
+                    ],
+                },
+                primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(depth_write),
+                    depth_compare: Some(wgpu::CompareFunction::Greater),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &scene_module,
+                    entry_point: Some("fs_main"),
+                    compilation_options: Default::default(),
+                    targets,
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let scene_pipeline = scene_pipe("scene pipeline", &targets, true);
+        // Lit lamps add their light to what is behind them (energy is kept
+        // when a small lamp is drawn enlarged); the class is replaced.
+        let additive = wgpu::BlendComponent {
+            src_factor: wgpu::BlendFactor::One,
+            dst_factor: wgpu::BlendFactor::One,
+            operation: wgpu::BlendOperation::Add,
+        };
+        let lamp_targets = [
+            Some(wgpu::ColorTargetState {
+                format: COLOR_FORMAT,
+                blend: Some(wgpu::BlendState { color: additive, alpha: additive }),
+                write_mask: wgpu::ColorWrites::ALL,
             }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &scene_module,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &targets,
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+            Some(wgpu::ColorTargetState::from(CLASS_FORMAT)),
+        ];
+        let lamp_pipeline = scene_pipe("lamp pipeline", &lamp_targets, false);
         let down_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("downsample.wgsl"),
             source: wgpu::ShaderSource::Wgsl(include_str!("downsample.wgsl").into()),
@@ -302,6 +333,7 @@ impl Renderer {
             rig,
             scene,
             scene_pipeline,
+            lamp_pipeline,
             down_pipeline,
             down_layout,
             down_params,
@@ -432,21 +464,27 @@ impl Renderer {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-            pass.set_pipeline(&self.scene_pipeline);
             pass.set_vertex_buffer(0, self.static_vb.slice(..));
             pass.set_vertex_buffer(1, self.instance_buf.slice(..));
             for (i, cam) in cams.iter().enumerate() {
                 let [x, y, w, h] = cam.viewport.map(|v| v * k);
                 pass.set_viewport(x as f32, y as f32, w as f32, h as f32, 0.0, 1.0);
                 pass.set_scissor_rect(x, y, w, h);
+                pass.set_pipeline(&self.scene_pipeline);
                 pass.set_bind_group(0, &self.cam_bind, &[(i as u64 * self.cam_stride) as u32]);
                 for &(first, count) in &self.visible {
                     pass.draw(first..first + count, 0..1);
                 }
-                for (unit, &(first, count)) in self.scene.units.iter().zip(&self.instance_ranges) {
-                    if count > 0 {
-                        pass.draw(unit.0..unit.0 + unit.1, first..first + count);
+                for (u, (unit, &(first, count))) in self.scene.units.iter().zip(&self.instance_ranges).enumerate() {
+                    if count == 0 {
+                        continue;
                     }
+                    if u == UnitMesh::Disc as usize {
+                        // Lamps last: they blend over what is already drawn.
+                        pass.set_pipeline(&self.lamp_pipeline);
+                        pass.set_bind_group(0, &self.cam_bind, &[(i as u64 * self.cam_stride) as u32]);
+                    }
+                    pass.draw(unit.0..unit.0 + unit.1, first..first + count);
                 }
             }
         }
@@ -516,10 +554,15 @@ impl Renderer {
     }
 
     fn upload_cameras(&mut self, cams: &[Camera]) {
+        let k = self.rig.supersample as f32;
         for (i, cam) in cams.iter().take(MAX_VIEWS).enumerate() {
             let u = CameraUniform {
                 view_proj: cam.view_proj.to_cols_array_2d(),
                 eye: cam.eye.extend(if cam.fog { 1.0 } else { 0.0 }).to_array(),
+                lamp: match cam.focal_px {
+                    Some(f) => [f * k, MIN_LAMP_PX, 0.0, 0.0],
+                    None => [0.0; 4],
+                },
             };
             let at = i * self.cam_stride as usize;
             self.cam_bytes[at..at + std::mem::size_of::<CameraUniform>()]

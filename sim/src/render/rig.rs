@@ -124,6 +124,8 @@ pub struct Camera {
     pub eye: Vec3,
     /// Whether fog applies (perspective views).
     pub fog: bool,
+    /// Horizontal focal length (output pixels) for perspective views; `None` for orthographic.
+    pub focal_px: Option<f32>,
 }
 
 impl Camera {
@@ -157,7 +159,7 @@ impl Camera {
             Vec4::new(2.0 * cx / w - 1.0, 1.0 - 2.0 * cy / h, 0.0, 1.0),
             Vec4::new(0.0, 0.0, NEAR_M, 0.0),
         );
-        Camera { viewport, view_proj: proj * view, eye, fog: true }
+        Camera { viewport, view_proj: proj * view, eye, fog: true, focal_px: Some(fx) }
     }
 
     /// A top-down orthographic camera centred on `center`, image up along
@@ -177,7 +179,7 @@ impl Camera {
             Vec4::new(0.0, 0.0, 1.0 / (z_hi - z_lo), 0.0),
             Vec4::new(rel(right) / half_w, rel(up_img) / half_h, -z_lo / (z_hi - z_lo), 1.0),
         );
-        Camera { viewport, view_proj: m, eye: center + Vec3::Z * 1000.0, fog: false }
+        Camera { viewport, view_proj: m, eye: center + Vec3::Z * 1000.0, fog: false, focal_px: None }
     }
 
     /// Projects a world point to output pixel coordinates (x right, y down;

@@ -568,19 +568,26 @@ fn props(town: &Town, ground_z: f32, seed: u64, t: &mut Tris) {
     let trunk = pack(paint::TRUNK, classes::VEGETATION, false);
     let leaves = pack(paint::LEAVES, classes::VEGETATION, false);
     let metal = pack(paint::METAL, classes::BUILDING, false);
-    // Candidate spots: 1 m beyond each sidewalk's outer edge, every ~14 m.
+    // Candidate spots: 1 m beyond each sidewalk's outer edge, every ~14 m
+    // of its length (jittered).
     let mut spots = Vec::new();
     for sw in &town.sidewalks {
         let n = sw.inner.len().min(sw.outer.len());
-        let mut since = rng.random_range(0.0..14.0f32);
+        let mut next = rng.random_range(2.0..14.0f32);
+        let mut walked = 0.0;
         for i in 1..n {
-            since += sw.outer[i].distance(sw.outer[i - 1]);
-            if since < 14.0 {
+            let (a, b) = (sw.outer[i - 1], sw.outer[i]);
+            let len = a.distance(b);
+            if !len.is_finite() {
                 continue;
             }
-            since = rng.random_range(-3.0..3.0f32);
-            let out = (sw.outer[i] - sw.inner[i]).truncate().normalize_or_zero();
-            spots.push((sw.outer[i].truncate() + out * 1.0, out));
+            while next <= walked + len {
+                let u = (next - walked) / len.max(1e-6);
+                let out = (b - sw.inner[i]).truncate().normalize_or_zero();
+                spots.push((a.lerp(b, u).truncate() + out, out));
+                next += rng.random_range(11.0..17.0f32);
+            }
+            walked += len;
         }
     }
     for (p, out) in spots {

@@ -4,6 +4,9 @@ struct Camera {
     view_proj: mat4x4<f32>,
     // xyz: eye position (metres); w: 1 for fog, 0 without.
     eye: vec4<f32>,
+    // x: focal length (drawn pixels); y: smallest lamp diameter drawn
+    // (drawn pixels), 0 to draw lamps at their true size.
+    lamp: vec4<f32>,
 };
 
 @group(0) @binding(0) var<uniform> cam: Camera;
@@ -21,13 +24,24 @@ struct VsOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) world: vec3<f32>,
     @location(1) @interpolate(flat) color: u32,
+    // Radiance factor of emissive surfaces (1, or less for an enlarged lamp).
+    @location(2) @interpolate(flat) energy: f32,
 };
 
 @vertex
 fn vs_main(v: VsIn) -> VsOut {
     let c = cos(v.i_heading);
     let s = sin(v.i_heading);
-    let p = v.pos * v.i_scale;
+    // A lit lamp smaller than `cam.lamp.y` drawn pixels is drawn at that size
+    // with its radiance cut by the area ratio: the pixel integrates the same
+    // light, as a real sensor would, and the supersampling cannot miss it.
+    var grow = 1.0;
+    if ((v.i_color >> 31u) != 0u && cam.lamp.y > 0.0) {
+        let depth = (cam.view_proj * vec4<f32>(v.i_pos, 1.0)).w;
+        let d_px = v.i_scale.y * cam.lamp.x / max(depth, 1e-3);
+        grow = max(1.0, cam.lamp.y / max(d_px, 1e-6));
+    }
+    let p = v.pos * v.i_scale * vec3<f32>(1.0, grow, grow);
     let world = vec3<f32>(c * p.x - s * p.y, s * p.x + c * p.y, p.z) + v.i_pos;
     var color = v.color;
     if (((v.i_color >> 24u) & 0x7fu) != 0u) {
@@ -37,6 +51,7 @@ fn vs_main(v: VsIn) -> VsOut {
     out.clip = cam.view_proj * vec4<f32>(world, 1.0);
     out.world = world;
     out.color = color;
+    out.energy = 1.0 / (grow * grow);
     return out;
 }
 
@@ -81,7 +96,7 @@ fn fs_main(in: VsOut) -> FsOut {
     let emissive = (in.color >> 31u) != 0u;
     var lit = rgb * (AMBIENT + (1.0 - AMBIENT) * max(dot(n, SUN), 0.0));
     if (emissive) {
-        lit = rgb;
+        lit = rgb * in.energy;
     }
     let fog = cam.eye.w * FOG_MAX * clamp((length(to_eye) - FOG_START_M) / (FOG_END_M - FOG_START_M), 0.0, 1.0);
     var out: FsOut;
