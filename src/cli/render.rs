@@ -79,11 +79,23 @@ pub enum BenchCmd {
 
 /// Runs `render-demo`.
 pub fn render_demo(a: &RenderDemoArgs) -> Result<()> {
-    let base = if a.paper { RigConfig::paper() } else { RigConfig::cpu_default() };
-    let rig = RigConfig { supersample: a.supersample, ..base };
+    let base = if a.paper {
+        RigConfig::paper()
+    } else {
+        RigConfig::cpu_default()
+    };
+    let rig = RigConfig {
+        supersample: a.supersample,
+        ..base
+    };
     let (img, backend) = demo::render_demo(rig, a.scale, a.top_down, a.labels)?;
     save_png(&img, &a.out).with_context(|| format!("writing {}", a.out.display()))?;
-    println!("wrote {} ({}x{}) on {backend}", a.out.display(), img.width, img.height);
+    println!(
+        "wrote {} ({}x{}) on {backend}",
+        a.out.display(),
+        img.width,
+        img.height
+    );
     Ok(())
 }
 
@@ -100,8 +112,15 @@ pub fn render(a: &RenderArgs) -> Result<()> {
 /// Runs `bench ...`.
 pub fn bench(a: &BenchArgs) -> Result<()> {
     match &a.cmd {
-        BenchCmd::Render { frames, repeats, supersample } => {
-            print!("{}", measure::bench_report(*frames, *repeats, *supersample)?);
+        BenchCmd::Render {
+            frames,
+            repeats,
+            supersample,
+        } => {
+            print!(
+                "{}",
+                measure::bench_report(*frames, *repeats, *supersample)?
+            );
             Ok(())
         }
     }

@@ -75,18 +75,84 @@ pub const TERRAIN: ClassId = 13;
 pub const CLASSES: [SemanticClass; 14] = [
     class(SKY, "sky", [70, 130, 180], false, WorClass::Background),
     class(ROAD, "road", [128, 64, 128], false, WorClass::Road),
-    class(LANE_MARKING, "lane_marking", [157, 234, 50], false, WorClass::LaneMarking),
-    class(SIDEWALK, "sidewalk", [244, 35, 232], false, WorClass::Background),
-    class(BUILDING, "building", [70, 70, 70], false, WorClass::Background),
+    class(
+        LANE_MARKING,
+        "lane_marking",
+        [157, 234, 50],
+        false,
+        WorClass::LaneMarking,
+    ),
+    class(
+        SIDEWALK,
+        "sidewalk",
+        [244, 35, 232],
+        false,
+        WorClass::Background,
+    ),
+    class(
+        BUILDING,
+        "building",
+        [70, 70, 70],
+        false,
+        WorClass::Background,
+    ),
     class(VEHICLE, "vehicle", [0, 0, 142], false, WorClass::Vehicle),
-    class(PEDESTRIAN, "pedestrian", [220, 20, 60], false, WorClass::Pedestrian),
-    class(LIGHT_POLE, "traffic_light_pole", [250, 170, 30], false, WorClass::TrafficLight),
-    class(LAMP_RED, "lamp_red", [255, 0, 0], true, WorClass::TrafficLight),
-    class(LAMP_YELLOW, "lamp_yellow", [255, 255, 0], true, WorClass::TrafficLight),
-    class(LAMP_GREEN, "lamp_green", [0, 255, 0], true, WorClass::TrafficLight),
-    class(VEGETATION, "vegetation", [107, 142, 35], false, WorClass::Background),
-    class(CROSSWALK, "crosswalk", [255, 255, 255], false, WorClass::LaneMarking),
-    class(TERRAIN, "terrain", [152, 251, 152], false, WorClass::Background),
+    class(
+        PEDESTRIAN,
+        "pedestrian",
+        [220, 20, 60],
+        false,
+        WorClass::Pedestrian,
+    ),
+    class(
+        LIGHT_POLE,
+        "traffic_light_pole",
+        [250, 170, 30],
+        false,
+        WorClass::TrafficLight,
+    ),
+    class(
+        LAMP_RED,
+        "lamp_red",
+        [255, 0, 0],
+        true,
+        WorClass::TrafficLight,
+    ),
+    class(
+        LAMP_YELLOW,
+        "lamp_yellow",
+        [255, 255, 0],
+        true,
+        WorClass::TrafficLight,
+    ),
+    class(
+        LAMP_GREEN,
+        "lamp_green",
+        [0, 255, 0],
+        true,
+        WorClass::TrafficLight,
+    ),
+    class(
+        VEGETATION,
+        "vegetation",
+        [107, 142, 35],
+        false,
+        WorClass::Background,
+    ),
+    class(
+        CROSSWALK,
+        "crosswalk",
+        [255, 255, 255],
+        false,
+        WorClass::LaneMarking,
+    ),
+    class(
+        TERRAIN,
+        "terrain",
+        [152, 251, 152],
+        false,
+        WorClass::Background,
+    ),
 ];
 
 const fn class(
@@ -96,7 +162,13 @@ const fn class(
     small_object: bool,
     wor: WorClass,
 ) -> SemanticClass {
-    SemanticClass { id, name, label_rgb, small_object, wor }
+    SemanticClass {
+        id,
+        name,
+        label_rgb,
+        small_object,
+        wor,
+    }
 }
 
 /// Number of classes in the table.

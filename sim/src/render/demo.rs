@@ -24,7 +24,9 @@ pub const HEAD_HEIGHT_M: f32 = 3.0;
 
 /// A grid town: `nx` x `ny` junctions `block_m` apart, the junction (0, 0) at the origin.
 pub fn grid_town(nx: u32, ny: u32, block_m: f32, seed: u64) -> Town {
-    let mut b = Builder { town: empty_town("") };
+    let mut b = Builder {
+        town: empty_town(""),
+    };
     let half = LANE_W_M;
     let ext = block_m * 0.5;
     let xs: Vec<f32> = (0..nx).map(|i| i as f32 * block_m).collect();
@@ -36,7 +38,11 @@ pub fn grid_town(nx: u32, ny: u32, block_m: f32, seed: u64) -> Town {
         stops.push(xs[xs.len() - 1] + ext);
         for w in stops.windows(2) {
             let a = if w[0] < xs[0] { w[0] } else { w[0] + half };
-            let e = if w[1] > xs[xs.len() - 1] { w[1] } else { w[1] - half };
+            let e = if w[1] > xs[xs.len() - 1] {
+                w[1]
+            } else {
+                w[1] - half
+            };
             b.road(Vec2::new(a, y), Vec2::new(e, y), j as u32);
         }
     }
@@ -46,7 +52,11 @@ pub fn grid_town(nx: u32, ny: u32, block_m: f32, seed: u64) -> Town {
         stops.push(ys[ys.len() - 1] + ext);
         for w in stops.windows(2) {
             let a = if w[0] < ys[0] { w[0] } else { w[0] + half };
-            let e = if w[1] > ys[ys.len() - 1] { w[1] } else { w[1] - half };
+            let e = if w[1] > ys[ys.len() - 1] {
+                w[1]
+            } else {
+                w[1] - half
+            };
             b.road(Vec2::new(x, a), Vec2::new(x, e), 1000 + i as u32);
         }
     }
@@ -73,7 +83,10 @@ pub fn grid_town(nx: u32, ny: u32, block_m: f32, seed: u64) -> Town {
                         Vec2::new(a + g, e - g),
                     ];
                     let height_m = rng.random_range(6.0..24.0f32);
-                    b.town.buildings.push(Building { footprint: fp, height_m });
+                    b.town.buildings.push(Building {
+                        footprint: fp,
+                        height_m,
+                    });
                 }
             }
         }
@@ -110,7 +123,8 @@ impl Builder {
         let m = &mut self.town.road_surface;
         let base = m.positions.len() as u32;
         m.positions.extend(c.iter().map(|p| p.extend(0.0)));
-        m.indices.extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+        m.indices
+            .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
     }
 
     /// A straight two-lane road from `a` to `b` (its centre line).
@@ -154,31 +168,59 @@ impl Builder {
             width_m: 0.15,
             dash_m,
         };
-        self.town.markings.push(mark(pts(0.0, false), MarkKind::Broken, Some((3.0, 5.0))));
-        self.town.markings.push(mark(pts(-h + 0.2, false), MarkKind::Solid, None));
-        self.town.markings.push(mark(pts(h - 0.2, false), MarkKind::Solid, None));
+        self.town
+            .markings
+            .push(mark(pts(0.0, false), MarkKind::Broken, Some((3.0, 5.0))));
+        self.town
+            .markings
+            .push(mark(pts(-h + 0.2, false), MarkKind::Solid, None));
+        self.town
+            .markings
+            .push(mark(pts(h - 0.2, false), MarkKind::Solid, None));
         for side in [-1.0, 1.0] {
             let inner = [a, b].map(|p| (p + left * side * h).extend(0.0)).to_vec();
-            let outer = [a, b].map(|p| (p + left * side * (h + WALK_W_M)).extend(0.0)).to_vec();
-            self.town.sidewalks.push(Sidewalk { inner, outer, height_m: 0.15 });
+            let outer = [a, b]
+                .map(|p| (p + left * side * (h + WALK_W_M)).extend(0.0))
+                .to_vec();
+            self.town.sidewalks.push(Sidewalk {
+                inner,
+                outer,
+                height_m: 0.15,
+            });
         }
     }
 
     /// A junction square at `c` with a crosswalk and a light on each approach.
     fn junction(&mut self, c: Vec2) {
         let h = LANE_W_M;
-        self.quad([c + Vec2::new(-h, -h), c + Vec2::new(h, -h), c + Vec2::new(h, h), c + Vec2::new(-h, h)]);
+        self.quad([
+            c + Vec2::new(-h, -h),
+            c + Vec2::new(h, -h),
+            c + Vec2::new(h, h),
+            c + Vec2::new(-h, h),
+        ]);
         let ji = JunctionIdx(self.town.junctions.len() as u32);
         let mut lights = Vec::new();
         // Approach directions: traffic heading +x, +y, -x, -y.
-        for (k, dir) in [Vec2::X, Vec2::Y, -Vec2::X, -Vec2::Y].into_iter().enumerate() {
+        for (k, dir) in [Vec2::X, Vec2::Y, -Vec2::X, -Vec2::Y]
+            .into_iter()
+            .enumerate()
+        {
             let right = -dir.perp();
             // The crosswalk spans the road 0.5..3.5 m before the junction square.
             let near = c - dir * (h + 0.5);
             let far = c - dir * (h + 3.5);
-            let corners = [near - right * h, near + right * h, far + right * h, far - right * h]
-                .map(|p| p.extend(0.0));
-            self.town.crosswalks.push(Crosswalk { corners, from_map: false });
+            let corners = [
+                near - right * h,
+                near + right * h,
+                far + right * h,
+                far - right * h,
+            ]
+            .map(|p| p.extend(0.0));
+            self.town.crosswalks.push(Crosswalk {
+                corners,
+                from_map: false,
+            });
             let stop = c - dir * (h + 4.5);
             let lane = self.find_lane(stop + right * (h * 0.5), dir);
             let pole = c - dir * (h + 4.0) + right * (h + 1.0);
@@ -201,19 +243,29 @@ impl Builder {
                     .collect(),
             });
         }
-        let outline = [(-h, -h), (h, -h), (h, h), (-h, h)].map(|(x, y)| c + Vec2::new(x, y)).to_vec();
-        self.town.junctions.push(Junction { od_id: format!("demo-{}", ji.0), outline, lights });
+        let outline = [(-h, -h), (h, -h), (h, h), (-h, h)]
+            .map(|(x, y)| c + Vec2::new(x, y))
+            .to_vec();
+        self.town.junctions.push(Junction {
+            od_id: format!("demo-{}", ji.0),
+            outline,
+            lights,
+        });
     }
 
     /// The lane whose centreline passes near `p` heading along `dir`.
     fn find_lane(&self, p: Vec2, dir: Vec2) -> Option<LaneIdx> {
-        self.town.lanes.iter().position(|l| {
-            let (Some(a), Some(b)) = (l.centerline.first(), l.centerline.last()) else { return false };
-            let d = (*b - *a).truncate().normalize_or_zero();
-            d.dot(dir) > 0.9
-                && l.centerline.iter().any(|q| q.truncate().distance(p) < 1.0)
-        })
-        .map(|i| LaneIdx(i as u32))
+        self.town
+            .lanes
+            .iter()
+            .position(|l| {
+                let (Some(a), Some(b)) = (l.centerline.first(), l.centerline.last()) else {
+                    return false;
+                };
+                let d = (*b - *a).truncate().normalize_or_zero();
+                d.dot(dir) > 0.9 && l.centerline.iter().any(|q| q.truncate().distance(p) < 1.0)
+            })
+            .map(|i| LaneIdx(i as u32))
     }
 }
 
@@ -229,7 +281,10 @@ pub fn demo_state(town: &Town) -> (EgoPose, Vec<ActorSnapshot>, Vec<LightState>)
         .min_by(|a, b| a.distance(mid).total_cmp(&b.distance(mid)))
         .unwrap_or(Vec2::ZERO);
     let lane_y = c.y - LANE_W_M * 0.5;
-    let ego = EgoPose { position: Vec3::new(c.x - 33.0, lane_y, 0.0), heading: 0.0 };
+    let ego = EgoPose {
+        position: Vec3::new(c.x - 33.0, lane_y, 0.0),
+        heading: 0.0,
+    };
     let car = |id: u32, x: f32, y: f32, heading: f32, color: u8| ActorSnapshot {
         id,
         kind: ActorKind::Vehicle,
@@ -250,7 +305,11 @@ pub fn demo_state(town: &Town) -> (EgoPose, Vec<ActorSnapshot>, Vec<LightState>)
     };
     let pi = std::f32::consts::PI;
     let actors = vec![
-        ActorSnapshot { id: 0, kind: ActorKind::Ego, ..car(0, -33.0, -LANE_W_M * 0.5, 0.0, 0) },
+        ActorSnapshot {
+            id: 0,
+            kind: ActorKind::Ego,
+            ..car(0, -33.0, -LANE_W_M * 0.5, 0.0, 0)
+        },
         car(1, -16.0, -LANE_W_M * 0.5 - 0.1, 0.0, 3),
         car(2, -20.0, LANE_W_M * 0.5, pi, 1),
         car(3, LANE_W_M * 0.5, -2.0, pi * 0.5, 0),
@@ -258,35 +317,25 @@ pub fn demo_state(town: &Town) -> (EgoPose, Vec<ActorSnapshot>, Vec<LightState>)
         car(5, 40.0, LANE_W_M * 0.5, pi, 2),
         walker(6, 6.0, -6.0, 0),
         walker(7, -12.0, 5.5, 1),
-        ActorSnapshot { position: Vec3::new(c.x + 5.5, c.y + 1.0, 0.0), ..walker(8, 0.0, 0.0, 3) },
+        ActorSnapshot {
+            position: Vec3::new(c.x + 5.5, c.y + 1.0, 0.0),
+            ..walker(8, 0.0, 0.0, 3)
+        },
         walker(9, -25.0, -5.0, 4),
     ];
     // Group 0 (traffic along x) red, group 1 (along y) green.
     let states = town
         .lights
         .iter()
-        .map(|l| if l.group == 0 { LightState::Red } else { LightState::Green })
+        .map(|l| {
+            if l.group == 0 {
+                LightState::Red
+            } else {
+                LightState::Green
+            }
+        })
         .collect();
     (ego, actors, states)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn grid_town_has_lights_on_every_approach_and_lanes_one_metre_apart() {
-        let t = grid_town(2, 2, 100.0, 1);
-        assert_eq!(t.junctions.len(), 4);
-        assert_eq!(t.lights.len(), 16);
-        assert!(t.lights.iter().all(|l| l.stop_lines.len() == 1), "every light governs a lane");
-        for l in &t.lanes {
-            for w in l.centerline.windows(2) {
-                assert!(w[0].distance(w[1]) <= 1.0 + 1e-4);
-            }
-        }
-        assert_eq!(t.buildings.len(), 4);
-    }
 }
 
 /// Renders the demo moment on a 3 x 3 grid town: the rig at `scale`, or the
@@ -313,4 +362,26 @@ pub fn render_demo(
         picture = rgb.clone();
     }
     Ok((picture, backend))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn grid_town_has_lights_on_every_approach_and_lanes_one_metre_apart() {
+        let t = grid_town(2, 2, 100.0, 1);
+        assert_eq!(t.junctions.len(), 4);
+        assert_eq!(t.lights.len(), 16);
+        assert!(
+            t.lights.iter().all(|l| l.stop_lines.len() == 1),
+            "every light governs a lane"
+        );
+        for l in &t.lanes {
+            for w in l.centerline.windows(2) {
+                assert!(w[0].distance(w[1]) <= 1.0 + 1e-4);
+            }
+        }
+        assert_eq!(t.buildings.len(), 4);
+    }
 }

@@ -65,9 +65,16 @@ impl Gpu {
         };
         let (device, queue) =
             pollster::block_on(adapter.request_device(&desc)).map_err(|source| {
-                GpuError::Device { adapter: format!("{} ({:?})", info.name, info.backend), source }
+                GpuError::Device {
+                    adapter: format!("{} ({:?})", info.name, info.backend),
+                    source,
+                }
             })?;
-        Ok(Gpu { device, queue, info })
+        Ok(Gpu {
+            device,
+            queue,
+            info,
+        })
     }
 
     /// A one-line description for result records: backend, adapter, driver.

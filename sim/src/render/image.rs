@@ -19,8 +19,7 @@ pub struct ClassImage {
 impl ClassImage {
     /// The class at pixel (x, y) (x right, y down); `None` outside.
     pub fn get(&self, x: u32, y: u32) -> Option<ClassId> {
-        (x < self.width && y < self.height)
-            .then(|| self.data[(y * self.width + x) as usize])
+        (x < self.width && y < self.height).then(|| self.data[(y * self.width + x) as usize])
     }
 
     /// How many pixels carry class `id`.
@@ -33,7 +32,8 @@ impl ClassImage {
         out.width = self.width;
         out.height = self.height;
         out.data.clear();
-        out.data.extend(self.data.iter().flat_map(|&c| classes::label_rgb(c)));
+        out.data
+            .extend(self.data.iter().flat_map(|&c| classes::label_rgb(c)));
     }
 }
 
@@ -48,7 +48,13 @@ pub fn rgb_at(img: &RgbImage, x: u32, y: u32) -> Option<[u8; 3]> {
 
 /// Writes an RGB image as PNG.
 pub fn save_png(img: &RgbImage, path: &Path) -> Result<(), image::ImageError> {
-    image::save_buffer(path, &img.data, img.width, img.height, image::ExtendedColorType::Rgb8)
+    image::save_buffer(
+        path,
+        &img.data,
+        img.width,
+        img.height,
+        image::ExtendedColorType::Rgb8,
+    )
 }
 
 #[cfg(test)]
@@ -57,7 +63,11 @@ mod tests {
 
     #[test]
     fn label_picture_uses_the_table_colours() {
-        let img = ClassImage { width: 2, height: 1, data: vec![classes::ROAD, classes::LAMP_RED] };
+        let img = ClassImage {
+            width: 2,
+            height: 1,
+            data: vec![classes::ROAD, classes::LAMP_RED],
+        };
         let mut out = RgbImage::default();
         img.to_label_rgb(&mut out);
         assert_eq!(rgb_at(&out, 0, 0), Some(classes::label_rgb(classes::ROAD)));

@@ -64,8 +64,11 @@ pub fn lamp_sizes(
             let ego = EgoPose::default();
             let dark = r.render_rig(&ego, &[], &[], scale)?.0.data.clone();
             let (rgb, labels) = r.render_rig(&ego, &[], &[LightState::Red], scale)?;
-            let tints =
-                rgb.data.chunks_exact(3).zip(dark.chunks_exact(3)).map(|(a, b)| i32::from(a[0]) - i32::from(b[0]));
+            let tints = rgb
+                .data
+                .chunks_exact(3)
+                .zip(dark.chunks_exact(3))
+                .map(|(a, b)| i32::from(a[0]) - i32::from(b[0]));
             let fx = rig.cam_width_px as f32 * 0.5 / (rig.fov_deg.to_radians() * 0.5).tan()
                 * (labels.width / 3) as f32
                 / rig.cam_width_px as f32;
@@ -105,7 +108,11 @@ impl RigSpeed {
         if n == 0 {
             return 0.0;
         }
-        if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
+        if n % 2 == 1 {
+            v[n / 2]
+        } else {
+            0.5 * (v[n / 2 - 1] + v[n / 2])
+        }
     }
 }
 
@@ -158,9 +165,20 @@ pub fn lamp_size_report(scales: &[f32], distances_m: &[f32]) -> Result<String, R
     let _ = writeln!(
         s,
         "{:<9} {:>5} {:>8} {:>6} {:>8} {:>9} {:>9} {:>10} {:>10}",
-        "rig", "scale", "size", "dist_m", "class_px", "tinted_px", "peak_rise", "analytic_d", "analytic_a"
+        "rig",
+        "scale",
+        "size",
+        "dist_m",
+        "class_px",
+        "tinted_px",
+        "peak_rise",
+        "analytic_d",
+        "analytic_a"
     );
-    for (name, rig) in [("cpu-S0", RigConfig::cpu_default()), ("paper-S0", RigConfig::paper())] {
+    for (name, rig) in [
+        ("cpu-S0", RigConfig::cpu_default()),
+        ("paper-S0", RigConfig::paper()),
+    ] {
         for m in lamp_sizes(rig, scales, distances_m)? {
             let _ = writeln!(
                 s,
@@ -182,13 +200,23 @@ pub fn lamp_size_report(scales: &[f32], distances_m: &[f32]) -> Result<String, R
 
 /// The `bench render` figures: median rig fps at the CPU S0, 0.75 of it, and
 /// the paper's 480x192 (and 0.75 of that), on the 4x4 demo town.
-pub fn bench_report(frames: usize, repeats: usize, supersample: u32) -> Result<String, RenderError> {
+pub fn bench_report(
+    frames: usize,
+    repeats: usize,
+    supersample: u32,
+) -> Result<String, RenderError> {
     use std::fmt::Write;
     let mut s = String::new();
     let town = demo::grid_town(4, 4, 100.0, 7);
     let (ego, actors, states) = demo::demo_state(&town);
-    for (name, base) in [("cpu-S0", RigConfig::cpu_default()), ("paper-S0", RigConfig::paper())] {
-        let rig = RigConfig { supersample, ..base };
+    for (name, base) in [
+        ("cpu-S0", RigConfig::cpu_default()),
+        ("paper-S0", RigConfig::paper()),
+    ] {
+        let rig = RigConfig {
+            supersample,
+            ..base
+        };
         let mut r = Renderer::new(&town, rig, 7)?;
         if name == "cpu-S0" {
             let _ = writeln!(
@@ -206,7 +234,13 @@ pub fn bench_report(frames: usize, repeats: usize, supersample: u32) -> Result<S
                 repeats
             );
         }
-        for m in bench_rig(&mut r, (ego, &actors, &states), &[1.0, 0.75], frames, repeats)? {
+        for m in bench_rig(
+            &mut r,
+            (ego, &actors, &states),
+            &[1.0, 0.75],
+            frames,
+            repeats,
+        )? {
             let fps: Vec<String> = m.fps.iter().map(|f| format!("{f:.0}")).collect();
             let _ = writeln!(
                 s,

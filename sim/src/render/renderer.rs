@@ -31,7 +31,7 @@ use super::scene::{Dynamic, Instance, StaticScene, UNIT_MESHES, UnitMesh, Vertex
 use crate::driver::RgbImage;
 
 /// How far from the ego static geometry is drawn (metres).
-pub const DRAW_DISTANCE_M: f32 = 250.0;
+pub const DRAW_DISTANCE_M: f32 = 200.0;
 /// Smallest diameter a lit lamp is drawn at (supersampled pixels); its
 /// radiance is cut by the area ratio. 1.6 > sqrt(2) / cos(22.5 deg): an
 /// octagon this size always covers a sample point.
@@ -42,7 +42,12 @@ const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 const CLASS_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Uint;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// The clear colour: the sky, linear (sRGB 150, 190, 230).
-const SKY_LINEAR: wgpu::Color = wgpu::Color { r: 0.3049874, g: 0.5149178, b: 0.7912979, a: 1.0 };
+const SKY_LINEAR: wgpu::Color = wgpu::Color {
+    r: 0.3049874,
+    g: 0.5149178,
+    b: 0.7912979,
+    a: 1.0,
+};
 
 /// Why a frame could not be rendered.
 #[derive(Debug, Error)]
@@ -63,7 +68,9 @@ pub enum RenderError {
         base_h: u32,
     },
     /// A top-down view of zero size or extent.
-    #[error("top-down view needs a size of at least 1x1 pixels and a positive extent; got {width}x{height}, {extent_m} m")]
+    #[error(
+        "top-down view needs a size of at least 1x1 pixels and a positive extent; got {width}x{height}, {extent_m} m"
+    )]
     BadTopDown {
         /// Width asked (pixels).
         width: u32,
@@ -125,7 +132,7 @@ pub struct Renderer {
     dynamic: Dynamic,
     instances: Vec<Instance>,
     instance_ranges: [(u32, u32); UNIT_MESHES],
-    visible: Vec<(u32, u32)>,
+    visible: Vec<Vec<(u32, u32)>>,
     targets: Vec<Targets>,
 }
 
@@ -139,7 +146,10 @@ impl Renderer {
 
     /// Builds the renderer on an already opened device.
     pub fn with_gpu(gpu: Gpu, town: &Town, rig: RigConfig, seed: u64) -> Renderer {
-        let rig = RigConfig { supersample: rig.supersample.clamp(1, 5), ..rig };
+        let rig = RigConfig {
+            supersample: rig.supersample.clamp(1, 5),
+            ..rig
+        };
         let scene = StaticScene::build(town, seed);
         let device = &gpu.device;
         let align = u64::from(device.limits().min_uniform_buffer_offset_alignment);
@@ -212,7 +222,10 @@ impl Renderer {
                         }),
                     ],
                 },
-                primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+                primitive: wgpu::PrimitiveState {
+                    cull_mode: None,
+                    ..Default::default()
+                },
                 depth_stencil: Some(wgpu::DepthStencilState {
                     format: DEPTH_FORMAT,
                     depth_write_enabled: Some(depth_write),
@@ -242,7 +255,10 @@ impl Renderer {
         let lamp_targets = [
             Some(wgpu::ColorTargetState {
                 format: COLOR_FORMAT,
-                blend: Some(wgpu::BlendState { color: additive, alpha: additive }),
+                blend: Some(wgpu::BlendState {
+                    color: additive,
+                    alpha: additive,
+                }),
                 write_mask: wgpu::ColorWrites::ALL,
             }),
             Some(wgpu::ColorTargetState::from(CLASS_FORMAT)),
@@ -326,7 +342,8 @@ impl Renderer {
             usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        gpu.queue.write_buffer(&static_vb, 0, bytemuck::cast_slice(&scene.vertices));
+        gpu.queue
+            .write_buffer(&static_vb, 0, bytemuck::cast_slice(&scene.vertices));
         let instance_cap = 1024;
         let instance_buf = make_instance_buffer(device, instance_cap);
         Renderer {
@@ -347,7 +364,7 @@ impl Renderer {
             dynamic: Dynamic::default(),
             instances: Vec::with_capacity(instance_cap),
             instance_ranges: [(0, 0); UNIT_MESHES],
-            visible: Vec::new(),
+            visible: vec![Vec::new(); MAX_VIEWS],
             targets: Vec::new(),
             gpu,
         }
@@ -379,11 +396,24 @@ impl Renderer {
         scale: f32,
     ) -> Result<(&RgbImage, &ClassImage), RenderError> {
         let (base_w, base_h) = self.rig.base_size();
-        let size = self.rig.size_at(scale).filter(|&(w, _)| w <= 8 * base_w).ok_or(
-            RenderError::BadScale { scale, base_w, base_h },
-        )?;
+        let size = self
+            .rig
+            .size_at(scale)
+            .filter(|&(w, _)| w <= 8 * base_w)
+            .ok_or(RenderError::BadScale {
+                scale,
+                base_w,
+                base_h,
+            })?;
         let cams = self.rig.cameras(ego, size);
-        self.render_views(size, &cams, ego.position.truncate(), DRAW_DISTANCE_M, actors, light_states)
+        self.render_views(
+            size,
+            &cams,
+            ego.position.truncate(),
+            DRAW_DISTANCE_M,
+            actors,
+            light_states,
+        )
     }
 
     /// Renders a top-down orthographic view around the ego (forward is up),
@@ -398,12 +428,23 @@ impl Renderer {
         extent_m: f32,
     ) -> Result<(&RgbImage, &ClassImage), RenderError> {
         let ok = width >= 1 && height >= 1 && width <= 8192 && height <= 8192;
-        if !ok || !(extent_m.is_finite() && extent_m > 0.0) {
-            return Err(RenderError::BadTopDown { width, height, extent_m });
+        if !(ok && extent_m.is_finite() && extent_m > 0.0) {
+            return Err(RenderError::BadTopDown {
+                width,
+                height,
+                extent_m,
+            });
         }
         let cam = Camera::top_down(ego.position, ego.heading, extent_m, [0, 0, width, height]);
         let reach = extent_m * (1.0 + height as f32 / width as f32);
-        self.render_views((width, height), &[cam], ego.position.truncate(), reach, actors, light_states)
+        self.render_views(
+            (width, height),
+            &[cam],
+            ego.position.truncate(),
+            reach,
+            actors,
+            light_states,
+        )
     }
 
     /// Draws `cams` into the targets of `size` and reads them back.
@@ -427,10 +468,12 @@ impl Renderer {
         };
         self.upload_instances(actors, light_states);
         self.upload_cameras(cams);
-        self.collect_visible(center, reach_m);
+        self.collect_visible(cams, center, reach_m);
         let device = &self.gpu.device;
         let t = &self.targets[ti];
-        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
+        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("frame"),
+        });
         {
             let (color_att, class_att) = match &t.hi {
                 Some((c, l, _)) => (c, l),
@@ -443,21 +486,32 @@ impl Renderer {
                         view: color_att,
                         depth_slice: None,
                         resolve_target: None,
-                        ops: wgpu::Operations { load: wgpu::LoadOp::Clear(SKY_LINEAR), store: wgpu::StoreOp::Store },
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(SKY_LINEAR),
+                            store: wgpu::StoreOp::Store,
+                        },
                     }),
                     Some(wgpu::RenderPassColorAttachment {
                         view: class_att,
                         depth_slice: None,
                         resolve_target: None,
                         ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(wgpu::Color { r: f64::from(classes::SKY), g: 0.0, b: 0.0, a: 0.0 }),
+                            load: wgpu::LoadOp::Clear(wgpu::Color {
+                                r: f64::from(classes::SKY),
+                                g: 0.0,
+                                b: 0.0,
+                                a: 0.0,
+                            }),
                             store: wgpu::StoreOp::Store,
                         },
                     }),
                 ],
                 depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                     view: &t.depth,
-                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(0.0), store: wgpu::StoreOp::Discard }),
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(0.0),
+                        store: wgpu::StoreOp::Discard,
+                    }),
                     stencil_ops: None,
                 }),
                 timestamp_writes: None,
@@ -472,17 +526,27 @@ impl Renderer {
                 pass.set_scissor_rect(x, y, w, h);
                 pass.set_pipeline(&self.scene_pipeline);
                 pass.set_bind_group(0, &self.cam_bind, &[(i as u64 * self.cam_stride) as u32]);
-                for &(first, count) in &self.visible {
+                for &(first, count) in &self.visible[i] {
                     pass.draw(first..first + count, 0..1);
                 }
-                for (u, (unit, &(first, count))) in self.scene.units.iter().zip(&self.instance_ranges).enumerate() {
+                for (u, (unit, &(first, count))) in self
+                    .scene
+                    .units
+                    .iter()
+                    .zip(&self.instance_ranges)
+                    .enumerate()
+                {
                     if count == 0 {
                         continue;
                     }
                     if u == UnitMesh::Disc as usize {
                         // Lamps last: they blend over what is already drawn.
                         pass.set_pipeline(&self.lamp_pipeline);
-                        pass.set_bind_group(0, &self.cam_bind, &[(i as u64 * self.cam_stride) as u32]);
+                        pass.set_bind_group(
+                            0,
+                            &self.cam_bind,
+                            &[(i as u64 * self.cam_stride) as u32],
+                        );
                     }
                     pass.draw(unit.0..unit.0 + unit.1, first..first + count);
                 }
@@ -496,13 +560,19 @@ impl Renderer {
                         view: &t.color_view,
                         depth_slice: None,
                         resolve_target: None,
-                        ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::BLACK), store: wgpu::StoreOp::Store },
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                            store: wgpu::StoreOp::Store,
+                        },
                     }),
                     Some(wgpu::RenderPassColorAttachment {
                         view: &t.class_view,
                         depth_slice: None,
                         resolve_target: None,
-                        ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::BLACK), store: wgpu::StoreOp::Store },
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                            store: wgpu::StoreOp::Store,
+                        },
                     }),
                 ],
                 depth_stencil_attachment: None,
@@ -515,8 +585,15 @@ impl Renderer {
             pass.draw(0..3, 0..1);
         }
         let (w, h) = t.size;
-        let extent = wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 };
-        for (tex, offset, bpr) in [(&t.color, 0, t.color_bpr), (&t.class, t.class_offset, t.class_bpr)] {
+        let extent = wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        };
+        for (tex, offset, bpr) in [
+            (&t.color, 0, t.color_bpr),
+            (&t.class, t.class_offset, t.class_bpr),
+        ] {
             enc.copy_texture_to_buffer(
                 wgpu::TexelCopyTextureInfo {
                     texture: tex,
@@ -526,7 +603,11 @@ impl Renderer {
                 },
                 wgpu::TexelCopyBufferInfo {
                     buffer: &t.readback,
-                    layout: wgpu::TexelCopyBufferLayout { offset, bytes_per_row: Some(bpr), rows_per_image: Some(h) },
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset,
+                        bytes_per_row: Some(bpr),
+                        rows_per_image: Some(h),
+                    },
                 },
                 extent,
             );
@@ -550,7 +631,9 @@ impl Renderer {
             self.instance_cap = self.instances.len().next_power_of_two();
             self.instance_buf = make_instance_buffer(&self.gpu.device, self.instance_cap);
         }
-        self.gpu.queue.write_buffer(&self.instance_buf, 0, bytemuck::cast_slice(&self.instances));
+        self.gpu
+            .queue
+            .write_buffer(&self.instance_buf, 0, bytemuck::cast_slice(&self.instances));
     }
 
     fn upload_cameras(&mut self, cams: &[Camera]) {
@@ -569,20 +652,28 @@ impl Renderer {
                 .copy_from_slice(bytemuck::bytes_of(&u));
         }
         let used = cams.len().min(MAX_VIEWS) * self.cam_stride as usize;
-        self.gpu.queue.write_buffer(&self.cam_buffer, 0, &self.cam_bytes[..used]);
+        self.gpu
+            .queue
+            .write_buffer(&self.cam_buffer, 0, &self.cam_bytes[..used]);
     }
 
-    /// The static vertex runs of cells within `reach_m` of `center`, adjacent runs merged.
-    fn collect_visible(&mut self, center: Vec2, reach_m: f32) {
-        self.visible.clear();
-        for c in &self.scene.cells {
-            let d = (c.min - center).max(center - c.max).max(Vec2::ZERO).length();
-            if d > reach_m {
-                continue;
-            }
-            match self.visible.last_mut() {
-                Some(last) if last.0 + last.1 == c.first => last.1 += c.count,
-                _ => self.visible.push((c.first, c.count)),
+    /// For each view, the static vertex runs of cells within `reach_m` of
+    /// `center` that the view may see, adjacent runs merged.
+    fn collect_visible(&mut self, cams: &[Camera], center: Vec2, reach_m: f32) {
+        for (cam, visible) in cams.iter().zip(&mut self.visible) {
+            visible.clear();
+            for c in &self.scene.cells {
+                let d = (c.min - center)
+                    .max(center - c.max)
+                    .max(Vec2::ZERO)
+                    .length();
+                if d > reach_m || !cam.may_see(c.min, c.max) {
+                    continue;
+                }
+                match visible.last_mut() {
+                    Some(last) if last.0 + last.1 == c.first => last.1 += c.count,
+                    _ => visible.push((c.first, c.count)),
+                }
             }
         }
     }
@@ -594,7 +685,11 @@ impl Renderer {
         let tex = |label, w, h, format, usage| {
             device.create_texture(&wgpu::TextureDescriptor {
                 label: Some(label),
-                size: wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+                size: wgpu::Extent3d {
+                    width: w,
+                    height: h,
+                    depth_or_array_layers: 1,
+                },
                 mip_level_count: 1,
                 sample_count: 1,
                 dimension: wgpu::TextureDimension::D2,
@@ -610,20 +705,33 @@ impl Renderer {
         let depth = tex("depth", w * k, h * k, DEPTH_FORMAT, U::RENDER_ATTACHMENT);
         let hi = (k > 1).then(|| {
             let usage = U::RENDER_ATTACHMENT | U::TEXTURE_BINDING;
-            let c = tex("colour (supersampled)", w * k, h * k, COLOR_FORMAT, usage).create_view(&Default::default());
-            let l = tex("class (supersampled)", w * k, h * k, CLASS_FORMAT, usage).create_view(&Default::default());
+            let c = tex("colour (supersampled)", w * k, h * k, COLOR_FORMAT, usage)
+                .create_view(&Default::default());
+            let l = tex("class (supersampled)", w * k, h * k, CLASS_FORMAT, usage)
+                .create_view(&Default::default());
             let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("resolve bind group"),
                 layout: &self.down_layout,
                 entries: &[
-                    wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(&c) },
-                    wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&l) },
-                    wgpu::BindGroupEntry { binding: 2, resource: self.down_params.as_entire_binding() },
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: wgpu::BindingResource::TextureView(&c),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::TextureView(&l),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: self.down_params.as_entire_binding(),
+                    },
                 ],
             });
             (c, l, bind)
         });
-        let pad = |bytes: u32| bytes.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let pad = |bytes: u32| {
+            bytes.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT
+        };
         let (color_bpr, class_bpr) = (pad(w * 4), pad(w));
         let class_offset = u64::from(color_bpr) * u64::from(h);
         let readback = device.create_buffer(&wgpu::BufferDescriptor {
@@ -644,8 +752,16 @@ impl Renderer {
             color_bpr,
             class_bpr,
             class_offset,
-            rgb: RgbImage { width: w, height: h, data: vec![0; (w * h * 3) as usize] },
-            labels: ClassImage { width: w, height: h, data: vec![0; (w * h) as usize] },
+            rgb: RgbImage {
+                width: w,
+                height: h,
+                data: vec![0; (w * h * 3) as usize],
+            },
+            labels: ClassImage {
+                width: w,
+                height: h,
+                data: vec![0; (w * h) as usize],
+            },
         }
     }
 
@@ -659,7 +775,9 @@ impl Renderer {
             .poll(wgpu::PollType::wait_indefinitely())
             .map_err(|e| RenderError::Readback(e.to_string()))?;
         {
-            let view = slice.get_mapped_range().map_err(|e| RenderError::Readback(e.to_string()))?;
+            let view = slice
+                .get_mapped_range()
+                .map_err(|e| RenderError::Readback(e.to_string()))?;
             let (w, h) = (t.size.0 as usize, t.size.1 as usize);
             for y in 0..h {
                 let row = &view[y * t.color_bpr as usize..][..w * 4];

@@ -62,14 +62,14 @@ fn area(src: &RgbImage, dst: &mut RgbImage) {
             for &(y, wy) in yspan {
                 for &(x, wx) in xspan {
                     let i = (y * sw + x) * 3;
-                    for c in 0..3 {
-                        acc[c] += f32::from(src.data[i + c]) * wx * wy;
+                    for (c, a) in acc.iter_mut().enumerate() {
+                        *a += f32::from(src.data[i + c]) * wx * wy;
                     }
                 }
             }
             let o = (oy * dst.width as usize + ox) * 3;
-            for c in 0..3 {
-                dst.data[o + c] = acc[c].round().clamp(0.0, 255.0) as u8;
+            for (d, a) in dst.data[o..o + 3].iter_mut().zip(acc) {
+                *d = a.round().clamp(0.0, 255.0) as u8;
             }
         }
     }
@@ -77,7 +77,8 @@ fn area(src: &RgbImage, dst: &mut RgbImage) {
 
 fn bilinear(src: &RgbImage, dst: &mut RgbImage) {
     let sample = |n_src: u32, n_dst: u32, o: u32| {
-        let x = ((o as f32 + 0.5) * n_src as f32 / n_dst as f32 - 0.5).clamp(0.0, (n_src - 1) as f32);
+        let x =
+            ((o as f32 + 0.5) * n_src as f32 / n_dst as f32 - 0.5).clamp(0.0, (n_src - 1) as f32);
         let i = (x.floor() as u32).min(n_src - 1);
         let j = (i + 1).min(n_src - 1);
         (i as usize, j as usize, x - i as f32)
@@ -103,8 +104,15 @@ mod tests {
     use super::*;
 
     fn img(w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 3]) -> RgbImage {
-        let data = (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).flat_map(|(x, y)| f(x, y)).collect();
-        RgbImage { width: w, height: h, data }
+        let data = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .flat_map(|(x, y)| f(x, y))
+            .collect();
+        RgbImage {
+            width: w,
+            height: h,
+            data,
+        }
     }
 
     #[test]

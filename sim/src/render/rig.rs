@@ -25,7 +25,10 @@ pub struct EgoPose {
 
 impl From<&ActorSnapshot> for EgoPose {
     fn from(a: &ActorSnapshot) -> EgoPose {
-        EgoPose { position: a.position, heading: a.heading }
+        EgoPose {
+            position: a.position,
+            heading: a.heading,
+        }
     }
 }
 
@@ -66,7 +69,12 @@ impl RigConfig {
 
     /// The CPU default: the paper's rig at half size, S0 = 240 x 96.
     pub fn cpu_default() -> RigConfig {
-        RigConfig { cam_width_px: 80, cam_height_px: 120, crop_top_px: 24, ..RigConfig::paper() }
+        RigConfig {
+            cam_width_px: 80,
+            cam_height_px: 120,
+            crop_top_px: 24,
+            ..RigConfig::paper()
+        }
     }
 
     /// The base size S0 (width, height) in pixels.
@@ -97,7 +105,8 @@ impl RigConfig {
         let (s, c) = ego.heading.sin_cos();
         let fwd = Vec3::new(c, s, 0.0);
         let left = Vec3::new(-s, c, 0.0);
-        let eye = ego.position + fwd * self.mount_m.x + left * self.mount_m.y + Vec3::Z * self.mount_m.z;
+        let eye =
+            ego.position + fwd * self.mount_m.x + left * self.mount_m.y + Vec3::Z * self.mount_m.z;
         std::array::from_fn(|i| {
             let x0 = (i as u32 * w) / 3;
             let x1 = ((i as u32 + 1) * w) / 3;
@@ -126,6 +135,24 @@ pub struct Camera {
     pub fog: bool,
     /// Horizontal focal length (output pixels) for perspective views; `None` for orthographic.
     pub focal_px: Option<f32>,
+    /// The ground-plane wedge a perspective view sees: inward normals of its
+    /// left and right edges and its forward direction; `None` for orthographic.
+    pub wedge: Option<[Vec2; 3]>,
+}
+
+impl Camera {
+    /// Whether any part of the ground box `min..max` (metres) may be in view
+    /// (conservative: only boxes wholly outside one wedge edge are refused).
+    pub fn may_see(&self, min: Vec2, max: Vec2) -> bool {
+        let Some(planes) = self.wedge else {
+            return true;
+        };
+        let eye = self.eye.truncate();
+        let corners = [min, Vec2::new(max.x, min.y), max, Vec2::new(min.x, max.y)];
+        planes
+            .iter()
+            .all(|n| corners.iter().any(|c| n.dot(*c - eye) >= -1.0))
+    }
 }
 
 impl Camera {
@@ -159,7 +186,23 @@ impl Camera {
             Vec4::new(2.0 * cx / w - 1.0, 1.0 - 2.0 * cy / h, 0.0, 1.0),
             Vec4::new(0.0, 0.0, NEAR_M, 0.0),
         );
-        Camera { viewport, view_proj: proj * view, eye, fog: true, focal_px: Some(fx) }
+        // Ground wedge: edges at atan(cx / fx) left and atan((w - cx) / fx) right, with a margin.
+        let margin = 0.05;
+        let (lh, rh) = ((cx / fx).atan() + margin, ((w - cx) / fx).atan() + margin);
+        let f2 = fwd.truncate();
+        let rot = |v: Vec2, a: f32| Vec2::from_angle(a).rotate(v);
+        // Inward normal of the left edge: the edge direction turned clockwise.
+        let left_n = rot(f2, lh).perp() * -1.0;
+        let right_n = rot(f2, -rh).perp();
+        let wedge = Some([left_n, right_n, f2]);
+        Camera {
+            viewport,
+            view_proj: proj * view,
+            eye,
+            fog: true,
+            focal_px: Some(fx),
+            wedge,
+        }
     }
 
     /// A top-down orthographic camera centred on `center`, image up along
@@ -177,9 +220,21 @@ impl Camera {
             Vec4::new(right.x / half_w, up_img.x / half_h, 0.0, 0.0),
             Vec4::new(right.y / half_w, up_img.y / half_h, 0.0, 0.0),
             Vec4::new(0.0, 0.0, 1.0 / (z_hi - z_lo), 0.0),
-            Vec4::new(rel(right) / half_w, rel(up_img) / half_h, -z_lo / (z_hi - z_lo), 1.0),
+            Vec4::new(
+                rel(right) / half_w,
+                rel(up_img) / half_h,
+                -z_lo / (z_hi - z_lo),
+                1.0,
+            ),
         );
-        Camera { viewport, view_proj: m, eye: center + Vec3::Z * 1000.0, fog: false, focal_px: None }
+        Camera {
+            viewport,
+            view_proj: m,
+            eye: center + Vec3::Z * 1000.0,
+            fog: false,
+            focal_px: None,
+            wedge: None,
+        }
     }
 
     /// Projects a world point to output pixel coordinates (x right, y down;
@@ -195,7 +250,10 @@ impl Camera {
             return None;
         }
         let [x, y, w, h] = self.viewport.map(|v| v as f32);
-        Some(Vec2::new(x + (ndc.x + 1.0) * 0.5 * w, y + (1.0 - ndc.y) * 0.5 * h))
+        Some(Vec2::new(
+            x + (ndc.x + 1.0) * 0.5 * w,
+            y + (1.0 - ndc.y) * 0.5 * h,
+        ))
     }
 }
 
@@ -219,7 +277,10 @@ mod tests {
     #[test]
     fn centre_camera_puts_the_horizon_at_the_cropped_principal_row() {
         let rig = RigConfig::paper();
-        let ego = EgoPose { position: Vec3::new(10.0, -3.0, 0.0), heading: 0.7 };
+        let ego = EgoPose {
+            position: Vec3::new(10.0, -3.0, 0.0),
+            heading: 0.7,
+        };
         let cams = rig.cameras(&ego, (480, 192));
         assert_eq!(cams[1].viewport, [160, 0, 160, 192]);
         // A far point at camera height straight ahead: centre column, row 120 - 48 = 72.
@@ -228,7 +289,8 @@ mod tests {
         let px = cams[1].project(eye + dir * 500.0).unwrap();
         assert!((px - Vec2::new(240.0, 72.0)).length() < 1e-2, "{px}");
         // 30 deg to the left is the centre camera's left edge.
-        let l = Vec3::new((0.7f32 + 0.5235).cos(), (0.7f32 + 0.5235).sin(), 0.0);
+        let a = 0.7 + std::f32::consts::FRAC_PI_6 - 1e-4;
+        let l = Vec3::new(a.cos(), a.sin(), 0.0);
         let px = cams[1].project(eye + l * 100.0 - Vec3::Z * 0.0001);
         assert!(px.is_some_and(|p| (p.x - 160.0).abs() < 0.05), "{px:?}");
     }
@@ -244,6 +306,26 @@ mod tests {
         let px = cams[0].project(p).unwrap();
         assert!((px.x - 40.0).abs() < 0.01 && px.x < 80.0, "{px}");
         assert!(cams[1].project(p).is_none());
+    }
+
+    #[test]
+    fn the_wedge_keeps_boxes_in_view_and_drops_boxes_behind() {
+        let rig = RigConfig::cpu_default();
+        let cams = rig.cameras(&EgoPose::default(), rig.base_size());
+        let centre = &cams[1];
+        let b = |x: f32, y: f32| (Vec2::new(x, y), Vec2::new(x + 10.0, y + 10.0));
+        let (lo, hi) = b(50.0, -5.0);
+        assert!(centre.may_see(lo, hi), "straight ahead");
+        let (lo, hi) = b(-60.0, -5.0);
+        assert!(!centre.may_see(lo, hi), "behind");
+        let (lo, hi) = b(5.0, 40.0);
+        assert!(
+            !centre.may_see(lo, hi),
+            "far left is not the centre camera's"
+        );
+        assert!(cams[0].may_see(lo, hi), "but the left camera's");
+        // A box around the eye is always drawn.
+        assert!(centre.may_see(Vec2::new(-5.0, -5.0), Vec2::new(5.0, 5.0)));
     }
 
     #[test]

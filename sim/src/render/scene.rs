@@ -53,8 +53,12 @@ pub struct Instance {
 
 impl Instance {
     /// The identity instance, used to draw static geometry as it is.
-    pub const IDENTITY: Instance =
-        Instance { pos: [0.0; 3], heading: 0.0, scale: [1.0; 3], color: 0 };
+    pub const IDENTITY: Instance = Instance {
+        pos: [0.0; 3],
+        heading: 0.0,
+        scale: [1.0; 3],
+        color: 0,
+    };
 }
 
 /// Packs an sRGB colour, a class id (< 128) and an emissive flag into a word:
@@ -126,7 +130,10 @@ struct Tris {
 impl Tris {
     fn tri(&mut self, a: Vec3, b: Vec3, c: Vec3, color: u32) {
         for p in [a, b, c] {
-            self.v.push(Vertex { pos: p.to_array(), color });
+            self.v.push(Vertex {
+                pos: p.to_array(),
+                color,
+            });
         }
     }
     fn quad(&mut self, a: Vec3, b: Vec3, c: Vec3, d: Vec3, color: u32) {
@@ -139,7 +146,12 @@ impl Tris {
         let fx = Vec3::new(c, s, 0.0) * size.x * 0.5;
         let fy = Vec3::new(-s, c, 0.0) * size.y * 0.5;
         let up = Vec3::Z * size.z;
-        let b = [base - fx - fy, base + fx - fy, base + fx + fy, base - fx + fy];
+        let b = [
+            base - fx - fy,
+            base + fx - fy,
+            base + fx + fy,
+            base - fx + fy,
+        ];
         let t = b.map(|p| p + up);
         for i in 0..4 {
             let j = (i + 1) % 4;
@@ -242,16 +254,32 @@ struct Line {
 
 impl Line {
     fn new(points: &[Vec3]) -> Option<Line> {
-        let p: Vec<Vec3> = points.iter().copied().filter(|q| q.is_finite()).collect();
-        if p.len() < 2 {
+        let raw: Vec<Vec3> = points.iter().copied().filter(|q| q.is_finite()).collect();
+        if raw.len() < 2 {
             return None;
         }
+        // Drop points that lie within 1 cm of the chord from the last kept
+        // point to the next one: straight stretches become one quad.
+        let mut p = vec![raw[0]];
+        for i in 1..raw.len() - 1 {
+            let (a, b) = (p[p.len() - 1], raw[i + 1]);
+            let ab = b - a;
+            let t = ((raw[i] - a).dot(ab) / ab.length_squared().max(1e-12)).clamp(0.0, 1.0);
+            let off = (a + ab * t).distance(raw[i]);
+            // Also keep points so no span exceeds 25 m (long quads clip badly in lavapipe's fixed point).
+            if off > 0.01 || a.distance(b) > 25.0 {
+                p.push(raw[i]);
+            }
+        }
+        p.push(raw[raw.len() - 1]);
         let mut s = vec![0.0];
         for w in p.windows(2) {
             s.push(s[s.len() - 1] + w[0].distance(w[1]));
         }
-        let dirs: Vec<Vec2> =
-            p.windows(2).map(|w| (w[1] - w[0]).truncate().normalize_or_zero()).collect();
+        let dirs: Vec<Vec2> = p
+            .windows(2)
+            .map(|w| (w[1] - w[0]).truncate().normalize_or_zero())
+            .collect();
         let n = (0..p.len())
             .map(|i| {
                 let a = dirs[i.saturating_sub(1).min(dirs.len() - 1)];
@@ -378,7 +406,9 @@ impl StaticScene {
         terrain(town, ground_z, &mut t);
         let (mut vertices, cells) = into_cells(t.v);
         let mut units = [(0, 0); UNIT_MESHES];
-        for (kind, slot) in [UnitMesh::Box, UnitMesh::Prism, UnitMesh::Disc].iter().zip(&mut units)
+        for (kind, slot) in [UnitMesh::Box, UnitMesh::Prism, UnitMesh::Disc]
+            .iter()
+            .zip(&mut units)
         {
             let mut u = Tris::default();
             let white = pack([255, 255, 255], classes::BUILDING, false);
@@ -390,7 +420,12 @@ impl StaticScene {
             *slot = (vertices.len() as u32, u.v.len() as u32);
             vertices.extend(u.v);
         }
-        StaticScene { vertices, cells, units, lamps }
+        StaticScene {
+            vertices,
+            cells,
+            units,
+            lamps,
+        }
     }
 
     /// Number of static triangles (unit meshes excluded).
@@ -402,9 +437,16 @@ impl StaticScene {
 /// The ground plane's height: just below the lowest road point (metres).
 fn ground_level(town: &Town) -> f32 {
     let lanes = town.lanes.iter().flat_map(|l| l.centerline.iter());
-    let z = lanes.chain(&town.road_surface.positions).map(|p| p.z).filter(|z| z.is_finite());
+    let z = lanes
+        .chain(&town.road_surface.positions)
+        .map(|p| p.z)
+        .filter(|z| z.is_finite());
     let lowest = z.fold(f32::INFINITY, f32::min);
-    if lowest.is_finite() { lowest.clamp(-1e4, 1e4) - 0.03 } else { -0.03 }
+    if lowest.is_finite() {
+        lowest.clamp(-1e4, 1e4) - 0.03
+    } else {
+        -0.03
+    }
 }
 
 fn road(town: &Town, t: &mut Tris) {
@@ -421,7 +463,9 @@ fn road(town: &Town, t: &mut Tris) {
     }
     // No mesh: pave each lane's width along its centreline.
     for lane in &town.lanes {
-        let Some(line) = Line::new(&lane.centerline) else { continue };
+        let Some(line) = Line::new(&lane.centerline) else {
+            continue;
+        };
         for i in 0..line.p.len() - 1 {
             let w0 = lane.width.get(i).copied().unwrap_or(3.5) * 0.5;
             let w1 = lane.width.get(i + 1).copied().unwrap_or(3.5) * 0.5;
@@ -431,19 +475,28 @@ fn road(town: &Town, t: &mut Tris) {
     }
 }
 
+/// A line's paint pattern: `None` solid, `Some((paint, gap))` dashed (metres).
+type Pattern = Option<(f32, f32)>;
+
 fn markings(town: &Town, t: &mut Tris) {
     for m in &town.markings {
-        let Some(line) = Line::new(&m.points) else { continue };
+        let Some(line) = Line::new(&m.points) else {
+            continue;
+        };
         let rgb = match m.color {
             MarkColor::White => paint::WHITE,
             MarkColor::Yellow => paint::YELLOW,
         };
         let col = pack(rgb, classes::LANE_MARKING, false);
-        let w = if m.width_m.is_finite() && m.width_m > 0.0 { m.width_m } else { 0.12 };
+        let w = if m.width_m.is_finite() && m.width_m > 0.0 {
+            m.width_m
+        } else {
+            0.12
+        };
         let dash = Some(m.dash_m.unwrap_or(DEFAULT_DASH_M)).filter(|d| d.0 > 0.0 && d.1 >= 0.0);
         let solid = None;
         // (left line, right line) relative to the points' direction; None = no line.
-        let lines: [(f32, Option<Option<(f32, f32)>>); 2] = match m.kind {
+        let lines: [(f32, Option<Pattern>); 2] = match m.kind {
             MarkKind::Solid => [(0.0, Some(solid)), (0.0, None)],
             MarkKind::Broken => [(0.0, Some(dash)), (0.0, None)],
             MarkKind::SolidSolid => [(w, Some(solid)), (-w, Some(solid))],
@@ -465,7 +518,11 @@ fn sidewalks(town: &Town, ground_z: f32, t: &mut Tris) {
     let curb = pack(paint::CURB, classes::SIDEWALK, false);
     for sw in &town.sidewalks {
         let n = sw.inner.len().min(sw.outer.len());
-        let h = if sw.height_m.is_finite() { sw.height_m.clamp(0.0, 1.0) } else { 0.15 };
+        let h = if sw.height_m.is_finite() {
+            sw.height_m.clamp(0.0, 1.0)
+        } else {
+            0.15
+        };
         for i in 0..n.saturating_sub(1) {
             let (a, b) = (sw.inner[i], sw.inner[i + 1]);
             let (c, d) = (sw.outer[i + 1], sw.outer[i]);
@@ -503,7 +560,13 @@ fn crosswalks(town: &Town, t: &mut Tris) {
             let u0 = long * (x / len);
             let u1 = long * ((x + paint_m) / len);
             let lift = Vec3::Z * PAINT_LIFT_M;
-            t.quad(a + u0 + lift, a + u1 + lift, a + u1 + short + lift, a + u0 + short + lift, col);
+            t.quad(
+                a + u0 + lift,
+                a + u1 + lift,
+                a + u1 + short + lift,
+                a + u0 + short + lift,
+                col,
+            );
             x += paint_m + gap_m;
         }
     }
@@ -542,7 +605,10 @@ impl RoadIndex {
         for lane in &town.lanes {
             for (i, p) in lane.centerline.iter().enumerate() {
                 let half = lane.width.get(i).copied().unwrap_or(3.5) * 0.5;
-                let key = ((p.x / Self::CELL).floor() as i32, (p.y / Self::CELL).floor() as i32);
+                let key = (
+                    (p.x / Self::CELL).floor() as i32,
+                    (p.y / Self::CELL).floor() as i32,
+                );
                 grid.entry(key).or_default().push((p.truncate(), half));
             }
         }
@@ -550,7 +616,10 @@ impl RoadIndex {
     }
     /// Whether `p` is within `margin` metres of a lane's paved width.
     fn near_road(&self, p: Vec2, margin: f32) -> bool {
-        let (cx, cy) = ((p.x / Self::CELL).floor() as i32, (p.y / Self::CELL).floor() as i32);
+        let (cx, cy) = (
+            (p.x / Self::CELL).floor() as i32,
+            (p.y / Self::CELL).floor() as i32,
+        );
         (-1..=1).any(|dx| {
             (-1..=1).any(|dy| {
                 self.grid
@@ -617,19 +686,44 @@ fn lights(town: &Town, t: &mut Tris) -> Vec<LampSlots> {
     let dark = pack(paint::DARK_LAMP, classes::LIGHT_POLE, false);
     let mut out = Vec::with_capacity(town.lights.len());
     for l in &town.lights {
-        let heading = if l.heading.is_finite() { l.heading } else { 0.0 };
-        let h = if l.head_height_m.is_finite() { l.head_height_m.clamp(1.0, 20.0) } else { 3.0 };
+        let heading = if l.heading.is_finite() {
+            l.heading
+        } else {
+            0.0
+        };
+        let h = if l.head_height_m.is_finite() {
+            l.head_height_m.clamp(1.0, 20.0)
+        } else {
+            3.0
+        };
         let fwd = Vec3::new(heading.cos(), heading.sin(), 0.0);
-        let foot = if l.position.is_finite() { l.position } else { Vec3::ZERO };
+        let foot = if l.position.is_finite() {
+            l.position
+        } else {
+            Vec3::ZERO
+        };
         let head = foot + Vec3::Z * h;
-        t.boxed(foot, Vec3::new(0.16, 0.16, h - HOUSING_M.z * 0.5), heading, pole);
-        t.boxed(head - Vec3::Z * (HOUSING_M.z * 0.5), Vec3::new(HOUSING_M.y, HOUSING_M.x, HOUSING_M.z), heading, housing);
+        t.boxed(
+            foot,
+            Vec3::new(0.16, 0.16, h - HOUSING_M.z * 0.5),
+            heading,
+            pole,
+        );
+        t.boxed(
+            head - Vec3::Z * (HOUSING_M.z * 0.5),
+            Vec3::new(HOUSING_M.y, HOUSING_M.x, HOUSING_M.z),
+            heading,
+            housing,
+        );
         let front = fwd * (HOUSING_M.y * 0.5 + 0.005);
         let centers = [1.0, 0.0, -1.0].map(|k| head + front + Vec3::Z * (k * LAMP_SPACING_M));
         for c in centers {
             t.disc(c, LAMP_DIAMETER_M * 0.5, heading, dark);
         }
-        out.push(LampSlots { centers: centers.map(|c| c + fwd * 0.01), heading });
+        out.push(LampSlots {
+            centers: centers.map(|c| c + fwd * 0.01),
+            heading,
+        });
     }
     out
 }
@@ -680,7 +774,12 @@ fn into_cells(v: Vec<Vertex>) -> (Vec<Vertex>, Vec<Cell>) {
             min = min.min(Vec2::new(q.pos[0], q.pos[1]));
             max = max.max(Vec2::new(q.pos[0], q.pos[1]));
         }
-        cells.push(Cell { min, max, first: out.len() as u32, count: tris.len() as u32 });
+        cells.push(Cell {
+            min,
+            max,
+            first: out.len() as u32,
+            count: tris.len() as u32,
+        });
         out.extend(tris);
     }
     (out, cells)
@@ -807,14 +906,17 @@ mod tests {
         let mut t = Tris::default();
         line.strip(&mut t, 0.0, 0.1, Some((3.0, 6.0)), 0.0, 0);
         // 10 dashes of 3 m x 0.1 m = 3 m^2.
-        let area: f32 = t
-            .v
-            .chunks_exact(3)
-            .map(|q| {
-                let (a, b, c) = (Vec3::from(q[0].pos), Vec3::from(q[1].pos), Vec3::from(q[2].pos));
-                0.5 * (b - a).cross(c - a).length()
-            })
-            .sum();
+        let area: f32 =
+            t.v.chunks_exact(3)
+                .map(|q| {
+                    let (a, b, c) = (
+                        Vec3::from(q[0].pos),
+                        Vec3::from(q[1].pos),
+                        Vec3::from(q[2].pos),
+                    );
+                    0.5 * (b - a).cross(c - a).length()
+                })
+                .sum();
         assert!((area - 3.0).abs() < 1e-3, "area {area}");
     }
 }

@@ -65,7 +65,7 @@ const AMBIENT: f32 = 0.45;
 // Linear sky colour (sRGB 150, 190, 230), the fog's target.
 const SKY: vec3<f32> = vec3<f32>(0.3049874, 0.5149178, 0.7912979);
 const FOG_START_M: f32 = 60.0;
-const FOG_END_M: f32 = 220.0;
+const FOG_END_M: f32 = 200.0;
 const FOG_MAX: f32 = 0.7;
 
 fn srgb_to_linear(c: vec3<f32>) -> vec3<f32> {
