@@ -26,6 +26,12 @@ enum Command {
     Routes(cli::routes::RoutesArgs),
     /// NPC traffic: soak runs and Table I.
     Traffic(cli::traffic::TrafficArgs),
+    /// The camera: a scenario's view at a moment, lamp sizes.
+    Render(cli::render::RenderArgs),
+    /// Render the hand-made demo junction (colour or labels) to a PNG.
+    RenderDemo(cli::render::RenderDemoArgs),
+    /// Benchmarks that print figures.
+    Bench(cli::render::BenchArgs),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -36,5 +42,8 @@ fn main() -> anyhow::Result<()> {
         Command::Map(c) => cli::map::run(c),
         Command::Routes(a) => cli::routes::run(a),
         Command::Traffic(a) => cli::traffic::run(a),
+        Command::Render(a) => cli::render::render(&a),
+        Command::RenderDemo(a) => cli::render::render_demo(&a),
+        Command::Bench(a) => cli::render::bench(&a),
     }
 }

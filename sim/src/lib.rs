@@ -2,12 +2,14 @@
 //! scenarios and sweeps. It knows nothing of neural networks: a policy is a
 //! [`Driver`].
 
+pub mod camera;
 pub mod delay;
 pub mod driver;
 pub mod expert;
 pub mod monitors;
 pub mod record;
 pub mod recorder;
+pub mod render;
 pub mod runner;
 pub mod scenario;
 pub mod sweep;

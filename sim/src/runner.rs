@@ -211,6 +211,9 @@ pub struct RunInputs<'a> {
     pub progress: &'a mut dyn FnMut(f64),
     /// Stop after this many ticks at the latest (for short tests).
     pub max_ticks: Option<u64>,
+    /// Called after every tick with the tick, every actor (ego first) and
+    /// the light states: for data collection and snapshots.
+    pub observer: Option<&'a mut dyn FnMut(u64, &[ActorSnapshot], &[LightState])>,
 }
 
 /// The git commit and version this binary was built from.
@@ -298,6 +301,7 @@ pub fn run(
         mut recorder,
         progress,
         max_ticks,
+        mut observer,
     } = inputs;
     let wall = Instant::now();
     let mut perf = RunPerf::default();
@@ -487,6 +491,7 @@ pub fn run(
 
         // 4. Monitors.
         let started = Instant::now();
+        let render_before = perf.render_s;
         let e = traffic
             .ego()
             .ok_or_else(|| RunError::Setup("the ego vanished".into()))?;
@@ -546,7 +551,12 @@ pub fn run(
             termination = Some(end.kind);
         }
         infractions.append(&mut new_infractions);
-        perf.other_s += started.elapsed().as_secs_f64();
+        perf.other_s += started.elapsed().as_secs_f64() - (perf.render_s - render_before);
+
+        if let Some(obs) = observer.as_deref_mut() {
+            traffic.snapshots(&mut snapshots);
+            obs(tick, &snapshots, &light_states);
+        }
 
         // 5. Lights.
         lights.step(tick_s);

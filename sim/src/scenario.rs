@@ -32,6 +32,9 @@ pub struct Scenario {
     /// Which input scale the driver sees.
     #[serde(default)]
     pub resolution: ResolutionSpec,
+    /// The camera rig.
+    #[serde(default)]
+    pub camera: CameraSpec,
     /// When a run ends early.
     #[serde(default)]
     pub termination: TerminationSpec,
@@ -180,6 +183,36 @@ pub enum DriverKind {
     Expert,
     /// A trained (or randomly initialised) network from a checkpoint.
     Policy,
+}
+
+/// The camera rig: WoR's three cameras at a base size S0.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CameraSpec {
+    /// `cpu` (S0 = 240 x 96, the default for CPU training) or `paper`
+    /// (S0 = 480 x 192). A policy checkpoint's own S0 takes precedence.
+    pub rig: RigKind,
+    /// Supersampling factor per axis for anti-aliasing (1 turns it off).
+    pub supersample: u32,
+}
+
+impl Default for CameraSpec {
+    fn default() -> Self {
+        Self {
+            rig: RigKind::Cpu,
+            supersample: 2,
+        }
+    }
+}
+
+/// The rig sizes a scenario can name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RigKind {
+    /// S0 = 240 x 96.
+    Cpu,
+    /// S0 = 480 x 192, the paper's.
+    Paper,
 }
 
 /// How the input scale is chosen at each control boundary.
@@ -432,6 +465,13 @@ impl Scenario {
                 "driver.checkpoint",
                 "missing".into(),
                 "a policy driver needs `checkpoint = \"path/to/model.safetensors\"`",
+            );
+        }
+        if !(1..=4).contains(&self.camera.supersample) {
+            return bad(
+                "camera.supersample",
+                self.camera.supersample.to_string(),
+                "use 1 (off) to 4",
             );
         }
         let term = &self.termination;

@@ -1,6 +1,7 @@
 //! Subcommands of the `mrdrive` program, one file each.
 
 pub mod map;
+pub mod render;
 pub mod routes;
 pub mod run;
 pub mod sweep;

@@ -8,8 +8,9 @@ use sim::driver::Driver;
 use sim::expert::{Expert, ExpertParams};
 use sim::record::RunRecord;
 use sim::recorder::{RecordOptions, Recorder};
+use sim::render::{Renderer, RigConfig};
 use sim::runner::{self, FixedScale, Overrides, Prepared, RunInputs, Selector};
-use sim::scenario::{DriverKind, Scenario, SelectorKind};
+use sim::scenario::{DriverKind, RigKind, Scenario, SelectorKind};
 
 /// `run` arguments.
 #[derive(Args)]
@@ -74,6 +75,27 @@ pub fn driver_for(scenario: &Scenario, prepared: &Prepared) -> anyhow::Result<Bo
     }
 }
 
+/// The rig a scenario asks for.
+pub fn rig_for(scenario: &Scenario) -> RigConfig {
+    let base = match scenario.camera.rig {
+        RigKind::Cpu => RigConfig::cpu_default(),
+        RigKind::Paper => RigConfig::paper(),
+    };
+    RigConfig {
+        supersample: scenario.camera.supersample,
+        ..base
+    }
+}
+
+/// The wgpu renderer for a scenario's town (seeded from its traffic seed).
+pub fn camera_for(scenario: &Scenario, prepared: &Prepared) -> anyhow::Result<Renderer> {
+    Ok(Renderer::new(
+        &prepared.town,
+        rig_for(scenario),
+        scenario.traffic.seed,
+    )?)
+}
+
 /// Runs one scenario file with overrides: the shared path of `run` and `sweep`.
 pub fn run_one(
     path: &Path,
@@ -99,9 +121,28 @@ pub fn run_one(
             )
         })
     });
-    let mut recorder = match &record_path {
-        Some((p, o)) => Some(Recorder::create(p, *o, &prepared.town)?),
-        None => None,
+    let mut record_opts = record_path.as_ref().map(|(_, o)| *o);
+    let wants_images = record_opts.is_some_and(|o| o.camera || o.labels);
+    let mut camera = if driver.needs().camera || wants_images {
+        match camera_for(&scenario, &prepared) {
+            Ok(r) => Some(r),
+            Err(e) if !driver.needs().camera => {
+                eprintln!("warning: recording without camera images: {e:#}");
+                record_opts = record_opts.map(|o| RecordOptions {
+                    camera: false,
+                    labels: false,
+                    ..o
+                });
+                None
+            }
+            Err(e) => return Err(e),
+        }
+    } else {
+        None
+    };
+    let mut recorder = match (&record_path, record_opts) {
+        (Some((p, _)), Some(o)) => Some(Recorder::create(p, o, &prepared.town)?),
+        _ => None,
     };
     let record = runner::run(
         &scenario,
@@ -110,10 +151,11 @@ pub fn run_one(
             prepared: &prepared,
             driver: driver.as_mut(),
             selector: selector.as_mut(),
-            camera: None,
+            camera: camera.as_mut().map(|c| c as &mut dyn sim::runner::Camera),
             recorder: recorder.as_mut(),
             progress,
             max_ticks: None,
+            observer: None,
         },
     )?;
     if let Some(rec) = recorder {

@@ -239,7 +239,7 @@ fn by_delay_and_scale(r: &RunRecord) -> String {
 /// The fine-grained configuration: scenario, density, delay, resolution.
 fn by_run_setting(r: &RunRecord) -> String {
     format!(
-        "{} ({}, {}), D={} ms, {}",
+        "{} ({:>2}, {:>2}), D={:>3} ms, {}",
         r.result.provenance.scenario,
         r.result.settings.vehicles,
         r.result.settings.pedestrians,

@@ -1,0 +1,257 @@
+//! Measurements of the camera: how many pixels a traffic-light lamp covers at
+//! a distance and scale, and how many rig frames per second the renderer
+//! delivers (render + anti-aliasing + readback).
+
+use std::time::Instant;
+
+use glam::{Vec2, Vec3};
+use world::{ActorSnapshot, LightState, TrafficLight};
+
+use super::classes;
+use super::demo;
+use super::renderer::{RenderError, Renderer};
+use super::rig::{EgoPose, RigConfig};
+use super::scene::LAMP_DIAMETER_M;
+
+/// A lamp's size in the image at one distance and scale.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LampSize {
+    /// Scale of S0.
+    pub scale: f32,
+    /// Output size (width, height) in pixels.
+    pub size: (u32, u32),
+    /// Distance from the camera to the lamp along the optical axis (metres).
+    pub distance_m: f32,
+    /// Pixels labelled lamp-red in the class image.
+    pub class_px: usize,
+    /// Pixels whose red channel rises by 30 or more (of 255) when the lamp is
+    /// lit, against the same frame with all lamps dark.
+    pub tinted_px: usize,
+    /// The largest rise of the red channel when the lamp is lit (0..255).
+    pub peak_tint: i32,
+    /// The lamp's diameter projected analytically (pixels).
+    pub analytic_diameter_px: f32,
+    /// The lamp disc's area projected analytically (pixels squared).
+    pub analytic_area_px: f32,
+}
+
+/// Renders a single red lamp straight ahead of the centre camera at each
+/// distance and scale, counting lamp pixels, and computes the analytic size.
+pub fn lamp_sizes(
+    rig: RigConfig,
+    scales: &[f32],
+    distances_m: &[f32],
+) -> Result<Vec<LampSize>, RenderError> {
+    let mut out = Vec::new();
+    for &d in distances_m {
+        // The light faces the ego; its red lamp is on the centre camera's axis
+        // horizontally, `d` metres ahead of the camera.
+        let mut town = demo::empty_town("lamp-size");
+        town.bounds = (Vec2::splat(-60.0), Vec2::splat(60.0));
+        let cam_x = rig.mount_m.x;
+        let housing_front = 0.35 * 0.5 + 0.015;
+        town.lights.push(TrafficLight {
+            od_id: "lamp".into(),
+            position: Vec3::new(cam_x + d + housing_front, 0.0, 0.0),
+            heading: std::f32::consts::PI,
+            head_height_m: demo::HEAD_HEIGHT_M,
+            junction: None,
+            group: 0,
+            stop_lines: Vec::new(),
+        });
+        let mut r = Renderer::new(&town, rig, 0)?;
+        for &scale in scales {
+            let ego = EgoPose::default();
+            let dark = r.render_rig(&ego, &[], &[], scale)?.0.data.clone();
+            let (rgb, labels) = r.render_rig(&ego, &[], &[LightState::Red], scale)?;
+            let tints = rgb
+                .data
+                .chunks_exact(3)
+                .zip(dark.chunks_exact(3))
+                .map(|(a, b)| i32::from(a[0]) - i32::from(b[0]));
+            let fx = rig.cam_width_px as f32 * 0.5 / (rig.fov_deg.to_radians() * 0.5).tan()
+                * (labels.width / 3) as f32
+                / rig.cam_width_px as f32;
+            let diameter = fx * LAMP_DIAMETER_M / d;
+            out.push(LampSize {
+                scale,
+                size: (labels.width, labels.height),
+                distance_m: d,
+                class_px: labels.count(classes::LAMP_RED),
+                tinted_px: tints.clone().filter(|&t| t >= 30).count(),
+                peak_tint: tints.max().unwrap_or(0),
+                analytic_diameter_px: diameter,
+                analytic_area_px: std::f32::consts::FRAC_PI_4 * diameter * diameter,
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// Frames per second of the full rig at one scale.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RigSpeed {
+    /// Scale of S0.
+    pub scale: f32,
+    /// Output size (width, height) in pixels.
+    pub size: (u32, u32),
+    /// Frames per second of each repeat (render + resolve + readback).
+    pub fps: Vec<f64>,
+}
+
+impl RigSpeed {
+    /// The median of the repeats.
+    pub fn median_fps(&self) -> f64 {
+        let mut v = self.fps.clone();
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        if n == 0 {
+            return 0.0;
+        }
+        if n % 2 == 1 {
+            v[n / 2]
+        } else {
+            0.5 * (v[n / 2 - 1] + v[n / 2])
+        }
+    }
+}
+
+/// Times `frames` rig renders per repeat at each scale, starting from `ego0`
+/// and driving 0.25 m further along its heading each frame (10 m/s at 40 Hz).
+pub fn bench_rig(
+    renderer: &mut Renderer,
+    (ego0, actors, states): (EgoPose, &[ActorSnapshot], &[LightState]),
+    scales: &[f32],
+    frames: usize,
+    repeats: usize,
+) -> Result<Vec<RigSpeed>, RenderError> {
+    let (s, c) = ego0.heading.sin_cos();
+    let fwd = Vec3::new(c, s, 0.0);
+    let mut out = Vec::new();
+    for &scale in scales {
+        // Warm-up: creates the targets and compiles shaders.
+        for _ in 0..5 {
+            renderer.render_rig(&ego0, actors, states, scale)?;
+        }
+        let mut fps = Vec::with_capacity(repeats);
+        let mut size = (0, 0);
+        for _ in 0..repeats {
+            let t0 = Instant::now();
+            for f in 0..frames {
+                let ego = EgoPose {
+                    position: ego0.position + fwd * (0.25 * (f % 100) as f32),
+                    heading: ego0.heading,
+                };
+                let (rgb, _) = renderer.render_rig(&ego, actors, states, scale)?;
+                size = (rgb.width, rgb.height);
+            }
+            fps.push(frames as f64 / t0.elapsed().as_secs_f64());
+        }
+        out.push(RigSpeed { scale, size, fps });
+    }
+    Ok(out)
+}
+
+/// The `render lamp-size` table: lamp sizes for the CPU and the paper's S0.
+pub fn lamp_size_report(scales: &[f32], distances_m: &[f32]) -> Result<String, RenderError> {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "lamp: {LAMP_DIAMETER_M:.2} m disc, red, on the centre camera's axis; supersampling 2x\n\
+         class_px: pixels labelled lamp_red; tinted_px: red channel +30 or more over dark lamps;\n\
+         analytic_d / analytic_a: projected diameter (px) and disc area (px^2)"
+    );
+    let _ = writeln!(
+        s,
+        "{:<9} {:>5} {:>8} {:>6} {:>8} {:>9} {:>9} {:>10} {:>10}",
+        "rig",
+        "scale",
+        "size",
+        "dist_m",
+        "class_px",
+        "tinted_px",
+        "peak_rise",
+        "analytic_d",
+        "analytic_a"
+    );
+    for (name, rig) in [
+        ("cpu-S0", RigConfig::cpu_default()),
+        ("paper-S0", RigConfig::paper()),
+    ] {
+        for m in lamp_sizes(rig, scales, distances_m)? {
+            let _ = writeln!(
+                s,
+                "{:<9} {:>5.2} {:>8} {:>6.1} {:>8} {:>9} {:>9} {:>10.2} {:>10.2}",
+                name,
+                m.scale,
+                format!("{}x{}", m.size.0, m.size.1),
+                m.distance_m,
+                m.class_px,
+                m.tinted_px,
+                m.peak_tint,
+                m.analytic_diameter_px,
+                m.analytic_area_px
+            );
+        }
+    }
+    Ok(s)
+}
+
+/// The `bench render` figures: median rig fps at the CPU S0, 0.75 of it, and
+/// the paper's 480x192 (and 0.75 of that), on the 4x4 demo town.
+pub fn bench_report(
+    frames: usize,
+    repeats: usize,
+    supersample: u32,
+) -> Result<String, RenderError> {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let town = demo::grid_town(4, 4, 100.0, 7);
+    let (ego, actors, states) = demo::demo_state(&town);
+    for (name, base) in [
+        ("cpu-S0", RigConfig::cpu_default()),
+        ("paper-S0", RigConfig::paper()),
+    ] {
+        let rig = RigConfig {
+            supersample,
+            ..base
+        };
+        let mut r = Renderer::new(&town, rig, 7)?;
+        if name == "cpu-S0" {
+            let _ = writeln!(
+                s,
+                "backend: {}\ntown {}: {} static triangles in {} cells, drawn within {} m; {} actors; \
+                 supersampling {}x; {} frames x {} repeats",
+                r.backend(),
+                town.name,
+                r.scene().triangle_count(),
+                r.scene().cells.len(),
+                super::renderer::DRAW_DISTANCE_M,
+                actors.len(),
+                r.rig().supersample,
+                frames,
+                repeats
+            );
+        }
+        for m in bench_rig(
+            &mut r,
+            (ego, &actors, &states),
+            &[1.0, 0.75],
+            frames,
+            repeats,
+        )? {
+            let fps: Vec<String> = m.fps.iter().map(|f| format!("{f:.0}")).collect();
+            let _ = writeln!(
+                s,
+                "{name:<9} scale {:.2} {:>4}x{:<4} median {:>7.1} rig fps  (repeats: {})",
+                m.scale,
+                m.size.0,
+                m.size.1,
+                m.median_fps(),
+                fps.join(" ")
+            );
+        }
+    }
+    Ok(s)
+}

@@ -1,0 +1,26 @@
+//! The camera: offscreen wgpu rendering of the policy's view with per-pixel
+//! semantic labels, and a top-down view for logs.
+//!
+//! - [`gpu`]: a headless device (hardware GPU, else lavapipe, else GL/EGL).
+//! - [`classes`]: the one table of semantic classes and the WoR mapping.
+//! - [`scene`]: static town geometry (built once) and per-frame instances.
+//! - [`rig`]: WoR's three-camera rig, sizes per scale, the top-down camera.
+//! - [`renderer`]: the scene pass, supersampling resolve and readback.
+//! - [`image`]: the class image and PNG output; [`resize`]: resizing for training.
+//! - [`demo`]: a hand-made town for demos, tests and benchmarks.
+//! - [`measure`]: lamp pixel sizes and the frame-rate benchmark.
+
+pub mod classes;
+pub mod demo;
+pub mod gpu;
+pub mod image;
+pub mod measure;
+pub mod renderer;
+pub mod resize;
+pub mod rig;
+pub mod scene;
+
+pub use classes::{ClassId, WorClass};
+pub use image::ClassImage;
+pub use renderer::{RenderError, Renderer};
+pub use rig::{Camera, EgoPose, RigConfig};
