@@ -1,0 +1,3 @@
+//! Command-line front ends, one file per area.
+
+pub mod policy;
