@@ -70,16 +70,18 @@ def size(h, w, r):
     return int(r * h + 1e-4), int(r * w + 1e-4)
 
 
-def latency(net, h, w, repeats):
-    x = torch.randn(1, 3, h, w)
-    times = []
+def latency(net, sizes, repeats):
+    """Median/min/max ms per input size; sizes interleaved, one run each per round."""
+    xs = [torch.randn(1, 3, h, w) for h, w in sizes]
+    times = [[] for _ in sizes]
     with torch.no_grad():
         for i in range(3 + repeats):
-            t0 = time.perf_counter()
-            net(x)
-            if i >= 3:
-                times.append((time.perf_counter() - t0) * 1e3)
-    return statistics.median(times), min(times), max(times)
+            for k, x in enumerate(xs):
+                t0 = time.perf_counter()
+                net(x)
+                if i >= 3:
+                    times[k].append((time.perf_counter() - t0) * 1e3)
+    return [(statistics.median(t), min(t), max(t)) for t in times]
 
 
 def train_throughput(net, h, w, batch, steps, scales=(0.75, 1.0)):
@@ -133,15 +135,16 @@ def main():
             ("resnet34 64-512 @ 480x192 (paper)", r34, full, 192, 480),
             ("resnet18 half 32-256 @ 480x192", r18, half, 192, 480),
         ]
-    print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, batch 1 inference, median of {a.repeats}")
+    print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, batch 1 inference, median of {a.repeats} (scales interleaved)")
+    print("load average before:", open("/proc/loadavg").read().strip())
     print(f"{'network':<36} {'scale':>6} {'input WxH':>10} {'median ms':>10} {'min ms':>9} {'max ms':>9} {'t(.75)/t(1)':>12}")
     for name, blocks, widths, h, w in nets:
         net = Policy(blocks, widths).eval()
-        med = {}
-        for i, r in enumerate((0.75, 1.0)):
+        scales = (0.75, 1.0)
+        stats = latency(net, [size(h, w, r) for r in scales], a.repeats)
+        med = {r: st[0] for r, st in zip(scales, stats)}
+        for i, (r, (m, lo, hi)) in enumerate(zip(scales, stats)):
             hh, ww = size(h, w, r)
-            m, lo, hi = latency(net, hh, ww, a.repeats)
-            med[r] = m
             ratio = f"{med[0.75] / med[1.0]:.3f}" if r == 1.0 else ""
             print(f"{name if i == 0 else '':<36} {r:>6} {f'{ww}x{hh}':>10} {m:>10.2f} {lo:>9.2f} {hi:>9.2f} {ratio:>12}")
     if a.train_steps > 0:

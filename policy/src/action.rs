@@ -70,17 +70,38 @@ mod tests {
 
     #[test]
     fn layout_tiles_steers_and_repeats_throttles() {
-        assert_eq!(action(0), Action::Drive { steer: -1.0, throttle: 0.0 });
-        assert_eq!(action(8), Action::Drive { steer: 1.0, throttle: 0.0 });
-        assert_eq!(action(9), Action::Drive { steer: -1.0, throttle: 0.5 });
-        assert_eq!(action(22), Action::Drive { steer: 0.0, throttle: 1.0 });
+        assert_eq!(
+            action(0),
+            Action::Drive {
+                steer: -1.0,
+                throttle: 0.0
+            }
+        );
+        assert_eq!(
+            action(8),
+            Action::Drive {
+                steer: 1.0,
+                throttle: 0.0
+            }
+        );
+        assert_eq!(
+            action(9),
+            Action::Drive {
+                steer: -1.0,
+                throttle: 0.5
+            }
+        );
+        assert_eq!(
+            action(22),
+            Action::Drive {
+                steer: 0.0,
+                throttle: 1.0
+            }
+        );
         assert_eq!(action(27), Action::Brake);
-        for t in 0..NUM_THROTTLES {
-            for s in 0..NUM_STEERS {
-                assert_eq!(
-                    action(index(s, t)),
-                    Action::Drive { steer: STEERS[s], throttle: THROTTLES[t] }
-                );
+        for (t, &throttle) in THROTTLES.iter().enumerate() {
+            for (s, &steer) in STEERS.iter().enumerate() {
+                assert_eq!(action(index(s, t)), Action::Drive { steer, throttle });
             }
         }
     }

@@ -7,9 +7,9 @@
 
 use crate::bn_bank::{BnBank, BnBankConfig};
 use burn::module::Module;
+use burn::nn::PaddingConfig2d;
 use burn::nn::conv::{Conv2d, Conv2dConfig};
 use burn::nn::pool::{MaxPool2d, MaxPool2dConfig};
-use burn::nn::PaddingConfig2d;
 use burn::prelude::*;
 use burn::tensor::activation::relu;
 use serde::{Deserialize, Serialize};
@@ -64,7 +64,11 @@ impl BackboneConfig {
             let c_in = if i == 0 { w[0] } else { w[i - 1] };
             (0..blocks[i])
                 .map(|b| {
-                    let (cin, stride) = if b == 0 { (c_in, if i == 0 { 1 } else { 2 }) } else { (w[i], 1) };
+                    let (cin, stride) = if b == 0 {
+                        (c_in, if i == 0 { 1 } else { 2 })
+                    } else {
+                        (w[i], 1)
+                    };
                     BasicBlock::new(cin, w[i], stride, nb, device)
                 })
                 .collect()
@@ -197,8 +201,16 @@ pub struct Backbone {
 impl Backbone {
     /// The stride-32 feature map of a normalised image batch `[B, 3, H, W]`, BN branch `branch`.
     pub fn forward(&self, x: Tensor<4>, branch: usize) -> Tensor<4> {
-        let mut x = self.maxpool.forward(relu(self.bn1.forward(self.conv1.forward(x), branch)));
-        for block in self.layer1.iter().chain(&self.layer2).chain(&self.layer3).chain(&self.layer4) {
+        let mut x = self
+            .maxpool
+            .forward(relu(self.bn1.forward(self.conv1.forward(x), branch)));
+        for block in self
+            .layer1
+            .iter()
+            .chain(&self.layer2)
+            .chain(&self.layer3)
+            .chain(&self.layer4)
+        {
             x = block.forward(x, branch);
         }
         x
@@ -206,13 +218,23 @@ impl Backbone {
 
     /// The stages as a mutable array (index 0 = layer1).
     pub fn stages_mut(&mut self) -> [&mut Vec<BasicBlock>; 4] {
-        [&mut self.layer1, &mut self.layer2, &mut self.layer3, &mut self.layer4]
+        [
+            &mut self.layer1,
+            &mut self.layer2,
+            &mut self.layer3,
+            &mut self.layer4,
+        ]
     }
 
     /// Every BN bank, stem first, in forward order.
     pub fn banks_mut(&mut self) -> Vec<&mut BnBank> {
         let mut v = vec![&mut self.bn1];
-        for stage in [&mut self.layer1, &mut self.layer2, &mut self.layer3, &mut self.layer4] {
+        for stage in [
+            &mut self.layer1,
+            &mut self.layer2,
+            &mut self.layer3,
+            &mut self.layer4,
+        ] {
             for block in stage.iter_mut() {
                 v.extend(block.banks_mut());
             }
@@ -227,8 +249,10 @@ impl Backbone {
             return self;
         }
         let s = std::mem::take(self.stages_mut()[stage - 1]);
-        *self.stages_mut()[stage - 1] =
-            s.into_iter().map(|b| b.set_convs_trainable(trainable)).collect();
+        *self.stages_mut()[stage - 1] = s
+            .into_iter()
+            .map(|b| b.set_convs_trainable(trainable))
+            .collect();
         self
     }
 }
@@ -251,7 +275,12 @@ mod tests {
         let device = Device::flex();
         let net = BackboneConfig::new(Depth::Resnet34, [2, 2, 4, 4], 1).init(&device);
         assert_eq!(
-            [net.layer1.len(), net.layer2.len(), net.layer3.len(), net.layer4.len()],
+            [
+                net.layer1.len(),
+                net.layer2.len(),
+                net.layer3.len(),
+                net.layer4.len()
+            ],
             [3, 4, 6, 3]
         );
         // Projections exactly where torchvision has them.
@@ -265,9 +294,16 @@ mod tests {
         // torchvision: resnet18 11,689,512 and resnet34 21,797,672 parameters, of which fc
         // is 513,000; BN running statistics are buffers there, parameters in burn's count.
         let device = Device::flex();
-        for (depth, expected) in [(Depth::Resnet18, 11_689_512 - 513_000), (Depth::Resnet34, 21_797_672 - 513_000)] {
+        for (depth, expected) in [
+            (Depth::Resnet18, 11_689_512 - 513_000),
+            (Depth::Resnet34, 21_797_672 - 513_000),
+        ] {
             let mut net = BackboneConfig::new(depth, [64, 128, 256, 512], 1).init(&device);
-            let running: usize = net.banks_mut().iter().map(|b| 2 * b.branches[0].gamma.dims()[0]).sum();
+            let running: usize = net
+                .banks_mut()
+                .iter()
+                .map(|b| 2 * b.branches[0].gamma.dims()[0])
+                .sum();
             assert_eq!(net.num_params() - running, expected, "{depth:?}");
         }
     }

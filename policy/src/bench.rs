@@ -24,40 +24,72 @@ impl Latency {
         assert!(!times_ms.is_empty());
         times_ms.sort_by(f64::total_cmp);
         let n = times_ms.len();
-        let median_ms = if n % 2 == 1 { times_ms[n / 2] } else { 0.5 * (times_ms[n / 2 - 1] + times_ms[n / 2]) };
-        Latency { median_ms, min_ms: times_ms[0], max_ms: times_ms[n - 1] }
+        let median_ms = if n % 2 == 1 {
+            times_ms[n / 2]
+        } else {
+            0.5 * (times_ms[n / 2 - 1] + times_ms[n / 2])
+        };
+        Latency {
+            median_ms,
+            min_ms: times_ms[0],
+            max_ms: times_ms[n - 1],
+        }
     }
 }
 
 /// Batch-1 inference latency of `config` at each scale of its R on `device`
 /// (forward of the backbone and the action head, result read back).
-pub fn inference_latency(config: &PolicyConfig, device: &Device, warmup: usize, repeats: usize) -> Vec<(f32, [usize; 2], Latency)> {
+///
+/// Scales are interleaved (one run of each per round) so that load from other
+/// processes falls on all of them alike.
+pub fn inference_latency(
+    config: &PolicyConfig,
+    device: &Device,
+    warmup: usize,
+    repeats: usize,
+) -> Vec<(f32, [usize; 2], Latency)> {
     device.seed(0);
     let net = config.init(device).valid();
+    let inputs: Vec<Tensor<4>> = config
+        .scales
+        .iter()
+        .map(|&r| {
+            let [h, w] = config.input_size(r);
+            Tensor::<4>::random(
+                [1, 3, h, w],
+                burn::tensor::Distribution::Normal(0.0, 1.0),
+                device,
+            )
+        })
+        .collect();
+    let mut times = vec![Vec::with_capacity(repeats); inputs.len()];
+    for round in 0..warmup + repeats {
+        for (branch, x) in inputs.iter().enumerate() {
+            let t0 = Instant::now();
+            let z = net.forward(x.clone(), branch, false).action_logits;
+            let _ = z.into_data();
+            if round >= warmup {
+                times[branch].push(t0.elapsed().as_secs_f64() * 1e3);
+            }
+        }
+    }
     config
         .scales
         .iter()
-        .enumerate()
-        .map(|(branch, &r)| {
-            let [h, w] = config.input_size(r);
-            let x = Tensor::<4>::random([1, 3, h, w], burn::tensor::Distribution::Normal(0.0, 1.0), device);
-            let mut times = Vec::with_capacity(repeats);
-            for i in 0..warmup + repeats {
-                let t0 = Instant::now();
-                let z = net.forward(x.clone(), branch, false).action_logits;
-                let _ = z.into_data();
-                if i >= warmup {
-                    times.push(t0.elapsed().as_secs_f64() * 1e3);
-                }
-            }
-            (r, [h, w], Latency::of(times))
-        })
+        .zip(times)
+        .map(|(&r, t)| (r, config.input_size(r), Latency::of(t)))
         .collect()
 }
 
 /// Training throughput of the multi-resolution step (samples per second; each sample is
 /// seen once at every scale of R), batch `batch`, on `device` (autodiff).
-pub fn train_throughput(config: &PolicyConfig, device: &Device, batch: usize, warmup: usize, steps: usize) -> f64 {
+pub fn train_throughput(
+    config: &PolicyConfig,
+    device: &Device,
+    batch: usize,
+    warmup: usize,
+    steps: usize,
+) -> f64 {
     device.seed(0);
     let data = toy_batch(config, batch, 0, device);
     let mut trainer = MultiResTrainer::new(config.init(device), None, TrainConfig::new(), device);
@@ -124,6 +156,10 @@ mod tests {
         // (backbone + action head + decoder).
         let o = overhead("resnet34", &PolicyConfig::paper());
         assert_eq!(o.multi - o.single, o.extra_buffers);
-        assert!(o.percent() > 0.0 && o.percent() < 0.2, "{o:?} {}", o.percent());
+        assert!(
+            o.percent() > 0.0 && o.percent() < 0.2,
+            "{o:?} {}",
+            o.percent()
+        );
     }
 }

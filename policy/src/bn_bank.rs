@@ -111,11 +111,25 @@ mod tests {
         let device = Device::flex().autodiff();
         device.seed(1);
         let bank = BnBankConfig::new(3, 2).init(&device);
-        let x = Tensor::<4>::random([4, 3, 5, 5], burn::tensor::Distribution::Normal(2.0, 1.0), &device);
+        let x = Tensor::<4>::random(
+            [4, 3, 5, 5],
+            burn::tensor::Distribution::Normal(2.0, 1.0),
+            &device,
+        );
         let _ = bank.forward(x, 1);
-        assert_eq!(data(bank.branches[0].running_mean.value_sync()), vec![0.0; 3]);
-        assert_eq!(data(bank.branches[0].running_var.value_sync()), vec![1.0; 3]);
-        assert!(data(bank.branches[1].running_mean.value_sync()).iter().all(|m| *m > 0.1));
+        assert_eq!(
+            data(bank.branches[0].running_mean.value_sync()),
+            vec![0.0; 3]
+        );
+        assert_eq!(
+            data(bank.branches[0].running_var.value_sync()),
+            vec![1.0; 3]
+        );
+        assert!(
+            data(bank.branches[1].running_mean.value_sync())
+                .iter()
+                .all(|m| *m > 0.1)
+        );
     }
 
     #[test]
@@ -123,7 +137,11 @@ mod tests {
         let device = Device::flex().autodiff();
         device.seed(2);
         let one = BnBankConfig::new(2, 1).init(&device);
-        let x = Tensor::<4>::random([4, 2, 3, 3], burn::tensor::Distribution::Normal(1.0, 1.0), &device);
+        let x = Tensor::<4>::random(
+            [4, 2, 3, 3],
+            burn::tensor::Distribution::Normal(1.0, 1.0),
+            &device,
+        );
         let _ = one.forward(x.clone(), 0);
         let two = one.replicate(0, 2);
         assert_eq!(

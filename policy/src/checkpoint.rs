@@ -93,12 +93,17 @@ pub fn save(net: &PolicyNet, card: &ModelCard, weights: &Path) -> Result<(), Che
     let mut store = SafetensorsStore::from_file(weights)
         .overwrite(true)
         .metadata("mrdrive_format", FORMAT);
-    net.save_into(&mut store).map_err(|e| CheckpointError::Weights {
-        path: weights.to_path_buf(),
-        problem: format!("could not write: {e}"),
-        fix: "check the folder exists and is writable".into(),
-    })?;
-    let manifest = Manifest { format: FORMAT.into(), config: net.config.clone(), card: card.clone() };
+    net.save_into(&mut store)
+        .map_err(|e| CheckpointError::Weights {
+            path: weights.to_path_buf(),
+            problem: format!("could not write: {e}"),
+            fix: "check the folder exists and is writable".into(),
+        })?;
+    let manifest = Manifest {
+        format: FORMAT.into(),
+        config: net.config.clone(),
+        card: card.clone(),
+    };
     let json = serde_json::to_string_pretty(&manifest).expect("a manifest always serialises");
     let path = manifest_path(weights);
     std::fs::write(&path, json).map_err(|source| CheckpointError::Io {
@@ -116,11 +121,12 @@ pub fn read_manifest(weights: &Path) -> Result<(PolicyConfig, ModelCard), Checkp
         source,
         fix: "a checkpoint is two files, NAME.safetensors and NAME.json; copy the .json with the weights",
     })?;
-    let manifest: Manifest = serde_json::from_str(&text).map_err(|e| CheckpointError::Manifest {
-        path: path.clone(),
-        problem: format!("not a policy manifest ({e})"),
-        fix: "restore the JSON written with the weights (fields: format, config, card)".into(),
-    })?;
+    let manifest: Manifest =
+        serde_json::from_str(&text).map_err(|e| CheckpointError::Manifest {
+            path: path.clone(),
+            problem: format!("not a policy manifest ({e})"),
+            fix: "restore the JSON written with the weights (fields: format, config, card)".into(),
+        })?;
     if manifest.format != FORMAT {
         return Err(CheckpointError::Manifest {
             path,
@@ -128,11 +134,14 @@ pub fn read_manifest(weights: &Path) -> Result<(PolicyConfig, ModelCard), Checkp
             fix: format!("this build reads {FORMAT:?}"),
         });
     }
-    manifest.config.validate().map_err(|e| CheckpointError::Manifest {
-        path,
-        problem: e.to_string(),
-        fix: "correct the config field named above".into(),
-    })?;
+    manifest
+        .config
+        .validate()
+        .map_err(|e| CheckpointError::Manifest {
+            path,
+            problem: e.to_string(),
+            fix: "correct the config field named above".into(),
+        })?;
     Ok((manifest.config, manifest.card))
 }
 
@@ -141,15 +150,28 @@ pub fn load(weights: &Path, device: &Device) -> Result<(PolicyNet, ModelCard), C
     let (config, card) = read_manifest(weights)?;
     let mut net = config.init(device);
     let mut store = open_weights(weights)?;
-    apply(&mut net, &mut store, weights, |_| true, |_| false, |n| n.to_string())?;
+    apply(
+        &mut net,
+        &mut store,
+        weights,
+        |_| true,
+        |_| false,
+        |n| n.to_string(),
+    )?;
     Ok((net, card))
 }
 
 fn open_weights(path: &Path) -> Result<SafetensorsStore, CheckpointError> {
     if let Err(source) = std::fs::metadata(path) {
-        return Err(CheckpointError::Io { path: path.to_path_buf(), source, fix: "give the path of an existing .safetensors file" });
+        return Err(CheckpointError::Io {
+            path: path.to_path_buf(),
+            source,
+            fix: "give the path of an existing .safetensors file",
+        });
     }
-    Ok(SafetensorsStore::from_file(path).validate(false).allow_partial(true))
+    Ok(SafetensorsStore::from_file(path)
+        .validate(false)
+        .allow_partial(true))
 }
 
 /// Applies the store to `net`; every tensor `required` must be present, every unused tensor
@@ -168,18 +190,32 @@ fn apply(
         fix: fix.into(),
     };
     let result = net.load_from(store).map_err(|e| {
-        err(format!("not a readable safetensors file ({e})"), "re-export the weights as safetensors")
+        err(
+            format!("not a readable safetensors file ({e})"),
+            "re-export the weights as safetensors",
+        )
     })?;
     if let Some(e) = result.errors.first() {
         let what = match e {
-            ApplyError::ShapeMismatch { path, expected, found } => format!(
+            ApplyError::ShapeMismatch {
+                path,
+                expected,
+                found,
+            } => format!(
                 "tensor `{}` has shape {:?}, the network expects {:?}",
                 describe(path),
                 found.as_slice(),
                 expected.as_slice()
             ),
-            ApplyError::DTypeMismatch { path, expected, found } => {
-                format!("tensor `{}` is {found:?}, the network expects {expected:?}", describe(path))
+            ApplyError::DTypeMismatch {
+                path,
+                expected,
+                found,
+            } => {
+                format!(
+                    "tensor `{}` is {found:?}, the network expects {expected:?}",
+                    describe(path)
+                )
             }
             other => format!("{other}"),
         };
@@ -188,17 +224,29 @@ fn apply(
             "the weights are for another network shape: use the JSON config they were saved with",
         ));
     }
-    let missing: Vec<&str> = result.missing.iter().map(|(p, _)| p.as_str()).filter(|p| required(p)).collect();
+    let missing: Vec<&str> = result
+        .missing
+        .iter()
+        .map(|(p, _)| p.as_str())
+        .filter(|p| required(p))
+        .collect();
     if let Some(first) = missing.first() {
         return Err(err(
-            format!("tensor `{}` is missing ({} missing in all)", describe(first), missing.len()),
+            format!(
+                "tensor `{}` is missing ({} missing in all)",
+                describe(first),
+                missing.len()
+            ),
             "the weights are for another network (depth, widths or scales): use matching weights and config",
         ));
     }
     let unused: Vec<&String> = result.unused.iter().filter(|p| !ignorable(p)).collect();
     if let Some(first) = unused.first() {
         return Err(err(
-            format!("tensor `{first}` does not belong to this network ({} such in all)", unused.len()),
+            format!(
+                "tensor `{first}` does not belong to this network ({} such in all)",
+                unused.len()
+            ),
             "the weights are for another network (depth, widths or scales): use matching weights and config",
         ));
     }
@@ -225,19 +273,36 @@ pub fn load_torchvision_backbone(
     let mut single = single_cfg.init(device);
     let p = regex_escape(prefix);
     let bn = |from: &str, to: &str| -> Vec<(String, String)> {
-        [("weight", "gamma"), ("bias", "beta"), ("running_mean", "running_mean"), ("running_var", "running_var")]
-            .iter()
-            .map(|(a, b)| (format!("^{p}{from}\\.{a}$"), format!("{to}.branches.0.{b}")))
-            .collect()
+        [
+            ("weight", "gamma"),
+            ("bias", "beta"),
+            ("running_mean", "running_mean"),
+            ("running_var", "running_var"),
+        ]
+        .iter()
+        .map(|(a, b)| (format!("^{p}{from}\\.{a}$"), format!("{to}.branches.0.{b}")))
+        .collect()
     };
     let mut patterns = vec![
-        (format!("^{p}conv1\\.weight$"), "backbone.conv1.weight".to_string()),
-        (format!("^{p}(layer\\d)\\.(\\d+)\\.conv(\\d)\\.weight$"), "backbone.$1.$2.conv$3.weight".to_string()),
-        (format!("^{p}(layer\\d)\\.(\\d+)\\.downsample\\.0\\.weight$"), "backbone.$1.$2.downsample.conv.weight".to_string()),
+        (
+            format!("^{p}conv1\\.weight$"),
+            "backbone.conv1.weight".to_string(),
+        ),
+        (
+            format!("^{p}(layer\\d)\\.(\\d+)\\.conv(\\d)\\.weight$"),
+            "backbone.$1.$2.conv$3.weight".to_string(),
+        ),
+        (
+            format!("^{p}(layer\\d)\\.(\\d+)\\.downsample\\.0\\.weight$"),
+            "backbone.$1.$2.downsample.conv.weight".to_string(),
+        ),
     ];
     patterns.extend(bn("bn1", "backbone.bn1"));
     patterns.extend(bn("(layer\\d)\\.(\\d+)\\.bn(\\d)", "backbone.$1.$2.bn$3"));
-    patterns.extend(bn("(layer\\d)\\.(\\d+)\\.downsample\\.1", "backbone.$1.$2.downsample.bn"));
+    patterns.extend(bn(
+        "(layer\\d)\\.(\\d+)\\.downsample\\.1",
+        "backbone.$1.$2.downsample.bn",
+    ));
     let remapper = KeyRemapper::from_patterns(patterns).expect("the patterns are valid regexes");
     let mut store = open_weights(weights)?.remap(remapper);
     let fc = format!("{prefix}fc.");
@@ -246,7 +311,11 @@ pub fn load_torchvision_backbone(
         &mut store,
         weights,
         |name| name.starts_with("backbone."),
-        |name| name.ends_with("num_batches_tracked") || name.starts_with(&fc) || !name.starts_with(prefix),
+        |name| {
+            name.ends_with("num_batches_tracked")
+                || name.starts_with(&fc)
+                || !name.starts_with(prefix)
+        },
         |ours| format!("{prefix}{}", torchvision_name(ours)),
     )?;
     if config.scales.len() == 1 {
@@ -254,25 +323,37 @@ pub fn load_torchvision_backbone(
         net.config = config.clone();
         return Ok(net);
     }
-    single.to_multires(config.scales.clone()).map_err(|e| CheckpointError::Weights {
-        path: weights.to_path_buf(),
-        problem: e.to_string(),
-        fix: "fix the config field named above".into(),
-    })
+    single
+        .to_multires(config.scales.clone())
+        .map_err(|e| CheckpointError::Weights {
+            path: weights.to_path_buf(),
+            problem: e.to_string(),
+            fix: "fix the config field named above".into(),
+        })
 }
 
 /// The torchvision name of one of our backbone tensors (`backbone.layer2.0.downsample.bn.branches.0.gamma`
 /// -> `layer2.0.downsample.1.weight`).
 pub fn torchvision_name(ours: &str) -> String {
     let s = ours.strip_prefix("backbone.").unwrap_or(ours);
-    let s = s.replace("downsample.conv.", "downsample.0.").replace("downsample.bn.", "downsample.1.");
-    let s = s.replace(".branches.0.gamma", ".weight").replace(".branches.0.beta", ".bias");
+    let s = s
+        .replace("downsample.conv.", "downsample.0.")
+        .replace("downsample.bn.", "downsample.1.");
+    let s = s
+        .replace(".branches.0.gamma", ".weight")
+        .replace(".branches.0.beta", ".bias");
     s.replace(".branches.0.", ".")
 }
 
 fn regex_escape(s: &str) -> String {
     s.chars()
-        .map(|c| if c.is_ascii_alphanumeric() || c == '_' { c.to_string() } else { format!("\\{c}") })
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '_' {
+                c.to_string()
+            } else {
+                format!("\\{c}")
+            }
+        })
         .collect()
 }
 
@@ -282,7 +363,9 @@ mod tests {
     use crate::backbone::Depth;
 
     fn tiny() -> PolicyConfig {
-        PolicyConfig::new(Depth::Resnet18, [4, 8, 8, 16]).with_input_height(64).with_input_width(96)
+        PolicyConfig::new(Depth::Resnet18, [4, 8, 8, 16])
+            .with_input_height(64)
+            .with_input_width(96)
     }
 
     fn logits(net: &PolicyNet, device: &Device) -> TensorData {
@@ -330,19 +413,36 @@ mod tests {
         // Weights of another shape: the JSON says wider than the file holds.
         let mut wider = tiny();
         wider.widths = [4, 8, 8, 24];
-        let m = Manifest { format: FORMAT.into(), config: wider, card: ModelCard::random_init(0) };
+        let m = Manifest {
+            format: FORMAT.into(),
+            config: wider,
+            card: ModelCard::random_init(0),
+        };
         std::fs::write(manifest_path(&path), serde_json::to_string(&m).unwrap()).unwrap();
         let e = load(&path, &device).unwrap_err().to_string();
         assert!(e.contains("p.safetensors") && e.contains("layer4"), "{e}");
 
         // Garbage weights.
-        std::fs::write(manifest_path(&path), serde_json::to_string(&Manifest { config: tiny(), ..m }).unwrap()).unwrap();
+        std::fs::write(
+            manifest_path(&path),
+            serde_json::to_string(&Manifest {
+                config: tiny(),
+                ..m
+            })
+            .unwrap(),
+        )
+        .unwrap();
         std::fs::write(&path, b"not safetensors").unwrap();
         let e = load(&path, &device).unwrap_err().to_string();
-        assert!(e.contains("p.safetensors") && e.contains("safetensors"), "{e}");
+        assert!(
+            e.contains("p.safetensors") && e.contains("safetensors"),
+            "{e}"
+        );
 
         // Missing weights.
-        let e = load(&dir.path().join("none.safetensors"), &device).unwrap_err().to_string();
+        let e = load(&dir.path().join("none.safetensors"), &device)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("none.json"), "{e}");
     }
 }

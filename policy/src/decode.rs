@@ -49,7 +49,7 @@ pub fn interpolate_speed(
     speed_mps: f32,
 ) -> [f32; NUM_ACTIONS] {
     let c = &SPEED_BIN_CENTRES_MPS;
-    let (b0, b1, w) = if !(speed_mps > c[0]) {
+    let (b0, b1, w) = if speed_mps.is_nan() || speed_mps <= c[0] {
         // Also catches NaN: a missing speed reads as standing still.
         (0, 0, 0.0)
     } else if speed_mps >= c[NUM_SPEED_BINS - 1] {
@@ -85,16 +85,33 @@ pub fn decode(logits: &[f32; NUM_ACTIONS], speed_mps: f32, command: Command) -> 
     }
     let (expected_steer, expected_throttle) = (steer, throttle);
     let control = if brake_prob > BRAKE_THRESHOLD {
-        Control { steer: 0.0, throttle: 0.0, brake: 1.0 }
+        Control {
+            steer: 0.0,
+            throttle: 0.0,
+            brake: 1.0,
+        }
     } else {
         let limit = match command {
             Command::Left | Command::Right => TURN_SPEED_LIMIT_MPS,
             _ => SPEED_LIMIT_MPS,
         };
-        let throttle = if speed_mps > limit { 0.0 } else { throttle.max(MIN_THROTTLE) };
-        Control { steer, throttle, brake: 0.0 }
+        let throttle = if speed_mps > limit {
+            0.0
+        } else {
+            throttle.max(MIN_THROTTLE)
+        };
+        Control {
+            steer,
+            throttle,
+            brake: 0.0,
+        }
     };
-    Decoded { control, brake_prob, expected_steer, expected_throttle }
+    Decoded {
+        control,
+        brake_prob,
+        expected_steer,
+        expected_throttle,
+    }
 }
 
 #[cfg(test)]
@@ -111,7 +128,14 @@ mod tests {
     #[test]
     fn a_confident_brake_brakes() {
         let d = decode(&one_hot(BRAKE, 20.0), 3.0, Command::LaneFollow);
-        assert_eq!(d.control, Control { steer: 0.0, throttle: 0.0, brake: 1.0 });
+        assert_eq!(
+            d.control,
+            Control {
+                steer: 0.0,
+                throttle: 0.0,
+                brake: 1.0
+            }
+        );
         assert!(d.brake_prob > 0.99);
     }
 
@@ -149,7 +173,10 @@ mod tests {
         assert_eq!(decode(&l, v, Command::Left).control.throttle, 0.0);
         assert_eq!(decode(&l, v, Command::Right).control.throttle, 0.0);
         assert!((decode(&l, v, Command::Straight).control.throttle - 1.0).abs() < 1e-5);
-        assert_eq!(decode(&l, 21.0 / 3.6, Command::LaneFollow).control.throttle, 0.0);
+        assert_eq!(
+            decode(&l, 21.0 / 3.6, Command::LaneFollow).control.throttle,
+            0.0
+        );
     }
 
     #[test]

@@ -29,13 +29,25 @@ impl PolicyDriver {
     /// A driver from a network (put into validation mode) and its card.
     pub fn new(net: PolicyNet, card: ModelCard, name: impl Into<String>, device: Device) -> Self {
         net.sync_running_stats();
-        PolicyDriver { net: net.valid(), device, name: name.into(), card, last: None, warned: false }
+        PolicyDriver {
+            net: net.valid(),
+            device,
+            name: name.into(),
+            card,
+            last: None,
+            warned: false,
+        }
     }
 
     /// Loads a checkpoint (NAME.safetensors + NAME.json); the driver is named after the file.
     pub fn from_checkpoint(weights: &Path, device: Device) -> Result<Self, CheckpointError> {
         let (net, card) = checkpoint::load(weights, &device)?;
-        Ok(Self::new(net, card, format!("policy:{}", weights.display()), device))
+        Ok(Self::new(
+            net,
+            card,
+            format!("policy:{}", weights.display()),
+            device,
+        ))
     }
 
     /// The checkpoint's card (trained or not, where it came from).
@@ -54,14 +66,26 @@ impl PolicyDriver {
     }
 
     /// The 28 logits for the observation's command at its speed, for an RGB8 image at scale `scale`.
-    pub fn logits(&self, image: &sim::driver::RgbImage, scale: f32, command: usize, speed_mps: f32) -> [f32; NUM_ACTIONS] {
+    pub fn logits(
+        &self,
+        image: &sim::driver::RgbImage,
+        scale: f32,
+        command: usize,
+        speed_mps: f32,
+    ) -> [f32; NUM_ACTIONS] {
         let cfg = &self.net.config;
-        let branch = cfg.branch_of(scale).unwrap_or_else(|| nearest_branch(&cfg.scales, scale));
+        let branch = cfg
+            .branch_of(scale)
+            .unwrap_or_else(|| nearest_branch(&cfg.scales, scale));
         let (h, w) = (image.height as usize, image.width as usize);
         let x = cfg.normalize_rgb8(&image.data, h, w);
         let x = Tensor::<4>::from_data(TensorData::new(x, [1, 3, h, w]), &self.device);
         let z = self.net.forward(x, branch, false).action_logits;
-        let z = z.narrow(1, command, 1).into_data().try_to_vec::<f32>().expect("f32 logits");
+        let z = z
+            .narrow(1, command, 1)
+            .into_data()
+            .try_to_vec::<f32>()
+            .expect("f32 logits");
         let bins: [[f32; NUM_ACTIONS]; NUM_SPEED_BINS] =
             std::array::from_fn(|b| std::array::from_fn(|j| z[b * NUM_ACTIONS + j]));
         interpolate_speed(&bins, speed_mps)
@@ -70,7 +94,11 @@ impl PolicyDriver {
 
 fn nearest_branch(scales: &[f32], scale: f32) -> usize {
     (0..scales.len())
-        .min_by(|&a, &b| (scales[a] - scale).abs().total_cmp(&(scales[b] - scale).abs()))
+        .min_by(|&a, &b| {
+            (scales[a] - scale)
+                .abs()
+                .total_cmp(&(scales[b] - scale).abs())
+        })
         .expect("a policy has at least one scale")
 }
 
@@ -80,7 +108,10 @@ impl Driver for PolicyDriver {
     }
 
     fn needs(&self) -> DriverNeeds {
-        DriverNeeds { camera: true, privileged: false }
+        DriverNeeds {
+            camera: true,
+            privileged: false,
+        }
     }
 
     fn act(&mut self, obs: &Observation<'_>) -> Control {
@@ -89,13 +120,26 @@ impl Driver for PolicyDriver {
                 tracing::warn!("{}: observation without an image; braking", self.name);
                 self.warned = true;
             }
-            return Control { steer: 0.0, throttle: 0.0, brake: 1.0 };
+            return Control {
+                steer: 0.0,
+                throttle: 0.0,
+                brake: 1.0,
+            };
         };
         let expected = self.net.config.input_size(obs.scale);
-        if !self.warned && ([image.height as usize, image.width as usize] != expected || self.net.config.branch_of(obs.scale).is_none()) {
+        if !self.warned
+            && ([image.height as usize, image.width as usize] != expected
+                || self.net.config.branch_of(obs.scale).is_none())
+        {
             tracing::warn!(
                 "{}: image {}x{} at scale {} but the policy expects {}x{} and scales {:?}; using the nearest branch",
-                self.name, image.width, image.height, obs.scale, expected[1], expected[0], self.net.config.scales
+                self.name,
+                image.width,
+                image.height,
+                obs.scale,
+                expected[1],
+                expected[0],
+                self.net.config.scales
             );
             self.warned = true;
         }
@@ -114,15 +158,23 @@ mod tests {
     use sim::driver::{Command, RgbImage};
 
     fn image(w: u32, h: u32, seed: u8) -> RgbImage {
-        let data = (0..w * h * 3).map(|i| (i as u8).wrapping_mul(31).wrapping_add(seed)).collect();
-        RgbImage { width: w, height: h, data }
+        let data = (0..w * h * 3)
+            .map(|i| (i as u8).wrapping_mul(31).wrapping_add(seed))
+            .collect();
+        RgbImage {
+            width: w,
+            height: h,
+            data,
+        }
     }
 
     #[test]
     fn drives_at_each_scale_deterministically() {
         let device = Device::flex();
         device.seed(9);
-        let cfg = PolicyConfig::new(Depth::Resnet18, [4, 8, 8, 16]).with_input_height(64).with_input_width(96);
+        let cfg = PolicyConfig::new(Depth::Resnet18, [4, 8, 8, 16])
+            .with_input_height(64)
+            .with_input_width(96);
         let net = cfg.init(&device);
         let mut a = PolicyDriver::new(net.clone(), ModelCard::random_init(9), "a", device.clone());
         let mut b = PolicyDriver::new(net, ModelCard::random_init(9), "b", device.clone());
@@ -130,7 +182,13 @@ mod tests {
         for scale in [0.75f32, 1.0] {
             let [h, w] = cfg.input_size(scale);
             let img = image(w as u32, h as u32, 3);
-            let obs = Observation { time_s: 0.0, speed_mps: 2.0, command: Command::LaneFollow, scale, image: Some(&img) };
+            let obs = Observation {
+                time_s: 0.0,
+                speed_mps: 2.0,
+                command: Command::LaneFollow,
+                scale,
+                image: Some(&img),
+            };
             let ca = a.act(&obs);
             assert_eq!(ca, b.act(&obs));
             assert_eq!(ca, a.act(&obs));
@@ -140,7 +198,8 @@ mod tests {
         // their BN statistics differ.
         let mut net = a.net().clone();
         let bn = &mut net.backbone.bn1.branches[0];
-        bn.running_mean = burn::module::RunningState::new(bn.running_mean.value_sync().add_scalar(0.5));
+        bn.running_mean =
+            burn::module::RunningState::new(bn.running_mean.value_sync().add_scalar(0.5));
         let c = PolicyDriver::new(net, ModelCard::random_init(9), "c", device);
         let img = image(96, 64, 1);
         assert_ne!(c.logits(&img, 0.75, 3, 2.0), c.logits(&img, 1.0, 3, 2.0));
@@ -150,9 +209,17 @@ mod tests {
     #[test]
     fn no_image_means_brake() {
         let device = Device::flex();
-        let cfg = PolicyConfig::new(Depth::Resnet18, [4, 8, 8, 16]).with_input_height(64).with_input_width(96);
+        let cfg = PolicyConfig::new(Depth::Resnet18, [4, 8, 8, 16])
+            .with_input_height(64)
+            .with_input_width(96);
         let mut d = PolicyDriver::new(cfg.init(&device), ModelCard::random_init(0), "d", device);
-        let obs = Observation { time_s: 0.0, speed_mps: 0.0, command: Command::Left, scale: 1.0, image: None };
+        let obs = Observation {
+            time_s: 0.0,
+            speed_mps: 0.0,
+            command: Command::Left,
+            scale: 1.0,
+            image: None,
+        };
         assert_eq!(d.act(&obs).brake, 1.0);
     }
 }

@@ -32,7 +32,11 @@ pub struct ActionHeadConfig {
 impl ActionHeadConfig {
     /// Raw outputs per (command, speed bin).
     pub fn raw_per_cell(&self) -> usize {
-        if self.factorised { NUM_STEERS + NUM_THROTTLES + 1 } else { NUM_ACTIONS }
+        if self.factorised {
+            NUM_STEERS + NUM_THROTTLES + 1
+        } else {
+            NUM_ACTIONS
+        }
     }
 
     /// Builds the head.
@@ -106,7 +110,12 @@ pub struct SegHeadConfig {
 impl SegHeadConfig {
     /// Builds the decoder: channels halve at each of the three upsamplings.
     pub fn init(&self, device: &Device) -> SegHead {
-        let c = [self.d_input, self.d_input / 2, self.d_input / 4, self.d_input / 8];
+        let c = [
+            self.d_input,
+            self.d_input / 2,
+            self.d_input / 4,
+            self.d_input / 8,
+        ];
         let up = |i: usize| {
             ConvTranspose2dConfig::new([c[i], c[i + 1]], [3, 3])
                 .with_stride([2, 2])
@@ -171,12 +180,22 @@ mod tests {
         let device = Device::flex();
         device.seed(3);
         let head = ActionHeadConfig::new(8).with_d_hidden(16).init(&device);
-        let f = Tensor::<2>::random([2, 8], burn::tensor::Distribution::Normal(0.0, 1.0), &device);
+        let f = Tensor::<2>::random(
+            [2, 8],
+            burn::tensor::Distribution::Normal(0.0, 1.0),
+            &device,
+        );
         let z = head.forward(f.clone());
         assert_eq!(z.dims(), [2, 6, 4, 28]);
         // Recompute the raw 13 outputs and check the expansion cell by cell.
         let h = relu(head.fc2.forward(relu(head.fc1.forward(f))));
-        let raw = head.fc3.forward(h).reshape([2, 6, 4, 13]).into_data().try_to_vec::<f32>().unwrap();
+        let raw = head
+            .fc3
+            .forward(h)
+            .reshape([2, 6, 4, 13])
+            .into_data()
+            .try_to_vec::<f32>()
+            .unwrap();
         let z = z.into_data().try_to_vec::<f32>().unwrap();
         for cell in 0..2 * 6 * 4 {
             let r = &raw[cell * 13..cell * 13 + 13];

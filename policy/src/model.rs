@@ -81,33 +81,74 @@ impl PolicyConfig {
 
     /// Checks the fields; every error names the field and the fix.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        let err = |field, problem: String, fix| Err(ConfigError::Field { field, problem, fix });
-        if self.widths.iter().any(|w| *w == 0) || self.widths[3] % 8 != 0 {
-            return err("widths", format!("{:?}", self.widths), "four positive widths, the last a multiple of 8 (e.g. [32, 64, 128, 256])");
+        let err = |field, problem: String, fix| {
+            Err(ConfigError::Field {
+                field,
+                problem,
+                fix,
+            })
+        };
+        if self.widths.contains(&0) || !self.widths[3].is_multiple_of(8) {
+            return err(
+                "widths",
+                format!("{:?}", self.widths),
+                "four positive widths, the last a multiple of 8 (e.g. [32, 64, 128, 256])",
+            );
         }
         if self.scales.is_empty() {
-            return err("scales", "empty".into(), "give at least one scale, e.g. [0.75, 1.0]");
+            return err(
+                "scales",
+                "empty".into(),
+                "give at least one scale, e.g. [0.75, 1.0]",
+            );
         }
         for (i, r) in self.scales.iter().enumerate() {
             if !(*r > 0.0 && *r <= 4.0) {
-                return err("scales", format!("scale {r} is not in (0, 4]"), "use fractions of S0 such as 0.5 or 1.0");
+                return err(
+                    "scales",
+                    format!("scale {r} is not in (0, 4]"),
+                    "use fractions of S0 such as 0.5 or 1.0",
+                );
             }
-            if self.scales[..i].iter().any(|q| (q - r).abs() < SCALE_TOLERANCE) {
-                return err("scales", format!("scale {r} appears twice"), "list each scale once");
+            if self.scales[..i]
+                .iter()
+                .any(|q| (q - r).abs() < SCALE_TOLERANCE)
+            {
+                return err(
+                    "scales",
+                    format!("scale {r} appears twice"),
+                    "list each scale once",
+                );
             }
             let [h, w] = self.input_size(*r);
             if h < 32 || w < 32 {
-                return err("scales", format!("scale {r} gives a {w} x {h} input"), "keep every scaled input at least 32 x 32 pixels");
+                return err(
+                    "scales",
+                    format!("scale {r} gives a {w} x {h} input"),
+                    "keep every scaled input at least 32 x 32 pixels",
+                );
             }
         }
         if self.input_height == 0 || self.input_width == 0 {
-            return err("input_height/input_width", "zero".into(), "give S0, e.g. 96 x 240");
+            return err(
+                "input_height/input_width",
+                "zero".into(),
+                "give S0, e.g. 96 x 240",
+            );
         }
         if self.num_commands == 0 || self.num_speed_bins == 0 || self.num_seg_classes == 0 {
-            return err("num_commands/num_speed_bins/num_seg_classes", "zero".into(), "use 6 / 4 / 6 as WoR");
+            return err(
+                "num_commands/num_speed_bins/num_seg_classes",
+                "zero".into(),
+                "use 6 / 4 / 6 as WoR",
+            );
         }
-        if self.std.iter().any(|s| !(*s > 0.0)) {
-            return err("std", format!("{:?}", self.std), "positive values, e.g. ImageNet's [0.229, 0.224, 0.225]");
+        if self.std.iter().any(|s| s.is_nan() || *s <= 0.0) {
+            return err(
+                "std",
+                format!("{:?}", self.std),
+                "positive values, e.g. ImageNet's [0.229, 0.224, 0.225]",
+            );
         }
         Ok(())
     }
@@ -116,12 +157,17 @@ impl PolicyConfig {
     ///
     /// A 1e-4 pixel allowance absorbs f32 rounding (0.7 * 100 gives 70, as in decimal).
     pub fn input_size(&self, r: f32) -> [usize; 2] {
-        [scaled_len(self.input_height, r), scaled_len(self.input_width, r)]
+        [
+            scaled_len(self.input_height, r),
+            scaled_len(self.input_width, r),
+        ]
     }
 
     /// The BN branch for scale `r`, if `r` is in R.
     pub fn branch_of(&self, r: f32) -> Option<usize> {
-        self.scales.iter().position(|q| (q - r).abs() < SCALE_TOLERANCE)
+        self.scales
+            .iter()
+            .position(|q| (q - r).abs() < SCALE_TOLERANCE)
     }
 
     /// The backbone part of the config.
@@ -195,7 +241,11 @@ impl PolicyNet {
         let [b, c, _, _] = fmap.dims();
         let features = fmap.clone().mean_dims(&[2, 3]).reshape([b, c]);
         let seg_logits = with_seg.then(|| self.seg_head.forward(fmap, branch));
-        PolicyOutput { action_logits: self.action_head.forward(features.clone()), features, seg_logits }
+        PolicyOutput {
+            action_logits: self.action_head.forward(features.clone()),
+            features,
+            seg_logits,
+        }
     }
 
     /// Every BN bank (backbone then decoder).
@@ -218,7 +268,10 @@ impl PolicyNet {
         if self.config.scales.len() != 1 {
             return Err(ConfigError::Field {
                 field: "scales",
-                problem: format!("the source network has {} branches", self.config.scales.len()),
+                problem: format!(
+                    "the source network has {} branches",
+                    self.config.scales.len()
+                ),
                 fix: "start from a single-resolution (one-scale) checkpoint",
             });
         }
@@ -257,7 +310,11 @@ impl ParamCounts {
         }
         // burn's `num_params` counts running statistics too; they equal the BN learnables.
         let bn_buffers = bn_learnable;
-        ParamCounts { learnable: net.num_params() - bn_buffers, bn_learnable, bn_buffers }
+        ParamCounts {
+            learnable: net.num_params() - bn_buffers,
+            bn_learnable,
+            bn_buffers,
+        }
     }
 }
 
@@ -317,7 +374,13 @@ mod tests {
         for bank in single.banks_mut() {
             let bn = &mut bank.branches[0];
             let c = bn.gamma.dims()[0];
-            let r = |m: f64| Tensor::<1>::random([c], burn::tensor::Distribution::Uniform(m, m + 1.0), &device);
+            let r = |m: f64| {
+                Tensor::<1>::random(
+                    [c],
+                    burn::tensor::Distribution::Uniform(m, m + 1.0),
+                    &device,
+                )
+            };
             bn.gamma = burn::module::Param::from_tensor(r(0.5));
             bn.beta = burn::module::Param::from_tensor(r(-0.5));
             bn.running_mean = burn::module::RunningState::new(r(-0.5));
@@ -325,11 +388,18 @@ mod tests {
         }
         let single = single.valid();
         let multi = single.to_multires(vec![0.75, 1.0]).unwrap().valid();
-        let x = Tensor::<4>::random([2, 3, 64, 96], burn::tensor::Distribution::Normal(0.0, 1.0), &device);
+        let x = Tensor::<4>::random(
+            [2, 3, 64, 96],
+            burn::tensor::Distribution::Normal(0.0, 1.0),
+            &device,
+        );
         let a = single.forward(x.clone(), 0, true);
         let b = multi.forward(x, 1, true);
         assert_eq!(a.action_logits.into_data(), b.action_logits.into_data());
-        assert_eq!(a.seg_logits.unwrap().into_data(), b.seg_logits.unwrap().into_data());
+        assert_eq!(
+            a.seg_logits.unwrap().into_data(),
+            b.seg_logits.unwrap().into_data()
+        );
         assert_eq!(multi.banks_count(), single.banks_count());
     }
 

@@ -49,7 +49,9 @@ pub struct LatencyTable {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum LatencyTableError {
     /// A scale or latency is not usable.
-    #[error("latency table entry {index} (scale {scale}, latency {latency_ms} ms): {problem}; fix: give positive scales, each once, with finite latencies >= 0 ms")]
+    #[error(
+        "latency table entry {index} (scale {scale}, latency {latency_ms} ms): {problem}; fix: give positive scales, each once, with finite latencies >= 0 ms"
+    )]
     Entry {
         /// Position in the list given.
         index: usize,
@@ -82,7 +84,12 @@ impl LatencyTable {
                 None
             };
             if let Some(problem) = problem {
-                return Err(LatencyTableError::Entry { index, scale, latency_ms, problem });
+                return Err(LatencyTableError::Entry {
+                    index,
+                    scale,
+                    latency_ms,
+                    problem,
+                });
             }
         }
         let mut entries = pairs.to_vec();
@@ -92,7 +99,10 @@ impl LatencyTable {
 
     /// The latency of `scale` (milliseconds), if the table has it.
     pub fn latency_ms(&self, scale: f32) -> Option<f64> {
-        self.entries.iter().find(|(s, _)| (s - scale).abs() < 1e-4).map(|e| e.1)
+        self.entries
+            .iter()
+            .find(|(s, _)| (s - scale).abs() < 1e-4)
+            .map(|e| e.1)
     }
 
     /// The scales, ascending.
@@ -151,7 +161,13 @@ pub struct Oracle {
 
 impl Default for Oracle {
     fn default() -> Self {
-        Oracle { low: 0.75, high: 1.0, enter_m: 5.0, exit_m: 15.0, active: false }
+        Oracle {
+            low: 0.75,
+            high: 1.0,
+            enter_m: 5.0,
+            exit_m: 15.0,
+            active: false,
+        }
     }
 }
 
@@ -273,7 +289,11 @@ mod tests {
     }
 
     fn switches(trace: &[(f32, f32)]) -> Vec<(f32, f32)> {
-        trace.windows(2).filter(|w| w[0].1 != w[1].1).map(|w| (w[1].0, w[1].1)).collect()
+        trace
+            .windows(2)
+            .filter(|w| w[0].1 != w[1].1)
+            .map(|w| (w[1].0, w[1].1))
+            .collect()
     }
 
     #[test]
@@ -287,7 +307,10 @@ mod tests {
     #[test]
     fn oracle_without_distance_behind_drops_when_the_light_is_passed() {
         let mut o = Oracle::default();
-        let at = |ahead| SelectorInput { light_ahead_m: ahead, ..Default::default() };
+        let at = |ahead| SelectorInput {
+            light_ahead_m: ahead,
+            ..Default::default()
+        };
         assert_eq!(o.select(&at(Some(6.0))), 0.75);
         assert_eq!(o.select(&at(Some(4.0))), 1.0);
         assert_eq!(o.select(&at(Some(0.5))), 1.0);
@@ -314,7 +337,10 @@ mod tests {
     fn budget_picks_the_highest_scale_that_fits() {
         let table = LatencyTable::new(&[(1.0, 100.0), (0.5, 30.0), (0.75, 50.0)]).unwrap();
         assert_eq!(table.scales(), vec![0.5, 0.75, 1.0]);
-        let mut b = LatencyBudget { table: table.clone(), budget_ms: 60.0 };
+        let mut b = LatencyBudget {
+            table: table.clone(),
+            budget_ms: 60.0,
+        };
         assert_eq!(b.select(&SelectorInput::default()), 0.75);
         b.budget_ms = 100.0;
         assert_eq!(b.select(&SelectorInput::default()), 1.0);
@@ -327,7 +353,9 @@ mod tests {
     #[test]
     fn bad_latency_tables_are_refused() {
         assert_eq!(LatencyTable::new(&[]), Err(LatencyTableError::Empty));
-        let e = LatencyTable::new(&[(1.0, 10.0), (1.0, 20.0)]).unwrap_err().to_string();
+        let e = LatencyTable::new(&[(1.0, 10.0), (1.0, 20.0)])
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("entry 1") && e.contains("twice"), "{e}");
         assert!(LatencyTable::new(&[(0.75, f64::NAN)]).is_err());
     }

@@ -29,8 +29,13 @@ impl Preset {
         let c = match self {
             Preset::Cpu => PolicyConfig::cpu_default(),
             Preset::Paper => PolicyConfig::paper(),
-            Preset::Resnet18 => PolicyConfig { depth: Depth::Resnet18, ..PolicyConfig::paper() },
-            Preset::Tiny => PolicyConfig::new(Depth::Resnet18, [8, 16, 16, 32]).with_input_height(48).with_input_width(96),
+            Preset::Resnet18 => PolicyConfig {
+                depth: Depth::Resnet18,
+                ..PolicyConfig::paper()
+            },
+            Preset::Tiny => PolicyConfig::new(Depth::Resnet18, [8, 16, 16, 32])
+                .with_input_height(48)
+                .with_input_width(96),
         };
         c.with_scales(scales.to_vec())
     }
@@ -51,7 +56,9 @@ pub enum DeviceKind {
 pub fn device(kind: DeviceKind) -> Result<policy::burn::tensor::Device> {
     match kind {
         DeviceKind::Cpu => Ok(policy::burn::tensor::Device::flex()),
-        other => bail!("--device {other:?}: this build has only burn's CPU backend (flex); rebuild with burn's `cuda`/`wgpu` feature to use a GPU"),
+        other => bail!(
+            "--device {other:?}: this build has only burn's CPU backend (flex); rebuild with burn's `cuda`/`wgpu` feature to use a GPU"
+        ),
     }
 }
 
@@ -110,34 +117,69 @@ enum PolicyCommand {
 pub fn run_policy(args: PolicyArgs) -> Result<()> {
     match args.command {
         PolicyCommand::Overhead => {
-            println!("BN-bank parameter overhead (learnable gamma/beta of the extra branches; whole network: backbone + action head + decoder)");
-            println!("{:<34} {:>6} {:>12} {:>12} {:>10} {:>9} {:>14}", "network", "scales", "single", "banked", "extra", "extra %", "extra buffers");
+            println!(
+                "BN-bank parameter overhead (learnable gamma/beta of the extra branches; whole network: backbone + action head + decoder)"
+            );
+            println!(
+                "{:<34} {:>6} {:>12} {:>12} {:>10} {:>9} {:>14}",
+                "network", "scales", "single", "banked", "extra", "extra %", "extra buffers"
+            );
             let rows = [
-                ("resnet34 (paper, 64-512)", Preset::Paper.config(&[0.75, 1.0])),
-                ("resnet34 (paper), 5 scales", Preset::Paper.config(&[0.5, 0.625, 0.75, 0.875, 1.0])),
+                (
+                    "resnet34 (paper, 64-512)",
+                    Preset::Paper.config(&[0.75, 1.0]),
+                ),
+                (
+                    "resnet34 (paper), 5 scales",
+                    Preset::Paper.config(&[0.5, 0.625, 0.75, 0.875, 1.0]),
+                ),
                 ("resnet18 (64-512)", Preset::Resnet18.config(&[0.75, 1.0])),
-                ("default: resnet18 half (32-256)", Preset::Cpu.config(&[0.75, 1.0])),
+                (
+                    "default: resnet18 half (32-256)",
+                    Preset::Cpu.config(&[0.75, 1.0]),
+                ),
             ];
             for (name, cfg) in rows {
                 let o = bench::overhead(name, &cfg);
                 println!(
                     "{:<34} {:>6} {:>12} {:>12} {:>10} {:>8.3}% {:>14}",
-                    o.name, o.scales, o.single, o.multi, o.multi - o.single, o.percent(), o.extra_buffers
+                    o.name,
+                    o.scales,
+                    o.single,
+                    o.multi,
+                    o.multi - o.single,
+                    o.percent(),
+                    o.extra_buffers
                 );
             }
             Ok(())
         }
-        PolicyCommand::Init { out, preset, scales, seed } => {
+        PolicyCommand::Init {
+            out,
+            preset,
+            scales,
+            seed,
+        } => {
             let cfg = preset.config(&scales);
             cfg.validate()?;
             let dev = device(DeviceKind::Cpu)?;
             dev.seed(seed);
             let net = cfg.init(&dev);
             checkpoint::save(&net, &ModelCard::random_init(seed), &out)?;
-            println!("wrote {} and {} (random init, seed {seed})", out.display(), checkpoint::manifest_path(&out).display());
+            println!(
+                "wrote {} and {} (random init, seed {seed})",
+                out.display(),
+                checkpoint::manifest_path(&out).display()
+            );
             Ok(())
         }
-        PolicyCommand::ImportTorchvision { weights, out, prefix, preset, scales } => {
+        PolicyCommand::ImportTorchvision {
+            weights,
+            out,
+            prefix,
+            preset,
+            scales,
+        } => {
             let cfg = preset.config(&scales);
             let dev = device(DeviceKind::Cpu)?;
             dev.seed(0);
@@ -153,7 +195,10 @@ pub fn run_policy(args: PolicyArgs) -> Result<()> {
         }
         PolicyCommand::Info { weights } => {
             let (cfg, card) = checkpoint::read_manifest(&weights)?;
-            println!("{}", serde_json::to_string_pretty(&serde_json::json!({"config": cfg, "card": card}))?);
+            println!(
+                "{}",
+                serde_json::to_string_pretty(&serde_json::json!({"config": cfg, "card": card}))?
+            );
             Ok(())
         }
     }
@@ -188,28 +233,55 @@ pub struct TrainArgs {
 /// Runs `mrdrive train`.
 pub fn run_train(args: TrainArgs) -> Result<()> {
     if !args.synthetic {
-        bail!("only `mrdrive train --synthetic` exists so far: the datasets and the training pipeline come with the data issue");
+        bail!(
+            "only `mrdrive train --synthetic` exists so far: the datasets and the training pipeline come with the data issue"
+        );
     }
     let cfg = args.preset.config(&args.scales);
     cfg.validate()?;
     let dev = policy::burn::tensor::Device::flex().autodiff();
     dev.seed(args.seed);
     let batch = toy_batch(&cfg, args.batch, args.seed, &dev);
-    let tc = TrainConfig::new().with_lr(args.lr).with_freeze_action_head(false);
+    let tc = TrainConfig::new()
+        .with_lr(args.lr)
+        .with_freeze_action_head(false);
     let mut trainer = MultiResTrainer::new(cfg.init(&dev), None, tc, &dev);
-    println!("synthetic multi-resolution training: {} scales {:?}, batch {}, {} steps (one fixed toy batch)", cfg.depth.name(), cfg.scales, args.batch, args.steps);
+    println!(
+        "synthetic multi-resolution training: {} scales {:?}, batch {}, {} steps (one fixed toy batch)",
+        cfg.depth.name(),
+        cfg.scales,
+        args.batch,
+        args.steps
+    );
     let mut first = None;
     let mut last = 0.0;
     for _ in 0..args.steps {
         let r = trainer.step(&batch);
-        let per: Vec<String> = r.per_scale.iter().zip(&cfg.scales).map(|(l, s)| format!("{s}x {l:.4}")).collect();
-        println!("step {:>4}  loss {:.4}  ({})", r.step, r.loss, per.join(", "));
+        let per: Vec<String> = r
+            .per_scale
+            .iter()
+            .zip(&cfg.scales)
+            .map(|(l, s)| format!("{s}x {l:.4}"))
+            .collect();
+        println!(
+            "step {:>4}  loss {:.4}  ({})",
+            r.step,
+            r.loss,
+            per.join(", ")
+        );
         first.get_or_insert(r.loss);
         last = r.loss;
     }
     let first = first.context("--steps must be at least 1")?;
-    println!("loss {first:.4} -> {last:.4} ({})", if last < first { "falling" } else { "NOT falling" });
-    if !(last < first) {
+    println!(
+        "loss {first:.4} -> {last:.4} ({})",
+        if last < first {
+            "falling"
+        } else {
+            "NOT falling"
+        }
+    );
+    if last.is_nan() || last >= first {
         bail!("the loss did not fall on the toy batch");
     }
     Ok(())
@@ -243,19 +315,58 @@ enum BenchCommand {
 
 /// Runs `mrdrive bench ...`.
 pub fn run_bench(args: BenchArgs) -> Result<()> {
-    let BenchCommand::Policy { repeats, train_steps, batch, quick } = args.command;
+    let BenchCommand::Policy {
+        repeats,
+        train_steps,
+        batch,
+        quick,
+    } = args.command;
     let threads = policy::cpu_threads();
-    println!("policy benchmark: burn flex CPU backend, {threads} rayon threads (RAYON_NUM_THREADS), batch 1 inference, median of {repeats}");
-    let mut nets = vec![("default: resnet18 half 32-256", Preset::Cpu.config(&[0.75, 1.0]))];
+    let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
+    println!(
+        "policy benchmark: burn flex CPU backend, {threads} rayon threads (RAYON_NUM_THREADS), batch 1 inference, median of {repeats} (scales interleaved)"
+    );
+    println!("load average before: {}", load.trim());
+    let mut nets = vec![(
+        "default: resnet18 half 32-256",
+        Preset::Cpu.config(&[0.75, 1.0]),
+    )];
     if !quick {
-        nets.push(("resnet18 64-512 @ 240x96", Preset::Resnet18.config(&[0.75, 1.0]).with_input_height(96).with_input_width(240)));
-        nets.push(("resnet18 64-512 @ 480x192", Preset::Resnet18.config(&[0.75, 1.0])));
-        nets.push(("resnet34 64-512 @ 240x96", Preset::Paper.config(&[0.75, 1.0]).with_input_height(96).with_input_width(240)));
-        nets.push(("resnet34 64-512 @ 480x192 (paper)", Preset::Paper.config(&[0.75, 1.0])));
-        nets.push(("resnet18 half 32-256 @ 480x192", Preset::Cpu.config(&[0.75, 1.0]).with_input_height(192).with_input_width(480)));
+        nets.push((
+            "resnet18 64-512 @ 240x96",
+            Preset::Resnet18
+                .config(&[0.75, 1.0])
+                .with_input_height(96)
+                .with_input_width(240),
+        ));
+        nets.push((
+            "resnet18 64-512 @ 480x192",
+            Preset::Resnet18.config(&[0.75, 1.0]),
+        ));
+        nets.push((
+            "resnet34 64-512 @ 240x96",
+            Preset::Paper
+                .config(&[0.75, 1.0])
+                .with_input_height(96)
+                .with_input_width(240),
+        ));
+        nets.push((
+            "resnet34 64-512 @ 480x192 (paper)",
+            Preset::Paper.config(&[0.75, 1.0]),
+        ));
+        nets.push((
+            "resnet18 half 32-256 @ 480x192",
+            Preset::Cpu
+                .config(&[0.75, 1.0])
+                .with_input_height(192)
+                .with_input_width(480),
+        ));
     }
     let dev = device(DeviceKind::Cpu)?;
-    println!("{:<36} {:>6} {:>10} {:>10} {:>9} {:>9} {:>12}", "network", "scale", "input WxH", "median ms", "min ms", "max ms", "t(.75)/t(1)");
+    println!(
+        "{:<36} {:>6} {:>10} {:>10} {:>9} {:>9} {:>12}",
+        "network", "scale", "input WxH", "median ms", "min ms", "max ms", "t(.75)/t(1)"
+    );
     for (name, cfg) in &nets {
         let rows = bench::inference_latency(cfg, &dev, 3, repeats);
         let t = |s: f32| rows.iter().find(|r| r.0 == s).map(|r| r.2.median_ms);
@@ -266,18 +377,33 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
         for (i, (r, [h, w], l)) in rows.iter().enumerate() {
             println!(
                 "{:<36} {:>6} {:>10} {:>10.2} {:>9.2} {:>9.2} {:>12}",
-                if i == 0 { *name } else { "" }, r, format!("{w}x{h}"), l.median_ms, l.min_ms, l.max_ms,
-                if i + 1 == rows.len() { ratio.as_str() } else { "" }
+                if i == 0 { *name } else { "" },
+                r,
+                format!("{w}x{h}"),
+                l.median_ms,
+                l.min_ms,
+                l.max_ms,
+                if i + 1 == rows.len() {
+                    ratio.as_str()
+                } else {
+                    ""
+                }
             );
         }
     }
     println!("(ideal t(0.75)/t(1.0) = 0.5625, the area ratio)");
+    println!(
+        "load average after inference: {}",
+        std::fs::read_to_string("/proc/loadavg")
+            .unwrap_or_default()
+            .trim()
+    );
     if train_steps > 0 {
         let cfg = Preset::Cpu.config(&[0.75, 1.0]);
         let ad = dev.clone().autodiff();
         let sps = bench::train_throughput(&cfg, &ad, batch, 1, train_steps);
         println!(
-            "training, multi-resolution step (0.75x + 1.0x, segmentation on, Adam), default model, batch {batch}: {sps:.1} samples/s (each sample at both scales), median-free mean over {train_steps} steps"
+            "training, multi-resolution step (0.75x + 1.0x, segmentation on, Adam), default model, batch {batch}: {sps:.1} samples/s (each sample at both scales; {train_steps} steps after 1 warm-up)"
         );
     }
     Ok(())

@@ -61,9 +61,21 @@ mod tests {
     #[test]
     fn action_kl_is_zero_at_the_target_and_matches_a_hand_computation() {
         let device = Device::flex();
-        let q = Tensor::<4>::random([2, 6, 4, 28], burn::tensor::Distribution::Normal(0.0, 0.02), &device);
+        let q = Tensor::<4>::random(
+            [2, 6, 4, 28],
+            burn::tensor::Distribution::Normal(0.0, 0.02),
+            &device,
+        );
         // z = Q / T gives exactly the target distribution.
-        assert!(scalar(action_kl(q.clone().div_scalar(TEMPERATURE), q.clone(), TEMPERATURE)).abs() < 1e-5);
+        assert!(
+            scalar(action_kl(
+                q.clone().div_scalar(TEMPERATURE),
+                q.clone(),
+                TEMPERATURE
+            ))
+            .abs()
+                < 1e-5
+        );
         // One cell by hand: target one-hot-ish (Q/T = [0, ln 3]) over 2 of 28 actions...
         let mut qv = vec![-1e3f32; 28];
         qv[0] = 0.0;
@@ -79,10 +91,17 @@ mod tests {
     #[test]
     fn kd_and_feature_losses() {
         let device = Device::flex();
-        let z = Tensor::<4>::random([1, 6, 4, 28], burn::tensor::Distribution::Normal(0.0, 1.0), &device);
+        let z = Tensor::<4>::random(
+            [1, 6, 4, 28],
+            burn::tensor::Distribution::Normal(0.0, 1.0),
+            &device,
+        );
         assert!(scalar(kd_kl(z.clone(), z.clone())).abs() < 1e-5);
         assert!(scalar(kd_kl(z.clone(), z.mul_scalar(2.0))) > 1e-3);
-        let f = Tensor::<2>::from_data(TensorData::new(vec![1.0f32, 2.0, 3.0, 4.0], [1, 4]), &device);
+        let f = Tensor::<2>::from_data(
+            TensorData::new(vec![1.0f32, 2.0, 3.0, 4.0], [1, 4]),
+            &device,
+        );
         let g = Tensor::<2>::zeros([1, 4], &device);
         assert!((scalar(feature_mse(f, g)) - 30.0 / 4.0).abs() < 1e-5);
     }
@@ -91,7 +110,10 @@ mod tests {
     fn seg_ce_upsamples_and_picks_the_label() {
         let device = Device::flex();
         // 2 classes, 1x1 logits favouring class 1 by ln 3: p(1) = 3/4 everywhere.
-        let logits = Tensor::<4>::from_data(TensorData::new(vec![0.0f32, 3f32.ln()], [1, 2, 1, 1]), &device);
+        let logits = Tensor::<4>::from_data(
+            TensorData::new(vec![0.0f32, 3f32.ln()], [1, 2, 1, 1]),
+            &device,
+        );
         let ones = Tensor::<3, Int>::ones([1, 4, 4], &device);
         assert!((scalar(seg_ce(logits.clone(), ones)) + 0.75f32.ln()).abs() < 1e-5);
         let zeros = Tensor::<3, Int>::zeros([1, 4, 4], &device);

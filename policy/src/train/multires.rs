@@ -86,7 +86,12 @@ pub struct MultiResTrainer {
 impl MultiResTrainer {
     /// A trainer for `net` (moved to `device`, an autodiff device), with an optional teacher
     /// whose scale-1.0 branch is used.
-    pub fn new(net: PolicyNet, teacher: Option<PolicyNet>, config: TrainConfig, device: &Device) -> Self {
+    pub fn new(
+        net: PolicyNet,
+        teacher: Option<PolicyNet>,
+        config: TrainConfig,
+        device: &Device,
+    ) -> Self {
         let mut net = net.fork(device).train();
         if config.freeze_action_head {
             net.action_head = net.action_head.freeze();
@@ -163,11 +168,18 @@ impl MultiResTrainer {
                 None => loss,
             });
         }
-        let total = total.expect("at least one branch").div_scalar(branches.len() as f32);
+        let total = total
+            .expect("at least one branch")
+            .div_scalar(branches.len() as f32);
         let loss = total.clone().into_scalar::<f32>();
         let grads = GradientsParams::from_grads(total.backward(), &self.net);
         self.net = self.optim.step(self.config.lr, self.net.clone(), grads);
-        let report = StepReport { step: self.step, per_scale, loss, unfrozen_stages: self.unfrozen };
+        let report = StepReport {
+            step: self.step,
+            per_scale,
+            loss,
+            unfrozen_stages: self.unfrozen,
+        };
         self.step += 1;
         report
     }
@@ -184,7 +196,10 @@ mod tests {
     use crate::train::synthetic::toy_batch;
 
     fn tiny() -> PolicyConfig {
-        PolicyConfig::new(Depth::Resnet18, [4, 8, 8, 16]).with_input_height(48).with_input_width(64).with_scales(vec![0.75, 1.0])
+        PolicyConfig::new(Depth::Resnet18, [4, 8, 8, 16])
+            .with_input_height(48)
+            .with_input_width(64)
+            .with_scales(vec![0.75, 1.0])
     }
 
     fn vals<const D: usize>(t: Tensor<D>) -> Vec<f32> {
@@ -204,13 +219,26 @@ mod tests {
         tr.step_branches(&batch, &[1]);
         let bn = |n: &PolicyNet, b: usize| {
             let bn = &n.backbone.layer2[0].bn1.branches[b];
-            (vals(bn.running_mean.value_sync()), vals(bn.running_var.value_sync()), vals(bn.gamma.val()), vals(bn.beta.val()))
+            (
+                vals(bn.running_mean.value_sync()),
+                vals(bn.running_var.value_sync()),
+                vals(bn.gamma.val()),
+                vals(bn.beta.val()),
+            )
         };
-        assert_eq!(bn(&tr.net, 0), bn(&before, 0), "branch 0 (0.75x) must not move");
+        assert_eq!(
+            bn(&tr.net, 0),
+            bn(&before, 0),
+            "branch 0 (0.75x) must not move"
+        );
         let (m1, v1, g1, b1) = bn(&tr.net, 1);
         let (m0, v0, g0, b0) = bn(&before, 1);
-        assert!(m1 != m0 && v1 != v0 && g1 != g0 && b1 != b0, "branch 1 (1.0x) must move");
-        let seg = |n: &PolicyNet, b: usize| vals(n.seg_head.bn2.branches[b].running_mean.value_sync());
+        assert!(
+            m1 != m0 && v1 != v0 && g1 != g0 && b1 != b0,
+            "branch 1 (1.0x) must move"
+        );
+        let seg =
+            |n: &PolicyNet, b: usize| vals(n.seg_head.bn2.branches[b].running_mean.value_sync());
         assert_eq!(seg(&tr.net, 0), seg(&before, 0));
         assert_ne!(seg(&tr.net, 1), seg(&before, 1));
     }
@@ -224,9 +252,18 @@ mod tests {
         let student = cfg.init(&device);
         let batch = toy_batch(&cfg, 4, 2, &device);
         let head_before = vals(student.action_head.fc1.weight.val());
-        let t_before = (vals(teacher.backbone.conv1.weight.val()), vals(teacher.backbone.bn1.branches[0].running_mean.value_sync()), vals(teacher.action_head.fc3.weight.val()));
+        let t_before = (
+            vals(teacher.backbone.conv1.weight.val()),
+            vals(teacher.backbone.bn1.branches[0].running_mean.value_sync()),
+            vals(teacher.action_head.fc3.weight.val()),
+        );
         let conv_before = vals(student.backbone.layer1[0].conv1.weight.val());
-        let mut tr = MultiResTrainer::new(student, Some(teacher), TrainConfig::new().with_lr(1e-2), &device);
+        let mut tr = MultiResTrainer::new(
+            student,
+            Some(teacher),
+            TrainConfig::new().with_lr(1e-2),
+            &device,
+        );
         for _ in 0..3 {
             let r = tr.step(&batch);
             assert!(r.loss.is_finite() && r.per_scale.len() == 2);
@@ -234,10 +271,16 @@ mod tests {
         assert_eq!(vals(tr.net.action_head.fc1.weight.val()), head_before);
         let (t, _) = tr.teacher.as_ref().unwrap();
         assert_eq!(vals(t.backbone.conv1.weight.val()), t_before.0);
-        assert_eq!(vals(t.backbone.bn1.branches[0].running_mean.value_sync()), t_before.1);
+        assert_eq!(
+            vals(t.backbone.bn1.branches[0].running_mean.value_sync()),
+            t_before.1
+        );
         assert_eq!(vals(t.action_head.fc3.weight.val()), t_before.2);
         // The student's backbone did train.
-        assert_ne!(vals(tr.net.backbone.layer1[0].conv1.weight.val()), conv_before);
+        assert_ne!(
+            vals(tr.net.backbone.layer1[0].conv1.weight.val()),
+            conv_before
+        );
     }
 
     #[test]
@@ -247,14 +290,23 @@ mod tests {
         let cfg = tiny();
         let net = cfg.init(&device);
         let batch = toy_batch(&cfg, 2, 3, &device);
-        let w = |n: &PolicyNet| [
-            vals(n.backbone.layer1[0].conv1.weight.val()),
-            vals(n.backbone.layer2[0].conv1.weight.val()),
-            vals(n.backbone.layer3[0].conv1.weight.val()),
-            vals(n.backbone.layer4[0].conv1.weight.val()),
-            vals(n.backbone.conv1.weight.val()),
-        ];
-        let mut tr = MultiResTrainer::new(net, None, TrainConfig::new().with_lr(1e-2).with_unfreeze_every(Some(2)), &device);
+        let w = |n: &PolicyNet| {
+            [
+                vals(n.backbone.layer1[0].conv1.weight.val()),
+                vals(n.backbone.layer2[0].conv1.weight.val()),
+                vals(n.backbone.layer3[0].conv1.weight.val()),
+                vals(n.backbone.layer4[0].conv1.weight.val()),
+                vals(n.backbone.conv1.weight.val()),
+            ]
+        };
+        let mut tr = MultiResTrainer::new(
+            net,
+            None,
+            TrainConfig::new()
+                .with_lr(1e-2)
+                .with_unfreeze_every(Some(2)),
+            &device,
+        );
         let mut prev = w(&tr.net);
         let mut changed_at = vec![];
         for s in 0..8 {
@@ -280,7 +332,9 @@ mod tests {
         let mut tr = MultiResTrainer::new(
             cfg.init(&device),
             None,
-            TrainConfig::new().with_lr(3e-3).with_freeze_action_head(false),
+            TrainConfig::new()
+                .with_lr(3e-3)
+                .with_freeze_action_head(false),
             &device,
         );
         let first = tr.step(&batch).loss;

@@ -15,7 +15,11 @@ use burn::prelude::*;
 pub fn recalibrate(net: PolicyNet, batches: &[Batch], device: &Device) -> PolicyNet {
     // Statistics only: no parameter needs a gradient.
     let mut net = net.fork(device).train().no_grad();
-    let momentum: Vec<f64> = net.banks_mut().iter().map(|b| b.branches[0].momentum).collect();
+    let momentum: Vec<f64> = net
+        .banks_mut()
+        .iter()
+        .map(|b| b.branches[0].momentum)
+        .collect();
     for branch in 0..net.config.scales.len() {
         let r = net.config.scales[branch];
         for bank in net.banks_mut() {
@@ -46,7 +50,9 @@ mod tests {
     fn recalibration_gives_the_mean_of_the_batch_statistics() {
         let device = Device::flex().autodiff();
         device.seed(31);
-        let cfg = PolicyConfig::new(Depth::Resnet18, [4, 8, 8, 16]).with_input_height(48).with_input_width(64);
+        let cfg = PolicyConfig::new(Depth::Resnet18, [4, 8, 8, 16])
+            .with_input_height(48)
+            .with_input_width(64);
         let net = cfg.init(&device);
         let batches: Vec<Batch> = (0..3).map(|s| toy_batch(&cfg, 2, s, &device)).collect();
         let net = recalibrate(net, &batches, &device);
@@ -55,15 +61,30 @@ mod tests {
         for (branch, r) in cfg.scales.iter().enumerate() {
             let mut expected = vec![0.0f32; 4];
             for b in &batches {
-                let y = net.backbone.conv1.forward(resize_to_scale(b.images.clone(), *r));
-                let m = y.mean_dims(&[0, 2, 3]).into_data().try_to_vec::<f32>().unwrap();
+                let y = net
+                    .backbone
+                    .conv1
+                    .forward(resize_to_scale(b.images.clone(), *r));
+                let m = y
+                    .mean_dims(&[0, 2, 3])
+                    .into_data()
+                    .try_to_vec::<f32>()
+                    .unwrap();
                 for c in 0..4 {
                     expected[c] += m[c] / batches.len() as f32;
                 }
             }
-            let got = net.backbone.bn1.branches[branch].running_mean.value_sync().into_data().try_to_vec::<f32>().unwrap();
+            let got = net.backbone.bn1.branches[branch]
+                .running_mean
+                .value_sync()
+                .into_data()
+                .try_to_vec::<f32>()
+                .unwrap();
             for c in 0..4 {
-                assert!((got[c] - expected[c]).abs() < 1e-4, "branch {branch}: {got:?} vs {expected:?}");
+                assert!(
+                    (got[c] - expected[c]).abs() < 1e-4,
+                    "branch {branch}: {got:?} vs {expected:?}"
+                );
             }
             assert_eq!(net.backbone.bn1.branches[branch].momentum, 0.1);
         }

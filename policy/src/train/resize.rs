@@ -45,7 +45,11 @@ mod tests {
     fn constants_stay_constant_and_ramps_sample_at_half_pixel_centres() {
         let device = Device::flex();
         let c = Tensor::<4>::full([1, 2, 8, 12], 3.5, &device);
-        assert!(v(resize_to_scale(c, 0.75)).iter().all(|x| (x - 3.5).abs() < 1e-6));
+        assert!(
+            v(resize_to_scale(c, 0.75))
+                .iter()
+                .all(|x| (x - 3.5).abs() < 1e-6)
+        );
         // f(x) = x along the width; at 3/4 size output column i samples input
         // coordinate (i + 0.5) * 4/3 - 0.5 (exact for a linear ramp away from the borders).
         let ramp: Vec<f32> = (0..8 * 12).map(|k| (k % 12) as f32).collect();
@@ -62,7 +66,10 @@ mod tests {
     fn downsampling_a_checkerboard_blends_neighbours() {
         // Bilinear, not nearest: 2x2 -> 1x1 averages the four pixels.
         let device = Device::flex();
-        let x = Tensor::<4>::from_data(TensorData::new(vec![0.0f32, 1.0, 1.0, 0.0], [1, 1, 2, 2]), &device);
+        let x = Tensor::<4>::from_data(
+            TensorData::new(vec![0.0f32, 1.0, 1.0, 0.0], [1, 1, 2, 2]),
+            &device,
+        );
         let y = v(resize_to(x, [1, 1]));
         assert!((y[0] - 0.5).abs() < 1e-6, "{y:?}");
     }

@@ -23,7 +23,9 @@ pub fn toy_batch(config: &PolicyConfig, n: usize, seed: u64, device: &Device) ->
         for c in 0..3 {
             for y in 0..h {
                 for x in 0..w {
-                    let v = (base[c] + slope[c] * (x as f32 / w as f32 - 0.5) * (1.0 + y as f32 / h as f32)).clamp(0.0, 1.0);
+                    let v = (base[c]
+                        + slope[c] * (x as f32 / w as f32 - 0.5) * (1.0 + y as f32 / h as f32))
+                        .clamp(0.0, 1.0);
                     images.push((v - config.mean[c]) / config.std[c]);
                 }
             }
@@ -34,7 +36,11 @@ pub fn toy_batch(config: &PolicyConfig, n: usize, seed: u64, device: &Device) ->
     for _ in 0..cells {
         let best = rng.random_range(0..NUM_ACTIONS);
         for j in 0..NUM_ACTIONS {
-            q.push(if j == best { 0.05 } else { rng.random_range(0.0..0.01) });
+            q.push(if j == best {
+                0.05
+            } else {
+                rng.random_range(0.0..0.01)
+            });
         }
     }
     let mut seg = Vec::with_capacity(n * h * w);
@@ -42,13 +48,22 @@ pub fn toy_batch(config: &PolicyConfig, n: usize, seed: u64, device: &Device) ->
         let offset = rng.random_range(0..config.num_seg_classes as i64);
         for _y in 0..h {
             for x in 0..w {
-                seg.push((offset + (x * config.num_seg_classes / w) as i64) % config.num_seg_classes as i64);
+                seg.push(
+                    (offset + (x * config.num_seg_classes / w) as i64)
+                        % config.num_seg_classes as i64,
+                );
             }
         }
     }
     Batch {
         images: Tensor::from_data(TensorData::new(images, [n, 3, h, w]), device),
-        q: Tensor::from_data(TensorData::new(q, [n, config.num_commands, config.num_speed_bins, NUM_ACTIONS]), device),
+        q: Tensor::from_data(
+            TensorData::new(
+                q,
+                [n, config.num_commands, config.num_speed_bins, NUM_ACTIONS],
+            ),
+            device,
+        ),
         seg: Tensor::from_data(TensorData::new(seg, [n, h, w]), device),
     }
 }
