@@ -228,6 +228,9 @@ pub struct TrainArgs {
     /// Seed (initialisation and data).
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Device.
+    #[arg(long, value_enum, default_value = "cpu")]
+    device: DeviceKind,
 }
 
 /// Runs `mrdrive train`.
@@ -239,7 +242,7 @@ pub fn run_train(args: TrainArgs) -> Result<()> {
     }
     let cfg = args.preset.config(&args.scales);
     cfg.validate()?;
-    let dev = policy::burn::tensor::Device::flex().autodiff();
+    let dev = device(args.device)?.autodiff();
     dev.seed(args.seed);
     let batch = toy_batch(&cfg, args.batch, args.seed, &dev);
     let tc = TrainConfig::new()
@@ -310,6 +313,9 @@ enum BenchCommand {
         /// Only the default model (skip ResNet-34/18 at the paper's S0).
         #[arg(long)]
         quick: bool,
+        /// Device.
+        #[arg(long, value_enum, default_value = "cpu")]
+        device: DeviceKind,
     },
 }
 
@@ -320,7 +326,9 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
         train_steps,
         batch,
         quick,
+        device: kind,
     } = args.command;
+    let dev = device(kind)?;
     let threads = policy::cpu_threads();
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     println!(
@@ -362,7 +370,6 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
                 .with_input_width(480),
         ));
     }
-    let dev = device(DeviceKind::Cpu)?;
     println!(
         "{:<36} {:>6} {:>10} {:>10} {:>9} {:>9} {:>12}",
         "network", "scale", "input WxH", "median ms", "min ms", "max ms", "t(.75)/t(1)"
