@@ -82,9 +82,10 @@ pub fn inference_latency(
 }
 
 /// Training throughput of the multi-resolution step (samples per second; each sample is
-/// seen once at every scale of R), batch `batch`, on `device` (autodiff).
+/// seen once at every scale of R) with settings `train`, batch `batch`, on `device` (autodiff).
 pub fn train_throughput(
     config: &PolicyConfig,
+    train: TrainConfig,
     device: &Device,
     batch: usize,
     warmup: usize,
@@ -92,7 +93,7 @@ pub fn train_throughput(
 ) -> f64 {
     device.seed(0);
     let data = toy_batch(config, batch, 0, device);
-    let mut trainer = MultiResTrainer::new(config.init(device), None, TrainConfig::new(), device);
+    let mut trainer = MultiResTrainer::new(config.init(device), None, train, device);
     for _ in 0..warmup {
         trainer.step(&data);
     }

@@ -408,10 +408,15 @@ pub fn run_bench(args: BenchArgs) -> Result<()> {
     if train_steps > 0 {
         let cfg = Preset::Cpu.config(&[0.75, 1.0]);
         let ad = dev.clone().autodiff();
-        let sps = bench::train_throughput(&cfg, &ad, batch, 1, train_steps);
-        println!(
-            "training, multi-resolution step (0.75x + 1.0x, segmentation on, Adam), default model, batch {batch}: {sps:.1} samples/s (each sample at both scales; {train_steps} steps after 1 warm-up)"
-        );
+        for (what, tc) in [
+            ("segmentation on (weight 0.05)", TrainConfig::new()),
+            ("segmentation off", TrainConfig::new().with_seg_weight(0.0)),
+        ] {
+            let sps = bench::train_throughput(&cfg, tc, &ad, batch, 1, train_steps);
+            println!(
+                "training, multi-resolution step (0.75x + 1.0x, {what}, Adam, head frozen), default model, batch {batch}: {sps:.1} samples/s (each sample at both scales; {train_steps} steps after 1 warm-up)"
+            );
+        }
     }
     Ok(())
 }
