@@ -30,13 +30,20 @@ enum Command {
     Render(cli::render::RenderArgs),
     /// Render the hand-made demo junction (colour or labels) to a PNG.
     RenderDemo(cli::render::RenderDemoArgs),
+    /// Policy network tools: checkpoints, BN-bank overhead, torchvision import.
+    Policy(cli::policy::PolicyArgs),
+    /// Train the policy (`--synthetic`: a smoke run on a toy batch).
+    Train(cli::policy::TrainArgs),
     /// Benchmarks that print figures.
-    Bench(cli::render::BenchArgs),
+    Bench(cli::bench::BenchArgs),
 }
 
 fn main() -> anyhow::Result<()> {
-    let cli = Cli::parse();
-    match cli.command {
+    tracing_subscriber::fmt()
+        .with_env_filter(tracing_subscriber::EnvFilter::from_default_env())
+        .with_writer(std::io::stderr)
+        .init();
+    match Cli::parse().command {
         Command::Run(a) => cli::run::run(a),
         Command::Sweep(a) => cli::sweep::run(a),
         Command::Map(c) => cli::map::run(c),
@@ -44,6 +51,8 @@ fn main() -> anyhow::Result<()> {
         Command::Traffic(a) => cli::traffic::run(a),
         Command::Render(a) => cli::render::render(&a),
         Command::RenderDemo(a) => cli::render::render_demo(&a),
-        Command::Bench(a) => cli::render::bench(&a),
+        Command::Policy(a) => cli::policy::run_policy(a),
+        Command::Train(a) => cli::policy::run_train(a),
+        Command::Bench(a) => cli::bench::run(a),
     }
 }

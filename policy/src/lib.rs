@@ -1,1 +1,30 @@
-//! The policy.
+//! The multi-resolution driving policy: a ResNet whose every BatchNorm is a bank
+//! (one branch per input scale), WoR's action head and decoding, resolution
+//! selectors, checkpoints, the training step, and the `Driver` the loop calls.
+//!
+//! Read in this order: [`bn_bank`], [`backbone`], [`heads`], [`model`],
+//! [`action`], [`decode`], [`checkpoint`], [`selector`], [`driver`], [`train`], [`bench`].
+
+pub mod action;
+pub mod backbone;
+pub mod bench;
+pub mod bn_bank;
+pub mod checkpoint;
+pub mod decode;
+pub mod driver;
+pub mod heads;
+pub mod model;
+pub mod selector;
+pub mod train;
+
+pub use checkpoint::ModelCard;
+pub use driver::PolicyDriver;
+pub use model::{PolicyConfig, PolicyNet};
+
+/// The burn version this crate is built on, for callers that need devices or tensors.
+pub use burn;
+
+/// Worker threads burn's CPU backend uses (rayon's global pool; set `RAYON_NUM_THREADS`).
+pub fn cpu_threads() -> usize {
+    rayon::current_num_threads()
+}

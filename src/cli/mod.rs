@@ -1,6 +1,8 @@
 //! Subcommands of the `mrdrive` program, one file each.
 
+pub mod bench;
 pub mod map;
+pub mod policy;
 pub mod render;
 pub mod routes;
 pub mod run;

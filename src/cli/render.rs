@@ -52,14 +52,6 @@ pub enum RenderCmd {
     },
 }
 
-/// `mrdrive bench ...`.
-#[derive(Debug, Args)]
-pub struct BenchArgs {
-    /// What to benchmark.
-    #[command(subcommand)]
-    pub cmd: BenchCmd,
-}
-
 /// Subcommands of `mrdrive bench`.
 #[derive(Debug, Subcommand)]
 pub enum BenchCmd {
@@ -109,9 +101,9 @@ pub fn render(a: &RenderArgs) -> Result<()> {
     }
 }
 
-/// Runs `bench ...`.
-pub fn bench(a: &BenchArgs) -> Result<()> {
-    match &a.cmd {
+/// Runs one render benchmark.
+pub fn bench_command(cmd: &BenchCmd) -> Result<()> {
+    match cmd {
         BenchCmd::Render {
             frames,
             repeats,

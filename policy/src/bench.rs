@@ -1,0 +1,166 @@
+//! Benchmarks that print figures: inference latency per scale and training throughput.
+//! Called by `mrdrive bench policy`; never asserted in tests.
+
+use crate::model::{ParamCounts, PolicyConfig};
+use crate::train::synthetic::toy_batch;
+use crate::train::{MultiResTrainer, TrainConfig};
+use burn::prelude::*;
+use std::time::Instant;
+
+/// Latency statistics of repeated runs (milliseconds).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Latency {
+    /// Median.
+    pub median_ms: f64,
+    /// Fastest.
+    pub min_ms: f64,
+    /// Slowest.
+    pub max_ms: f64,
+}
+
+impl Latency {
+    /// Statistics of a set of timings (milliseconds).
+    pub fn of(mut times_ms: Vec<f64>) -> Self {
+        assert!(!times_ms.is_empty());
+        times_ms.sort_by(f64::total_cmp);
+        let n = times_ms.len();
+        let median_ms = if n % 2 == 1 {
+            times_ms[n / 2]
+        } else {
+            0.5 * (times_ms[n / 2 - 1] + times_ms[n / 2])
+        };
+        Latency {
+            median_ms,
+            min_ms: times_ms[0],
+            max_ms: times_ms[n - 1],
+        }
+    }
+}
+
+/// Batch-1 inference latency of `config` at each scale of its R on `device`
+/// (forward of the backbone and the action head, result read back).
+///
+/// Scales are interleaved (one run of each per round) so that load from other
+/// processes falls on all of them alike.
+pub fn inference_latency(
+    config: &PolicyConfig,
+    device: &Device,
+    warmup: usize,
+    repeats: usize,
+) -> Vec<(f32, [usize; 2], Latency)> {
+    device.seed(0);
+    let net = config.init(device).valid();
+    let inputs: Vec<Tensor<4>> = config
+        .scales
+        .iter()
+        .map(|&r| {
+            let [h, w] = config.input_size(r);
+            Tensor::<4>::random(
+                [1, 3, h, w],
+                burn::tensor::Distribution::Normal(0.0, 1.0),
+                device,
+            )
+        })
+        .collect();
+    let mut times = vec![Vec::with_capacity(repeats); inputs.len()];
+    for round in 0..warmup + repeats {
+        for (branch, x) in inputs.iter().enumerate() {
+            let t0 = Instant::now();
+            let z = net.forward(x.clone(), branch, false).action_logits;
+            let _ = z.into_data();
+            if round >= warmup {
+                times[branch].push(t0.elapsed().as_secs_f64() * 1e3);
+            }
+        }
+    }
+    config
+        .scales
+        .iter()
+        .zip(times)
+        .map(|(&r, t)| (r, config.input_size(r), Latency::of(t)))
+        .collect()
+}
+
+/// Training throughput of the multi-resolution step (samples per second; each sample is
+/// seen once at every scale of R) with settings `train`, batch `batch`, on `device` (autodiff).
+pub fn train_throughput(
+    config: &PolicyConfig,
+    train: TrainConfig,
+    device: &Device,
+    batch: usize,
+    warmup: usize,
+    steps: usize,
+) -> f64 {
+    device.seed(0);
+    let data = toy_batch(config, batch, 0, device);
+    let mut trainer = MultiResTrainer::new(config.init(device), None, train, device);
+    for _ in 0..warmup {
+        trainer.step(&data);
+    }
+    let t0 = Instant::now();
+    for _ in 0..steps {
+        trainer.step(&data);
+    }
+    (batch * steps) as f64 / t0.elapsed().as_secs_f64()
+}
+
+/// One row of the BN-bank overhead table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Overhead {
+    /// Network name.
+    pub name: String,
+    /// Number of scales (branches).
+    pub scales: usize,
+    /// Learnable parameters with one branch (the NRA model).
+    pub single: usize,
+    /// Learnable parameters with the banks.
+    pub multi: usize,
+    /// BN running statistics added (buffers, not learned).
+    pub extra_buffers: usize,
+}
+
+impl Overhead {
+    /// Extra learnable parameters in percent of the single-branch model.
+    pub fn percent(&self) -> f64 {
+        100.0 * (self.multi - self.single) as f64 / self.single as f64
+    }
+}
+
+/// Parameter overhead of the BN banks of `config` against the same network with one branch.
+pub fn overhead(name: &str, config: &PolicyConfig) -> Overhead {
+    let device = Device::flex();
+    let single = ParamCounts::of(&config.clone().with_scales(vec![1.0]).init(&device));
+    let multi = ParamCounts::of(&config.init(&device));
+    Overhead {
+        name: name.into(),
+        scales: config.scales.len(),
+        single: single.learnable,
+        multi: multi.learnable,
+        extra_buffers: multi.bn_buffers - single.bn_buffers,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn median_of_odd_and_even_sets() {
+        assert_eq!(Latency::of(vec![3.0, 1.0, 2.0]).median_ms, 2.0);
+        let l = Latency::of(vec![4.0, 1.0, 2.0, 3.0]);
+        assert_eq!((l.median_ms, l.min_ms, l.max_ms), (2.5, 1.0, 4.0));
+    }
+
+    #[test]
+    fn resnet34_two_scale_overhead_is_about_a_tenth_of_a_percent() {
+        // The paper calls the banks negligible; measured here on the full network
+        // (backbone + action head + decoder).
+        let o = overhead("resnet34", &PolicyConfig::paper());
+        assert_eq!(o.multi - o.single, o.extra_buffers);
+        assert!(
+            o.percent() > 0.0 && o.percent() < 0.2,
+            "{o:?} {}",
+            o.percent()
+        );
+    }
+}

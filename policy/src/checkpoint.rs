@@ -1,0 +1,448 @@
+//! Policy checkpoints: weights in safetensors, and a JSON file beside them with the
+//! config and a model card, so loading needs nothing else. Also imports a
+//! torchvision ResNet state dict (saved as safetensors) into the backbone.
+//!
+//! `policy.safetensors` + `policy.json`:
+//! ```json
+//! { "format": "mrdrive-policy/1", "config": { ... PolicyConfig ... },
+//!   "card": { "trained": false, "description": "...", "source": "..." } }
+//! ```
+
+use crate::model::{PolicyConfig, PolicyNet};
+use burn::prelude::*;
+use burn::store::{ApplyError, KeyRemapper, ModuleSnapshot, SafetensorsStore};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The format tag written into every checkpoint's JSON.
+pub const FORMAT: &str = "mrdrive-policy/1";
+
+/// What a checkpoint says about itself.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ModelCard {
+    /// Whether the weights were trained (false: random initialisation).
+    pub trained: bool,
+    /// What the weights are, in a sentence.
+    pub description: String,
+    /// Where they came from (a training run, an imported file, a seed).
+    pub source: String,
+}
+
+impl ModelCard {
+    /// The card of a randomly initialised network.
+    pub fn random_init(seed: u64) -> Self {
+        ModelCard {
+            trained: false,
+            description: "randomly initialised network: NOT TRAINED, drives at random".into(),
+            source: format!("burn initialisers, device seed {seed}"),
+        }
+    }
+}
+
+/// The JSON file beside the weights.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct Manifest {
+    format: String,
+    config: PolicyConfig,
+    card: ModelCard,
+}
+
+/// Why a checkpoint could not be saved or loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum CheckpointError {
+    /// A file could not be read or written.
+    #[error("{path}: {source}; fix: {fix}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+        /// What would fix it.
+        fix: &'static str,
+    },
+    /// The JSON beside the weights is malformed or has a bad field.
+    #[error("{path}: {problem}; fix: {fix}")]
+    Manifest {
+        /// The JSON file.
+        path: PathBuf,
+        /// What is wrong (names the field).
+        problem: String,
+        /// What would fix it.
+        fix: String,
+    },
+    /// The weights file is unreadable or does not fit the network.
+    #[error("{path}: {problem}; fix: {fix}")]
+    Weights {
+        /// The safetensors file.
+        path: PathBuf,
+        /// What is wrong (names the tensor).
+        problem: String,
+        /// What would fix it.
+        fix: String,
+    },
+}
+
+/// The JSON path of a checkpoint: the weights path with extension `.json`.
+pub fn manifest_path(weights: &Path) -> PathBuf {
+    weights.with_extension("json")
+}
+
+/// Saves `net` to `weights` (a `.safetensors` path) and its config + `card` beside it.
+pub fn save(net: &PolicyNet, card: &ModelCard, weights: &Path) -> Result<(), CheckpointError> {
+    net.sync_running_stats();
+    let mut store = SafetensorsStore::from_file(weights)
+        .overwrite(true)
+        .metadata("mrdrive_format", FORMAT);
+    net.save_into(&mut store)
+        .map_err(|e| CheckpointError::Weights {
+            path: weights.to_path_buf(),
+            problem: format!("could not write: {e}"),
+            fix: "check the folder exists and is writable".into(),
+        })?;
+    let manifest = Manifest {
+        format: FORMAT.into(),
+        config: net.config.clone(),
+        card: card.clone(),
+    };
+    let json = serde_json::to_string_pretty(&manifest).expect("a manifest always serialises");
+    let path = manifest_path(weights);
+    std::fs::write(&path, json).map_err(|source| CheckpointError::Io {
+        path,
+        source,
+        fix: "check the folder exists and is writable",
+    })
+}
+
+/// Reads the JSON beside `weights`: the config (validated) and the card.
+pub fn read_manifest(weights: &Path) -> Result<(PolicyConfig, ModelCard), CheckpointError> {
+    let path = manifest_path(weights);
+    let text = std::fs::read_to_string(&path).map_err(|source| CheckpointError::Io {
+        path: path.clone(),
+        source,
+        fix: "a checkpoint is two files, NAME.safetensors and NAME.json; copy the .json with the weights",
+    })?;
+    let manifest: Manifest =
+        serde_json::from_str(&text).map_err(|e| CheckpointError::Manifest {
+            path: path.clone(),
+            problem: format!("not a policy manifest ({e})"),
+            fix: "restore the JSON written with the weights (fields: format, config, card)".into(),
+        })?;
+    if manifest.format != FORMAT {
+        return Err(CheckpointError::Manifest {
+            path,
+            problem: format!("field `format` is {:?}", manifest.format),
+            fix: format!("this build reads {FORMAT:?}"),
+        });
+    }
+    manifest
+        .config
+        .validate()
+        .map_err(|e| CheckpointError::Manifest {
+            path,
+            problem: e.to_string(),
+            fix: "correct the config field named above".into(),
+        })?;
+    Ok((manifest.config, manifest.card))
+}
+
+/// Loads a checkpoint written by [`save`]: the JSON gives the network, the safetensors its weights.
+pub fn load(weights: &Path, device: &Device) -> Result<(PolicyNet, ModelCard), CheckpointError> {
+    let (config, card) = read_manifest(weights)?;
+    let mut net = config.init(device);
+    let mut store = open_weights(weights)?;
+    apply(
+        &mut net,
+        &mut store,
+        weights,
+        |_| true,
+        |_| false,
+        |n| n.to_string(),
+    )?;
+    Ok((net, card))
+}
+
+fn open_weights(path: &Path) -> Result<SafetensorsStore, CheckpointError> {
+    if let Err(source) = std::fs::metadata(path) {
+        return Err(CheckpointError::Io {
+            path: path.to_path_buf(),
+            source,
+            fix: "give the path of an existing .safetensors file",
+        });
+    }
+    Ok(SafetensorsStore::from_file(path)
+        .validate(false)
+        .allow_partial(true))
+}
+
+/// Applies the store to `net`; every tensor `required` must be present, every unused tensor
+/// not `ignorable` is an error.
+fn apply(
+    net: &mut PolicyNet,
+    store: &mut SafetensorsStore,
+    path: &Path,
+    required: impl Fn(&str) -> bool,
+    ignorable: impl Fn(&str) -> bool,
+    describe: impl Fn(&str) -> String,
+) -> Result<(), CheckpointError> {
+    let err = |problem: String, fix: &str| CheckpointError::Weights {
+        path: path.to_path_buf(),
+        problem,
+        fix: fix.into(),
+    };
+    let result = net.load_from(store).map_err(|e| {
+        err(
+            format!("not a readable safetensors file ({e})"),
+            "re-export the weights as safetensors",
+        )
+    })?;
+    if let Some(e) = result.errors.first() {
+        let what = match e {
+            ApplyError::ShapeMismatch {
+                path,
+                expected,
+                found,
+            } => format!(
+                "tensor `{}` has shape {:?}, the network expects {:?}",
+                describe(path),
+                found.as_slice(),
+                expected.as_slice()
+            ),
+            ApplyError::DTypeMismatch {
+                path,
+                expected,
+                found,
+            } => {
+                format!(
+                    "tensor `{}` is {found:?}, the network expects {expected:?}",
+                    describe(path)
+                )
+            }
+            other => format!("{other}"),
+        };
+        return Err(err(
+            format!("{what} ({} tensor error(s) in all)", result.errors.len()),
+            "the weights are for another network shape: use the JSON config they were saved with",
+        ));
+    }
+    let missing: Vec<&str> = result
+        .missing
+        .iter()
+        .map(|(p, _)| p.as_str())
+        .filter(|p| required(p))
+        .collect();
+    if let Some(first) = missing.first() {
+        return Err(err(
+            format!(
+                "tensor `{}` is missing ({} missing in all)",
+                describe(first),
+                missing.len()
+            ),
+            "the weights are for another network (depth, widths or scales): use matching weights and config",
+        ));
+    }
+    let unused: Vec<&String> = result.unused.iter().filter(|p| !ignorable(p)).collect();
+    if let Some(first) = unused.first() {
+        return Err(err(
+            format!(
+                "tensor `{first}` does not belong to this network ({} such in all)",
+                unused.len()
+            ),
+            "the weights are for another network (depth, widths or scales): use matching weights and config",
+        ));
+    }
+    Ok(())
+}
+
+/// Loads a torchvision ResNet state dict saved as safetensors (`conv1.weight`,
+/// `bn1.running_mean`, `layer1.0.conv1.weight`, `layer2.0.downsample.1.weight`, ...)
+/// into the backbone of a network built from `config`; every BN goes into every
+/// branch. Keys may carry a `prefix` (e.g. `"backbone_wide."` for WoR's state dict);
+/// `fc.*` and `num_batches_tracked` are ignored; the heads stay as initialised.
+pub fn load_torchvision_backbone(
+    weights: &Path,
+    prefix: &str,
+    config: &PolicyConfig,
+    device: &Device,
+) -> Result<PolicyNet, CheckpointError> {
+    config.validate().map_err(|e| CheckpointError::Weights {
+        path: weights.to_path_buf(),
+        problem: e.to_string(),
+        fix: "fix the config field named above".into(),
+    })?;
+    let single_cfg = config.clone().with_scales(vec![1.0]);
+    let mut single = single_cfg.init(device);
+    let p = regex_escape(prefix);
+    let bn = |from: &str, to: &str| -> Vec<(String, String)> {
+        [
+            ("weight", "gamma"),
+            ("bias", "beta"),
+            ("running_mean", "running_mean"),
+            ("running_var", "running_var"),
+        ]
+        .iter()
+        .map(|(a, b)| (format!("^{p}{from}\\.{a}$"), format!("{to}.branches.0.{b}")))
+        .collect()
+    };
+    let mut patterns = vec![
+        (
+            format!("^{p}conv1\\.weight$"),
+            "backbone.conv1.weight".to_string(),
+        ),
+        (
+            format!("^{p}(layer\\d)\\.(\\d+)\\.conv(\\d)\\.weight$"),
+            "backbone.$1.$2.conv$3.weight".to_string(),
+        ),
+        (
+            format!("^{p}(layer\\d)\\.(\\d+)\\.downsample\\.0\\.weight$"),
+            "backbone.$1.$2.downsample.conv.weight".to_string(),
+        ),
+    ];
+    patterns.extend(bn("bn1", "backbone.bn1"));
+    patterns.extend(bn("(layer\\d)\\.(\\d+)\\.bn(\\d)", "backbone.$1.$2.bn$3"));
+    patterns.extend(bn(
+        "(layer\\d)\\.(\\d+)\\.downsample\\.1",
+        "backbone.$1.$2.downsample.bn",
+    ));
+    let remapper = KeyRemapper::from_patterns(patterns).expect("the patterns are valid regexes");
+    let mut store = open_weights(weights)?.remap(remapper);
+    let fc = format!("{prefix}fc.");
+    apply(
+        &mut single,
+        &mut store,
+        weights,
+        |name| name.starts_with("backbone."),
+        |name| {
+            name.ends_with("num_batches_tracked")
+                || name.starts_with(&fc)
+                || !name.starts_with(prefix)
+        },
+        |ours| format!("{prefix}{}", torchvision_name(ours)),
+    )?;
+    if config.scales.len() == 1 {
+        let mut net = single;
+        net.config = config.clone();
+        return Ok(net);
+    }
+    single
+        .to_multires(config.scales.clone())
+        .map_err(|e| CheckpointError::Weights {
+            path: weights.to_path_buf(),
+            problem: e.to_string(),
+            fix: "fix the config field named above".into(),
+        })
+}
+
+/// The torchvision name of one of our backbone tensors (`backbone.layer2.0.downsample.bn.branches.0.gamma`
+/// -> `layer2.0.downsample.1.weight`).
+pub fn torchvision_name(ours: &str) -> String {
+    let s = ours.strip_prefix("backbone.").unwrap_or(ours);
+    let s = s
+        .replace("downsample.conv.", "downsample.0.")
+        .replace("downsample.bn.", "downsample.1.");
+    let s = s
+        .replace(".branches.0.gamma", ".weight")
+        .replace(".branches.0.beta", ".bias");
+    s.replace(".branches.0.", ".")
+}
+
+fn regex_escape(s: &str) -> String {
+    s.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '_' {
+                c.to_string()
+            } else {
+                format!("\\{c}")
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::backbone::Depth;
+
+    fn tiny() -> PolicyConfig {
+        PolicyConfig::new(Depth::Resnet18, [4, 8, 8, 16])
+            .with_input_height(64)
+            .with_input_width(96)
+    }
+
+    fn logits(net: &PolicyNet, device: &Device) -> TensorData {
+        let x = Tensor::<4>::ones([1, 3, 64, 96], device);
+        net.valid().forward(x, 1, false).action_logits.into_data()
+    }
+
+    #[test]
+    fn save_then_load_gives_the_same_network_and_card() {
+        let device = Device::flex();
+        device.seed(5);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("p.safetensors");
+        let net = tiny().init(&device);
+        save(&net, &ModelCard::random_init(5), &path).unwrap();
+        // Saving again overwrites.
+        save(&net, &ModelCard::random_init(5), &path).unwrap();
+        let (back, card) = load(&path, &device).unwrap();
+        assert_eq!(card, ModelCard::random_init(5));
+        assert!(!card.trained);
+        assert_eq!(back.config, net.config);
+        assert_eq!(logits(&net, &device), logits(&back, &device));
+    }
+
+    #[test]
+    fn bad_checkpoints_name_file_field_and_fix() {
+        let device = Device::flex();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("p.safetensors");
+        let net = tiny().init(&device);
+        save(&net, &ModelCard::random_init(0), &path).unwrap();
+
+        // Missing JSON.
+        let lone = dir.path().join("lone.safetensors");
+        std::fs::copy(&path, &lone).unwrap();
+        let e = load(&lone, &device).unwrap_err().to_string();
+        assert!(e.contains("lone.json") && e.contains("fix"), "{e}");
+
+        // A config field out of range.
+        let json = std::fs::read_to_string(manifest_path(&path)).unwrap();
+        std::fs::write(manifest_path(&path), json.replace("0.75", "-0.75")).unwrap();
+        let e = load(&path, &device).unwrap_err().to_string();
+        assert!(e.contains("p.json") && e.contains("`scales`"), "{e}");
+
+        // Weights of another shape: the JSON says wider than the file holds.
+        let mut wider = tiny();
+        wider.widths = [4, 8, 8, 24];
+        let m = Manifest {
+            format: FORMAT.into(),
+            config: wider,
+            card: ModelCard::random_init(0),
+        };
+        std::fs::write(manifest_path(&path), serde_json::to_string(&m).unwrap()).unwrap();
+        let e = load(&path, &device).unwrap_err().to_string();
+        assert!(e.contains("p.safetensors") && e.contains("layer4"), "{e}");
+
+        // Garbage weights.
+        std::fs::write(
+            manifest_path(&path),
+            serde_json::to_string(&Manifest {
+                config: tiny(),
+                ..m
+            })
+            .unwrap(),
+        )
+        .unwrap();
+        std::fs::write(&path, b"not safetensors").unwrap();
+        let e = load(&path, &device).unwrap_err().to_string();
+        assert!(
+            e.contains("p.safetensors") && e.contains("safetensors"),
+            "{e}"
+        );
+
+        // Missing weights.
+        let e = load(&dir.path().join("none.safetensors"), &device)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("none.json"), "{e}");
+    }
+}

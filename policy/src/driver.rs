@@ -1,0 +1,225 @@
+//! The policy as a `Driver`: the image at the selector's scale in, a control out.
+
+use crate::action::{NUM_ACTIONS, NUM_SPEED_BINS};
+use crate::checkpoint::{self, CheckpointError, ModelCard};
+use crate::decode::{Decoded, decode, interpolate_speed};
+use crate::model::PolicyNet;
+use burn::prelude::*;
+use sim::driver::{Control, Driver, DriverNeeds, Observation};
+use std::path::Path;
+
+/// A multi-resolution CNN policy driving the ego.
+///
+/// Each observation must carry the stitched rig image rendered at
+/// `obs.scale` (the renderer draws at the chosen scale, nothing is resized
+/// here); the BN branch of that scale is used. Inference runs in validation
+/// mode (BN running statistics), deterministic on the CPU device.
+#[derive(Debug)]
+pub struct PolicyDriver {
+    net: PolicyNet,
+    device: Device,
+    name: String,
+    card: ModelCard,
+    /// The last decoding (for logs), if any.
+    pub last: Option<Decoded>,
+    warned: bool,
+}
+
+impl PolicyDriver {
+    /// A driver from a network (put into validation mode) and its card.
+    pub fn new(net: PolicyNet, card: ModelCard, name: impl Into<String>, device: Device) -> Self {
+        net.sync_running_stats();
+        PolicyDriver {
+            net: net.valid(),
+            device,
+            name: name.into(),
+            card,
+            last: None,
+            warned: false,
+        }
+    }
+
+    /// Loads a checkpoint (NAME.safetensors + NAME.json); the driver is named after the file.
+    pub fn from_checkpoint(weights: &Path, device: Device) -> Result<Self, CheckpointError> {
+        let (net, card) = checkpoint::load(weights, &device)?;
+        Ok(Self::new(
+            net,
+            card,
+            format!("policy:{}", weights.display()),
+            device,
+        ))
+    }
+
+    /// The checkpoint's card (trained or not, where it came from).
+    pub fn card(&self) -> &ModelCard {
+        &self.card
+    }
+
+    /// The network.
+    pub fn net(&self) -> &PolicyNet {
+        &self.net
+    }
+
+    /// The scales this policy has BN branches for.
+    pub fn scales(&self) -> &[f32] {
+        &self.net.config.scales
+    }
+
+    /// The 28 logits for the observation's command at its speed, for an RGB8 image at scale `scale`.
+    pub fn logits(
+        &self,
+        image: &sim::driver::RgbImage,
+        scale: f32,
+        command: usize,
+        speed_mps: f32,
+    ) -> [f32; NUM_ACTIONS] {
+        let cfg = &self.net.config;
+        let branch = cfg
+            .branch_of(scale)
+            .unwrap_or_else(|| nearest_branch(&cfg.scales, scale));
+        let (h, w) = (image.height as usize, image.width as usize);
+        let x = cfg.normalize_rgb8(&image.data, h, w);
+        let x = Tensor::<4>::from_data(TensorData::new(x, [1, 3, h, w]), &self.device);
+        let z = self.net.forward(x, branch, false).action_logits;
+        let z = z
+            .narrow(1, command, 1)
+            .into_data()
+            .try_to_vec::<f32>()
+            .expect("f32 logits");
+        let bins: [[f32; NUM_ACTIONS]; NUM_SPEED_BINS] =
+            std::array::from_fn(|b| std::array::from_fn(|j| z[b * NUM_ACTIONS + j]));
+        interpolate_speed(&bins, speed_mps)
+    }
+}
+
+fn nearest_branch(scales: &[f32], scale: f32) -> usize {
+    (0..scales.len())
+        .min_by(|&a, &b| {
+            (scales[a] - scale)
+                .abs()
+                .total_cmp(&(scales[b] - scale).abs())
+        })
+        .expect("a policy has at least one scale")
+}
+
+impl Driver for PolicyDriver {
+    fn name(&self) -> String {
+        self.name.clone()
+    }
+
+    fn needs(&self) -> DriverNeeds {
+        DriverNeeds {
+            camera: true,
+            privileged: false,
+        }
+    }
+
+    fn act(&mut self, obs: &Observation<'_>) -> Control {
+        let Some(image) = obs.image else {
+            if !self.warned {
+                tracing::warn!("{}: observation without an image; braking", self.name);
+                self.warned = true;
+            }
+            return Control {
+                steer: 0.0,
+                throttle: 0.0,
+                brake: 1.0,
+            };
+        };
+        let expected = self.net.config.input_size(obs.scale);
+        if !self.warned
+            && ([image.height as usize, image.width as usize] != expected
+                || self.net.config.branch_of(obs.scale).is_none())
+        {
+            tracing::warn!(
+                "{}: image {}x{} at scale {} but the policy expects {}x{} and scales {:?}; using the nearest branch",
+                self.name,
+                image.width,
+                image.height,
+                obs.scale,
+                expected[1],
+                expected[0],
+                self.net.config.scales
+            );
+            self.warned = true;
+        }
+        let logits = self.logits(image, obs.scale, obs.command as usize, obs.speed_mps);
+        let d = decode(&logits, obs.speed_mps, obs.command);
+        self.last = Some(d);
+        d.control
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::backbone::Depth;
+    use crate::model::PolicyConfig;
+    use sim::driver::{Command, RgbImage};
+
+    fn image(w: u32, h: u32, seed: u8) -> RgbImage {
+        let data = (0..w * h * 3)
+            .map(|i| (i as u8).wrapping_mul(31).wrapping_add(seed))
+            .collect();
+        RgbImage {
+            width: w,
+            height: h,
+            data,
+        }
+    }
+
+    #[test]
+    fn drives_at_each_scale_deterministically() {
+        let device = Device::flex();
+        device.seed(9);
+        let cfg = PolicyConfig::new(Depth::Resnet18, [4, 8, 8, 16])
+            .with_input_height(64)
+            .with_input_width(96);
+        let net = cfg.init(&device);
+        let mut a = PolicyDriver::new(net.clone(), ModelCard::random_init(9), "a", device.clone());
+        let mut b = PolicyDriver::new(net, ModelCard::random_init(9), "b", device.clone());
+        assert!(a.needs().camera);
+        for scale in [0.75f32, 1.0] {
+            let [h, w] = cfg.input_size(scale);
+            let img = image(w as u32, h as u32, 3);
+            let obs = Observation {
+                time_s: 0.0,
+                speed_mps: 2.0,
+                command: Command::LaneFollow,
+                scale,
+                image: Some(&img),
+            };
+            let ca = a.act(&obs);
+            assert_eq!(ca, b.act(&obs));
+            assert_eq!(ca, a.act(&obs));
+            assert!((-1.0..=1.0).contains(&ca.steer) && (0.0..=1.0).contains(&ca.throttle));
+        }
+        // The branch follows the scale: the same image through the two branches differs once
+        // their BN statistics differ.
+        let mut net = a.net().clone();
+        let bn = &mut net.backbone.bn1.branches[0];
+        bn.running_mean =
+            burn::module::RunningState::new(bn.running_mean.value_sync().add_scalar(0.5));
+        let c = PolicyDriver::new(net, ModelCard::random_init(9), "c", device);
+        let img = image(96, 64, 1);
+        assert_ne!(c.logits(&img, 0.75, 3, 2.0), c.logits(&img, 1.0, 3, 2.0));
+        assert_eq!(a.logits(&img, 0.75, 3, 2.0), a.logits(&img, 1.0, 3, 2.0));
+    }
+
+    #[test]
+    fn no_image_means_brake() {
+        let device = Device::flex();
+        let cfg = PolicyConfig::new(Depth::Resnet18, [4, 8, 8, 16])
+            .with_input_height(64)
+            .with_input_width(96);
+        let mut d = PolicyDriver::new(cfg.init(&device), ModelCard::random_init(0), "d", device);
+        let obs = Observation {
+            time_s: 0.0,
+            speed_mps: 0.0,
+            command: Command::Left,
+            scale: 1.0,
+            image: None,
+        };
+        assert_eq!(d.act(&obs).brake, 1.0);
+    }
+}

@@ -1,0 +1,368 @@
+//! Resolution selectors: which input scale the policy sees at the next control boundary.
+//!
+//! The loop calls a selector at each control boundary with the distance along
+//! the route to the stop line of the next traffic light ahead (and, if it
+//! knows it, how far the ego is past the last stop line it crossed). The scale
+//! returned applies from that boundary: the next observation is rendered at
+//! it, and the latency in force is the one the [`LatencyTable`] gives for it
+//! (PROTOCOL §1 and §7, Table III).
+
+/// What a selector sees at a control boundary.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SelectorInput {
+    /// Distance along the route to the stop line of the next light ahead (metres), if any.
+    pub light_ahead_m: Option<f32>,
+    /// Distance along the route past the last stop line crossed (metres), if known.
+    pub light_behind_m: Option<f32>,
+    /// Ego speed (metres per second).
+    pub speed_mps: f32,
+}
+
+impl SelectorInput {
+    /// Distance to the nearest stop line, ahead or behind (metres).
+    pub fn nearest_m(&self) -> Option<f32> {
+        match (self.light_ahead_m, self.light_behind_m) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+    }
+}
+
+/// Chooses the input scale at each control boundary.
+pub trait ResolutionSelector {
+    /// Short name for result records ("fixed-0.75", "oracle", ...).
+    fn name(&self) -> String;
+    /// The scale to use from this boundary on.
+    fn select(&mut self, input: &SelectorInput) -> f32;
+    /// Forgets any state (start of a run).
+    fn reset(&mut self) {}
+}
+
+/// The compute latency of each scale (milliseconds), for the delay the loop injects.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LatencyTable {
+    /// `(scale, latency_ms)`, ascending by scale.
+    entries: Vec<(f32, f64)>,
+}
+
+/// Why a latency table cannot be built.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LatencyTableError {
+    /// A scale or latency is not usable.
+    #[error(
+        "latency table entry {index} (scale {scale}, latency {latency_ms} ms): {problem}; fix: give positive scales, each once, with finite latencies >= 0 ms"
+    )]
+    Entry {
+        /// Position in the list given.
+        index: usize,
+        /// The scale.
+        scale: f32,
+        /// The latency (milliseconds).
+        latency_ms: f64,
+        /// What is wrong.
+        problem: &'static str,
+    },
+    /// No entries.
+    #[error("latency table is empty; fix: give at least one `scale = latency_ms` entry")]
+    Empty,
+}
+
+impl LatencyTable {
+    /// A table from `(scale, latency_ms)` pairs in any order.
+    pub fn new(pairs: &[(f32, f64)]) -> Result<Self, LatencyTableError> {
+        if pairs.is_empty() {
+            return Err(LatencyTableError::Empty);
+        }
+        for (index, &(scale, latency_ms)) in pairs.iter().enumerate() {
+            let problem = if !(scale > 0.0 && scale.is_finite()) {
+                Some("scale not positive")
+            } else if !(latency_ms >= 0.0 && latency_ms.is_finite()) {
+                Some("latency not a finite number >= 0")
+            } else if pairs[..index].iter().any(|(s, _)| (s - scale).abs() < 1e-4) {
+                Some("scale listed twice")
+            } else {
+                None
+            };
+            if let Some(problem) = problem {
+                return Err(LatencyTableError::Entry {
+                    index,
+                    scale,
+                    latency_ms,
+                    problem,
+                });
+            }
+        }
+        let mut entries = pairs.to_vec();
+        entries.sort_by(|a, b| a.0.total_cmp(&b.0));
+        Ok(LatencyTable { entries })
+    }
+
+    /// The latency of `scale` (milliseconds), if the table has it.
+    pub fn latency_ms(&self, scale: f32) -> Option<f64> {
+        self.entries
+            .iter()
+            .find(|(s, _)| (s - scale).abs() < 1e-4)
+            .map(|e| e.1)
+    }
+
+    /// The scales, ascending.
+    pub fn scales(&self) -> Vec<f32> {
+        self.entries.iter().map(|e| e.0).collect()
+    }
+
+    /// The highest scale whose latency is at most `budget_ms`, else the cheapest scale.
+    pub fn best_within(&self, budget_ms: f64) -> f32 {
+        self.entries
+            .iter()
+            .rev()
+            .find(|(_, l)| *l <= budget_ms)
+            .or_else(|| self.entries.iter().min_by(|a, b| a.1.total_cmp(&b.1)))
+            .map(|e| e.0)
+            .expect("a latency table is never empty")
+    }
+}
+
+/// Always the same scale.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fixed {
+    /// The scale.
+    pub scale: f32,
+}
+
+impl ResolutionSelector for Fixed {
+    fn name(&self) -> String {
+        format!("fixed-{}", self.scale)
+    }
+    fn select(&mut self, _: &SelectorInput) -> f32 {
+        self.scale
+    }
+}
+
+/// The paper's oracle switcher (TimeParam `test_wor_switching.py`).
+///
+/// Low scale by default; the high scale once a light's stop line is within
+/// `enter_m` (5 m) ahead; it stays high while that stop line is within
+/// `exit_m` (5 + 10 = 15 m), ahead or behind; then low again. TimeParam
+/// measures a straight-line distance to the trigger-volume centre; we measure
+/// along the route, which is the same on an approach lane.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Oracle {
+    /// Default scale (0.75).
+    pub low: f32,
+    /// Scale near lights (1.0).
+    pub high: f32,
+    /// Switch up within this distance ahead of a stop line (metres).
+    pub enter_m: f32,
+    /// Stay up while the stop line is within this distance (metres).
+    pub exit_m: f32,
+    /// Whether the high scale is in force.
+    pub active: bool,
+}
+
+impl Default for Oracle {
+    fn default() -> Self {
+        Oracle {
+            low: 0.75,
+            high: 1.0,
+            enter_m: 5.0,
+            exit_m: 15.0,
+            active: false,
+        }
+    }
+}
+
+/// The hysteresis both distance-based selectors share.
+fn hysteresis(active: bool, input: &SelectorInput, enter_m: f32, exit_m: f32) -> bool {
+    let entering = input.light_ahead_m.is_some_and(|d| d <= enter_m);
+    let staying = active && input.nearest_m().is_some_and(|d| d <= exit_m);
+    entering || staying
+}
+
+impl ResolutionSelector for Oracle {
+    fn name(&self) -> String {
+        "oracle".into()
+    }
+    fn select(&mut self, input: &SelectorInput) -> f32 {
+        self.active = hysteresis(self.active, input, self.enter_m, self.exit_m);
+        if self.active { self.high } else { self.low }
+    }
+    fn reset(&mut self) {
+        self.active = false;
+    }
+}
+
+/// Map-based lookahead: like the oracle, but switches up early enough that a
+/// high-resolution control is already in force `enter_m` before the stop line.
+///
+/// A switch decided at a boundary first shows in the observation of the next
+/// boundary (one low-scale period away) and its control lands one high-scale
+/// latency later, so it switches at `enter_m + speed * cover_s` with
+/// `cover_s = L(low) + L(high)` ([`Lookahead::covering`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Lookahead {
+    /// Default scale.
+    pub low: f32,
+    /// Scale near lights.
+    pub high: f32,
+    /// Distance before the stop line by which the high scale must act (metres).
+    pub enter_m: f32,
+    /// Stay up while the stop line is within this distance (metres).
+    pub exit_m: f32,
+    /// Time the switch needs to take effect (seconds).
+    pub cover_s: f32,
+    /// Whether the high scale is in force.
+    pub active: bool,
+}
+
+impl Lookahead {
+    /// A lookahead whose lead time covers the latencies of `low` then `high` in `table`.
+    pub fn covering(low: f32, high: f32, table: &LatencyTable) -> Option<Self> {
+        let cover_ms = table.latency_ms(low)? + table.latency_ms(high)?;
+        Some(Lookahead {
+            low,
+            high,
+            enter_m: 5.0,
+            exit_m: 15.0,
+            cover_s: (cover_ms / 1000.0) as f32,
+            active: false,
+        })
+    }
+
+    /// The distance ahead of the stop line at which it switches up at `speed_mps` (metres).
+    pub fn trigger_m(&self, speed_mps: f32) -> f32 {
+        self.enter_m + speed_mps.max(0.0) * self.cover_s
+    }
+}
+
+impl ResolutionSelector for Lookahead {
+    fn name(&self) -> String {
+        "lookahead".into()
+    }
+    fn select(&mut self, input: &SelectorInput) -> f32 {
+        let enter = self.trigger_m(input.speed_mps);
+        self.active = hysteresis(self.active, input, enter, self.exit_m.max(enter));
+        if self.active { self.high } else { self.low }
+    }
+    fn reset(&mut self) {
+        self.active = false;
+    }
+}
+
+/// The highest scale whose latency fits a budget (the cheapest if none fits).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LatencyBudget {
+    /// Latency per scale.
+    pub table: LatencyTable,
+    /// The budget (milliseconds).
+    pub budget_ms: f64,
+}
+
+impl ResolutionSelector for LatencyBudget {
+    fn name(&self) -> String {
+        format!("budget-{}ms", self.budget_ms)
+    }
+    fn select(&mut self, _: &SelectorInput) -> f32 {
+        self.table.best_within(self.budget_ms)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A scripted drive: the ego approaches a stop line from 30 m at `speed` m/s,
+    /// crosses it, drives on to 30 m past, with a control boundary every `period_s`.
+    /// Returns (signed distance to the line: + ahead / - past, scale) at each boundary.
+    fn drive(sel: &mut dyn ResolutionSelector, speed: f32, period_s: f32) -> Vec<(f32, f32)> {
+        let mut out = vec![];
+        let mut d = 30.0f32;
+        while d >= -30.0 {
+            let input = SelectorInput {
+                light_ahead_m: (d >= 0.0).then_some(d),
+                light_behind_m: (d < 0.0).then_some(-d),
+                speed_mps: speed,
+            };
+            out.push((d, sel.select(&input)));
+            d -= speed * period_s;
+        }
+        out
+    }
+
+    fn switches(trace: &[(f32, f32)]) -> Vec<(f32, f32)> {
+        trace
+            .windows(2)
+            .filter(|w| w[0].1 != w[1].1)
+            .map(|w| (w[1].0, w[1].1))
+            .collect()
+    }
+
+    #[test]
+    fn oracle_switches_at_5_m_ahead_and_back_past_15_m() {
+        // 5 m/s, 0.1 s period: boundaries every 0.5 m, so the thresholds fall on boundaries.
+        let trace = drive(&mut Oracle::default(), 5.0, 0.1);
+        assert_eq!(switches(&trace), vec![(5.0, 1.0), (-15.5, 0.75)]);
+        assert_eq!(trace[0].1, 0.75);
+    }
+
+    #[test]
+    fn oracle_without_distance_behind_drops_when_the_light_is_passed() {
+        let mut o = Oracle::default();
+        let at = |ahead| SelectorInput {
+            light_ahead_m: ahead,
+            ..Default::default()
+        };
+        assert_eq!(o.select(&at(Some(6.0))), 0.75);
+        assert_eq!(o.select(&at(Some(4.0))), 1.0);
+        assert_eq!(o.select(&at(Some(0.5))), 1.0);
+        // Past the line the next light is 120 m away: back to low at once.
+        assert_eq!(o.select(&at(Some(120.0))), 0.75);
+        assert_eq!(o.select(&at(None)), 0.75);
+        o.select(&at(Some(3.0)));
+        o.reset();
+        assert!(!o.active);
+    }
+
+    #[test]
+    fn lookahead_switches_early_by_the_latency_it_covers() {
+        let table = LatencyTable::new(&[(1.0, 100.0), (0.75, 50.0)]).unwrap();
+        let mut la = Lookahead::covering(0.75, 1.0, &table).unwrap();
+        assert!((la.cover_s - 0.15).abs() < 1e-6);
+        // 10 m/s: trigger at 5 + 10 * 0.15 = 6.5 m; boundaries every 0.5 m.
+        assert!((la.trigger_m(10.0) - 6.5).abs() < 1e-5);
+        let trace = drive(&mut la, 10.0, 0.05);
+        assert_eq!(switches(&trace), vec![(6.5, 1.0), (-15.5, 0.75)]);
+    }
+
+    #[test]
+    fn budget_picks_the_highest_scale_that_fits() {
+        let table = LatencyTable::new(&[(1.0, 100.0), (0.5, 30.0), (0.75, 50.0)]).unwrap();
+        assert_eq!(table.scales(), vec![0.5, 0.75, 1.0]);
+        let mut b = LatencyBudget {
+            table: table.clone(),
+            budget_ms: 60.0,
+        };
+        assert_eq!(b.select(&SelectorInput::default()), 0.75);
+        b.budget_ms = 100.0;
+        assert_eq!(b.select(&SelectorInput::default()), 1.0);
+        b.budget_ms = 10.0;
+        assert_eq!(b.select(&SelectorInput::default()), 0.5);
+        assert_eq!(table.latency_ms(0.75), Some(50.0));
+        assert_eq!(table.latency_ms(0.6), None);
+    }
+
+    #[test]
+    fn bad_latency_tables_are_refused() {
+        assert_eq!(LatencyTable::new(&[]), Err(LatencyTableError::Empty));
+        let e = LatencyTable::new(&[(1.0, 10.0), (1.0, 20.0)])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("entry 1") && e.contains("twice"), "{e}");
+        assert!(LatencyTable::new(&[(0.75, f64::NAN)]).is_err());
+    }
+
+    #[test]
+    fn fixed_is_fixed() {
+        let trace = drive(&mut Fixed { scale: 0.75 }, 5.0, 0.1);
+        assert!(trace.iter().all(|(_, s)| *s == 0.75));
+    }
+}

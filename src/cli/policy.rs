@@ -1,0 +1,415 @@
+//! `mrdrive policy ...`, `mrdrive train --synthetic`, `mrdrive bench policy`.
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, Subcommand, ValueEnum};
+use policy::backbone::Depth;
+use policy::bench;
+use policy::checkpoint::{self, ModelCard};
+use policy::model::PolicyConfig;
+use policy::train::synthetic::toy_batch;
+use policy::train::{MultiResTrainer, TrainConfig};
+use std::path::PathBuf;
+
+/// A named network configuration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Preset {
+    /// Half-width ResNet-18 at 240 x 96 (the CPU default).
+    Cpu,
+    /// ResNet-34 at 480 x 192 (the paper).
+    Paper,
+    /// Full-width ResNet-18 at 480 x 192.
+    Resnet18,
+    /// A tiny network (widths 8-16-16-32, 96 x 48) for smoke runs.
+    Tiny,
+}
+
+impl Preset {
+    /// The config of this preset with scale set `scales`.
+    pub fn config(self, scales: &[f32]) -> PolicyConfig {
+        let c = match self {
+            Preset::Cpu => PolicyConfig::cpu_default(),
+            Preset::Paper => PolicyConfig::paper(),
+            Preset::Resnet18 => PolicyConfig {
+                depth: Depth::Resnet18,
+                ..PolicyConfig::paper()
+            },
+            Preset::Tiny => PolicyConfig::new(Depth::Resnet18, [8, 16, 16, 32])
+                .with_input_height(48)
+                .with_input_width(96),
+        };
+        c.with_scales(scales.to_vec())
+    }
+}
+
+/// Which device runs the network.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum DeviceKind {
+    /// burn's `flex` CPU backend.
+    Cpu,
+    /// CUDA (needs a build with burn's `cuda` feature).
+    Cuda,
+    /// wgpu (needs a build with burn's `wgpu` feature).
+    Wgpu,
+}
+
+/// The burn device for `kind`.
+pub fn device(kind: DeviceKind) -> Result<policy::burn::tensor::Device> {
+    match kind {
+        DeviceKind::Cpu => Ok(policy::burn::tensor::Device::flex()),
+        other => bail!(
+            "--device {other:?}: this build has only burn's CPU backend (flex); rebuild with burn's `cuda`/`wgpu` feature to use a GPU"
+        ),
+    }
+}
+
+/// `mrdrive policy ...`
+#[derive(Debug, Args)]
+pub struct PolicyArgs {
+    #[command(subcommand)]
+    command: PolicyCommand,
+}
+
+#[derive(Debug, Subcommand)]
+enum PolicyCommand {
+    /// Print the parameter overhead of the BN banks.
+    Overhead,
+    /// Write a randomly initialised checkpoint (its card says it is untrained).
+    Init {
+        /// Output weights path (NAME.safetensors; NAME.json is written beside it).
+        #[arg(long)]
+        out: PathBuf,
+        /// Network preset.
+        #[arg(long, value_enum, default_value = "cpu")]
+        preset: Preset,
+        /// Scale set R, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "0.75,1.0")]
+        scales: Vec<f32>,
+        /// Initialisation seed.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+    },
+    /// Build a checkpoint whose backbone comes from a torchvision ResNet state dict (safetensors).
+    ImportTorchvision {
+        /// The torchvision weights (.safetensors).
+        #[arg(long)]
+        weights: PathBuf,
+        /// Output weights path.
+        #[arg(long)]
+        out: PathBuf,
+        /// Prefix of the backbone keys in the file (e.g. `backbone_wide.`).
+        #[arg(long, default_value = "")]
+        prefix: String,
+        /// Network preset (must match the file's depth and widths).
+        #[arg(long, value_enum, default_value = "paper")]
+        preset: Preset,
+        /// Scale set R, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "0.75,1.0")]
+        scales: Vec<f32>,
+    },
+    /// Print a checkpoint's config and card.
+    Info {
+        /// Weights path.
+        weights: PathBuf,
+    },
+}
+
+/// Runs `mrdrive policy ...`.
+pub fn run_policy(args: PolicyArgs) -> Result<()> {
+    match args.command {
+        PolicyCommand::Overhead => {
+            println!(
+                "BN-bank parameter overhead (learnable gamma/beta of the extra branches; whole network: backbone + action head + decoder)"
+            );
+            println!(
+                "{:<34} {:>6} {:>12} {:>12} {:>10} {:>9} {:>14}",
+                "network", "scales", "single", "banked", "extra", "extra %", "extra buffers"
+            );
+            let rows = [
+                (
+                    "resnet34 (paper, 64-512)",
+                    Preset::Paper.config(&[0.75, 1.0]),
+                ),
+                (
+                    "resnet34 (paper), 5 scales",
+                    Preset::Paper.config(&[0.5, 0.625, 0.75, 0.875, 1.0]),
+                ),
+                ("resnet18 (64-512)", Preset::Resnet18.config(&[0.75, 1.0])),
+                (
+                    "default: resnet18 half (32-256)",
+                    Preset::Cpu.config(&[0.75, 1.0]),
+                ),
+            ];
+            for (name, cfg) in rows {
+                let o = bench::overhead(name, &cfg);
+                println!(
+                    "{:<34} {:>6} {:>12} {:>12} {:>10} {:>8.3}% {:>14}",
+                    o.name,
+                    o.scales,
+                    o.single,
+                    o.multi,
+                    o.multi - o.single,
+                    o.percent(),
+                    o.extra_buffers
+                );
+            }
+            Ok(())
+        }
+        PolicyCommand::Init {
+            out,
+            preset,
+            scales,
+            seed,
+        } => {
+            let cfg = preset.config(&scales);
+            cfg.validate()?;
+            let dev = device(DeviceKind::Cpu)?;
+            dev.seed(seed);
+            let net = cfg.init(&dev);
+            checkpoint::save(&net, &ModelCard::random_init(seed), &out)?;
+            println!(
+                "wrote {} and {} (random init, seed {seed})",
+                out.display(),
+                checkpoint::manifest_path(&out).display()
+            );
+            Ok(())
+        }
+        PolicyCommand::ImportTorchvision {
+            weights,
+            out,
+            prefix,
+            preset,
+            scales,
+        } => {
+            let cfg = preset.config(&scales);
+            let dev = device(DeviceKind::Cpu)?;
+            dev.seed(0);
+            let net = checkpoint::load_torchvision_backbone(&weights, &prefix, &cfg, &dev)?;
+            let card = ModelCard {
+                trained: false,
+                description: "backbone imported from a torchvision ResNet state dict; heads randomly initialised (seed 0): not a trained driving policy".into(),
+                source: weights.display().to_string(),
+            };
+            checkpoint::save(&net, &card, &out)?;
+            println!("wrote {}", out.display());
+            Ok(())
+        }
+        PolicyCommand::Info { weights } => {
+            let (cfg, card) = checkpoint::read_manifest(&weights)?;
+            println!(
+                "{}",
+                serde_json::to_string_pretty(&serde_json::json!({"config": cfg, "card": card}))?
+            );
+            Ok(())
+        }
+    }
+}
+
+/// `mrdrive train ...`
+#[derive(Debug, Args)]
+pub struct TrainArgs {
+    /// Train on a synthetic toy batch (a smoke run: the loss must fall).
+    #[arg(long)]
+    synthetic: bool,
+    /// Steps.
+    #[arg(long, default_value_t = 30)]
+    steps: usize,
+    /// Batch size.
+    #[arg(long, default_value_t = 8)]
+    batch: usize,
+    /// Network preset.
+    #[arg(long, value_enum, default_value = "tiny")]
+    preset: Preset,
+    /// Scale set R, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "0.75,1.0")]
+    scales: Vec<f32>,
+    /// Learning rate.
+    #[arg(long, default_value_t = 1e-3)]
+    lr: f64,
+    /// Seed (initialisation and data).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Device.
+    #[arg(long, value_enum, default_value = "cpu")]
+    device: DeviceKind,
+}
+
+/// Runs `mrdrive train`.
+pub fn run_train(args: TrainArgs) -> Result<()> {
+    if !args.synthetic {
+        bail!(
+            "only `mrdrive train --synthetic` exists so far: the datasets and the training pipeline come with the data issue"
+        );
+    }
+    let cfg = args.preset.config(&args.scales);
+    cfg.validate()?;
+    let dev = device(args.device)?.autodiff();
+    dev.seed(args.seed);
+    let batch = toy_batch(&cfg, args.batch, args.seed, &dev);
+    let tc = TrainConfig::new()
+        .with_lr(args.lr)
+        .with_freeze_action_head(false);
+    let mut trainer = MultiResTrainer::new(cfg.init(&dev), None, tc, &dev);
+    println!(
+        "synthetic multi-resolution training: {} scales {:?}, batch {}, {} steps (one fixed toy batch)",
+        cfg.depth.name(),
+        cfg.scales,
+        args.batch,
+        args.steps
+    );
+    let mut first = None;
+    let mut last = 0.0;
+    for _ in 0..args.steps {
+        let r = trainer.step(&batch);
+        let per: Vec<String> = r
+            .per_scale
+            .iter()
+            .zip(&cfg.scales)
+            .map(|(l, s)| format!("{s}x {l:.4}"))
+            .collect();
+        println!(
+            "step {:>4}  loss {:.4}  ({})",
+            r.step,
+            r.loss,
+            per.join(", ")
+        );
+        first.get_or_insert(r.loss);
+        last = r.loss;
+    }
+    let first = first.context("--steps must be at least 1")?;
+    println!(
+        "loss {first:.4} -> {last:.4} ({})",
+        if last < first {
+            "falling"
+        } else {
+            "NOT falling"
+        }
+    );
+    if last.is_nan() || last >= first {
+        bail!("the loss did not fall on the toy batch");
+    }
+    Ok(())
+}
+
+#[derive(Debug, Subcommand)]
+pub enum BenchCommand {
+    /// Policy inference latency per scale and multi-resolution training throughput.
+    Policy {
+        /// Timed repeats per scale (after 3 warm-up runs).
+        #[arg(long, default_value_t = 20)]
+        repeats: usize,
+        /// Timed training steps (after 1 warm-up step); 0 skips training.
+        #[arg(long, default_value_t = 3)]
+        train_steps: usize,
+        /// Training batch size.
+        #[arg(long, default_value_t = 32)]
+        batch: usize,
+        /// Only the default model (skip ResNet-34/18 at the paper's S0).
+        #[arg(long)]
+        quick: bool,
+        /// Device.
+        #[arg(long, value_enum, default_value = "cpu")]
+        device: DeviceKind,
+    },
+}
+
+/// Runs one policy benchmark.
+pub fn run_bench_command(command: BenchCommand) -> Result<()> {
+    let BenchCommand::Policy {
+        repeats,
+        train_steps,
+        batch,
+        quick,
+        device: kind,
+    } = command;
+    let dev = device(kind)?;
+    let threads = policy::cpu_threads();
+    let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
+    println!(
+        "policy benchmark: burn flex CPU backend, {threads} rayon threads (RAYON_NUM_THREADS), batch 1 inference, median of {repeats} (scales interleaved)"
+    );
+    println!("load average before: {}", load.trim());
+    let mut nets = vec![(
+        "default: resnet18 half 32-256",
+        Preset::Cpu.config(&[0.75, 1.0]),
+    )];
+    if !quick {
+        nets.push((
+            "resnet18 64-512 @ 240x96",
+            Preset::Resnet18
+                .config(&[0.75, 1.0])
+                .with_input_height(96)
+                .with_input_width(240),
+        ));
+        nets.push((
+            "resnet18 64-512 @ 480x192",
+            Preset::Resnet18.config(&[0.75, 1.0]),
+        ));
+        nets.push((
+            "resnet34 64-512 @ 240x96",
+            Preset::Paper
+                .config(&[0.75, 1.0])
+                .with_input_height(96)
+                .with_input_width(240),
+        ));
+        nets.push((
+            "resnet34 64-512 @ 480x192 (paper)",
+            Preset::Paper.config(&[0.75, 1.0]),
+        ));
+        nets.push((
+            "resnet18 half 32-256 @ 480x192",
+            Preset::Cpu
+                .config(&[0.75, 1.0])
+                .with_input_height(192)
+                .with_input_width(480),
+        ));
+    }
+    println!(
+        "{:<36} {:>6} {:>10} {:>10} {:>9} {:>9} {:>12}",
+        "network", "scale", "input WxH", "median ms", "min ms", "max ms", "t(.75)/t(1)"
+    );
+    for (name, cfg) in &nets {
+        let rows = bench::inference_latency(cfg, &dev, 3, repeats);
+        let t = |s: f32| rows.iter().find(|r| r.0 == s).map(|r| r.2.median_ms);
+        let ratio = match (t(0.75), t(1.0)) {
+            (Some(a), Some(b)) => format!("{:.3}", a / b),
+            _ => "-".into(),
+        };
+        for (i, (r, [h, w], l)) in rows.iter().enumerate() {
+            println!(
+                "{:<36} {:>6} {:>10} {:>10.2} {:>9.2} {:>9.2} {:>12}",
+                if i == 0 { *name } else { "" },
+                r,
+                format!("{w}x{h}"),
+                l.median_ms,
+                l.min_ms,
+                l.max_ms,
+                if i + 1 == rows.len() {
+                    ratio.as_str()
+                } else {
+                    ""
+                }
+            );
+        }
+    }
+    println!("(ideal t(0.75)/t(1.0) = 0.5625, the area ratio)");
+    println!(
+        "load average after inference: {}",
+        std::fs::read_to_string("/proc/loadavg")
+            .unwrap_or_default()
+            .trim()
+    );
+    if train_steps > 0 {
+        let cfg = Preset::Cpu.config(&[0.75, 1.0]);
+        let ad = dev.clone().autodiff();
+        for (what, tc) in [
+            ("segmentation on (weight 0.05)", TrainConfig::new()),
+            ("segmentation off", TrainConfig::new().with_seg_weight(0.0)),
+        ] {
+            let sps = bench::train_throughput(&cfg, tc, &ad, batch, 1, train_steps);
+            println!(
+                "training, multi-resolution step (0.75x + 1.0x, {what}, Adam, head frozen), default model, batch {batch}: {sps:.1} samples/s (each sample at both scales; {train_steps} steps after 1 warm-up)"
+            );
+        }
+    }
+    Ok(())
+}
