@@ -26,37 +26,63 @@ struct FsOut {
     @location(1) class_id: u32,
 };
 
+fn is_small(c: u32) -> bool {
+    return c < 32u && ((params.small_mask >> c) & 1u) != 0u;
+}
+
+// Offers class `c` seen `m` times to the running choice (best, best_n, small, small_n).
+fn offer(acc: vec4<u32>, c: u32, m: u32) -> vec4<u32> {
+    var r = acc;
+    if (m > r.y || (m == r.y && c > r.x)) {
+        r.x = c;
+        r.y = m;
+    }
+    if (is_small(c) && (m > r.w || (m == r.w && c < r.z))) {
+        r.z = c;
+        r.w = m;
+    }
+    return r;
+}
+
 @fragment
 fn fs_down(@builtin(position) pos: vec4<f32>) -> FsOut {
     let k = i32(params.k);
+    let n = k * k;
     let base = vec2<i32>(floor(pos.xy)) * k;
     var sum = vec3<f32>(0.0);
-    var counts: array<u32, 32>;
-    for (var dy = 0; dy < k; dy++) {
-        for (var dx = 0; dx < k; dx++) {
-            let q = base + vec2<i32>(dx, dy);
-            sum += textureLoad(hi_color, q, 0).rgb;
-            let c = min(textureLoad(hi_class, q, 0).r, 31u);
-            counts[c] += 1u;
-        }
+    for (var i = 0; i < n; i++) {
+        sum += textureLoad(hi_color, base + vec2<i32>(i % k, i / k), 0).rgb;
     }
-    var best = 0u;
-    var best_n = 0u;
-    var small = 0u;
-    var small_n = 0u;
-    for (var c = 0u; c < 32u; c++) {
-        let n = counts[c];
-        if (n >= best_n && n > 0u) {
-            best = c;
-            best_n = n;
-        }
-        if (((params.small_mask >> c) & 1u) != 0u && n > small_n) {
-            small = c;
-            small_n = n;
+    // acc = (best class, its count, best small class, its count).
+    var acc = vec4<u32>(0u, 0u, 0u, 0u);
+    if (k == 2) {
+        // The common case, unrolled: pairwise counts of four samples.
+        let c0 = textureLoad(hi_class, base, 0).r;
+        let c1 = textureLoad(hi_class, base + vec2<i32>(1, 0), 0).r;
+        let c2 = textureLoad(hi_class, base + vec2<i32>(0, 1), 0).r;
+        let c3 = textureLoad(hi_class, base + vec2<i32>(1, 1), 0).r;
+        let e01 = select(0u, 1u, c0 == c1);
+        let e02 = select(0u, 1u, c0 == c2);
+        let e03 = select(0u, 1u, c0 == c3);
+        let e12 = select(0u, 1u, c1 == c2);
+        let e13 = select(0u, 1u, c1 == c3);
+        let e23 = select(0u, 1u, c2 == c3);
+        acc = offer(acc, c0, 1u + e01 + e02 + e03);
+        acc = offer(acc, c1, 1u + e01 + e12 + e13);
+        acc = offer(acc, c2, 1u + e02 + e12 + e23);
+        acc = offer(acc, c3, 1u + e03 + e13 + e23);
+    } else {
+        for (var i = 0; i < n; i++) {
+            let c = textureLoad(hi_class, base + vec2<i32>(i % k, i / k), 0).r;
+            var m = 0u;
+            for (var j = 0; j < n; j++) {
+                m += select(0u, 1u, textureLoad(hi_class, base + vec2<i32>(j % k, j / k), 0).r == c);
+            }
+            acc = offer(acc, c, m);
         }
     }
     var out: FsOut;
-    out.color = vec4<f32>(sum / f32(k * k), 1.0);
-    out.class_id = select(best, small, small_n > 0u);
+    out.color = vec4<f32>(sum / f32(n), 1.0);
+    out.class_id = select(acc.x, acc.z, acc.w > 0u);
     return out;
 }

@@ -162,15 +162,19 @@ impl Tris {
     }
     /// An upright octagonal prism: bottom centre, radius, height.
     fn prism(&mut self, base: Vec3, radius: f32, height: f32, color: u32) {
-        let ring: Vec<Vec3> = (0..8)
+        self.prism_n(base, radius, height, 8, color);
+    }
+    /// An upright prism with `sides` sides: bottom centre, radius, height.
+    fn prism_n(&mut self, base: Vec3, radius: f32, height: f32, sides: usize, color: u32) {
+        let ring: Vec<Vec3> = (0..sides)
             .map(|i| {
-                let a = i as f32 * std::f32::consts::TAU / 8.0;
+                let a = i as f32 * std::f32::consts::TAU / sides as f32;
                 base + Vec3::new(a.cos(), a.sin(), 0.0) * radius
             })
             .collect();
         let up = Vec3::Z * height;
-        for i in 0..8 {
-            let j = (i + 1) % 8;
+        for i in 0..sides {
+            let j = (i + 1) % sides;
             self.quad(ring[i], ring[j], ring[j] + up, ring[i] + up, color);
             self.tri(base + up, ring[i] + up, ring[j] + up, color);
             self.tri(base, ring[j], ring[i], color);
@@ -669,7 +673,7 @@ fn props(town: &Town, ground_z: f32, seed: u64, t: &mut Tris) {
             let h = rng.random_range(2.0..3.0f32);
             let r = rng.random_range(1.2..2.0f32);
             t.boxed(base, Vec3::new(0.3, 0.3, h + 0.5), 0.0, trunk);
-            t.prism(base + Vec3::Z * h, r, r * 1.6, leaves);
+            t.prism_n(base + Vec3::Z * h, r, r * 1.6, 6, leaves);
         } else if roll < 0.7 {
             let heading = (-out).to_angle();
             t.boxed(base, Vec3::new(0.16, 0.16, 6.5), 0.0, metal);
