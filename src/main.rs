@@ -38,7 +38,19 @@ enum Command {
     Bench(cli::bench::BenchArgs),
 }
 
-fn main() -> anyhow::Result<()> {
+/// Runs the command; a failure prints one readable message (the error and
+/// its causes, no backtrace: these are the user's errors to fix) and exits 1.
+fn main() -> std::process::ExitCode {
+    match run() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run() -> anyhow::Result<()> {
     tracing_subscriber::fmt()
         .with_env_filter(tracing_subscriber::EnvFilter::from_default_env())
         .with_writer(std::io::stderr)

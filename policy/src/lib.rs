@@ -14,7 +14,7 @@ pub mod decode;
 pub mod driver;
 pub mod heads;
 pub mod model;
-pub mod selector;
+pub use sim::selector;
 pub mod train;
 
 pub use checkpoint::ModelCard;

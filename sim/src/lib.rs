@@ -12,6 +12,7 @@ pub mod recorder;
 pub mod render;
 pub mod runner;
 pub mod scenario;
+pub mod selector;
 pub mod sweep;
 
 pub use driver::*;

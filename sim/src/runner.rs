@@ -45,6 +45,7 @@ use crate::record::{
 };
 use crate::recorder::{Recorder, tick_ns};
 use crate::scenario::Scenario;
+use crate::selector::{ResolutionSelector, SelectorInput};
 
 /// Seconds of route timeout per metre of route, plus a fixed allowance
 /// (leaderboard-style: generous enough for waits at every light).
@@ -125,43 +126,6 @@ pub trait Camera {
     fn backend(&self) -> String;
 }
 
-/// What a resolution selector sees at a control boundary.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SelectorInput {
-    /// The scale in force (fraction of S0).
-    pub current_scale: f64,
-    /// Straight-line distance from the ego to the stop line of the nearest
-    /// light with a stop line on the ego's current lane (metres), as
-    /// TimeParam's oracle measures it.
-    pub lane_light_distance_m: Option<f32>,
-    /// Distance along the route from the ego's front to the next stop line
-    /// ahead (metres): what a map-based selector knows.
-    pub route_light_distance_m: Option<f32>,
-    /// Ego speed (metres per second).
-    pub speed_mps: f32,
-}
-
-/// Decides the input scale before the observation is rendered.
-pub trait Selector {
-    /// A short description for result records ("fixed 1.0", ...).
-    fn describe(&self) -> String;
-    /// The scale for this boundary.
-    fn select(&mut self, input: &SelectorInput) -> f64;
-}
-
-/// One scale throughout.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FixedScale(pub f64);
-
-impl Selector for FixedScale {
-    fn describe(&self) -> String {
-        format!("fixed {}", self.0)
-    }
-    fn select(&mut self, _: &SelectorInput) -> f64 {
-        self.0
-    }
-}
-
 /// Settings given on the command line over the scenario's.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Overrides {
@@ -202,7 +166,7 @@ pub struct RunInputs<'a> {
     /// Who drives.
     pub driver: &'a mut dyn Driver,
     /// Who picks the scale.
-    pub selector: &'a mut dyn Selector,
+    pub selector: &'a mut dyn ResolutionSelector,
     /// The camera, if anything needs images.
     pub camera: Option<&'a mut dyn Camera>,
     /// The log, if recording.
@@ -275,16 +239,32 @@ fn ego_contact(a: Party, b: Party) -> Option<EgoContact> {
     })
 }
 
-/// TimeParam's oracle distance: to the stop line of the nearest light that
-/// has a stop line on the ego's lane.
-fn lane_light_distance(town: &Town, lane: Option<world::LaneIdx>, ego: Vec2) -> Option<f32> {
-    let lane = lane?;
-    town.lights
-        .iter()
-        .flat_map(|l| l.stop_lines.iter())
-        .filter(|s| s.lane == lane)
-        .map(|s| ((s.ends[0] + s.ends[1]) / 2.0).truncate().distance(ego))
-        .min_by(f32::total_cmp)
+/// What the selector sees: the distances along the route from the ego's
+/// centre to the next stop line ahead and from the last one passed (metres).
+/// TimeParam's oracle measures a straight line to the light's trigger volume
+/// (the stop line of the approach lane); on an approach the two agree.
+fn selector_input(
+    route: &DenseRoute,
+    index: usize,
+    ego: &ActorSnapshot,
+    stops: &[RouteStop],
+) -> SelectorInput {
+    let ego_s = route.points.get(index).map_or(0.0, |p| {
+        p.route_s
+            + (ego.position.truncate() - p.position.truncate()).dot(Vec2::from_angle(p.heading))
+    });
+    SelectorInput {
+        light_ahead_m: stops
+            .iter()
+            .find(|s| s.route_s > ego_s)
+            .map(|s| s.route_s - ego_s),
+        light_behind_m: stops
+            .iter()
+            .rev()
+            .find(|s| s.route_s <= ego_s)
+            .map(|s| ego_s - s.route_s),
+        speed_mps: ego.speed_mps,
+    }
 }
 
 /// Drives one scenario; returns its record.
@@ -357,12 +337,8 @@ pub fn run(
     let mut new_infractions: Vec<Infraction> = Vec::new();
 
     // Timing.
-    let mut scale = selector.select(&SelectorInput {
-        current_scale: 1.0,
-        lane_light_distance_m: None,
-        route_light_distance_m: None,
-        speed_mps: 0.0,
-    });
+    selector.reset();
+    let mut scale = f64::from(selector.select(&SelectorInput::default()));
     let (timing, mut latency_ms) = timing_at(scenario, scale);
     let mut delay = DelayLine::new(timing);
     let mut max_latency_ms = latency_ms;
@@ -383,30 +359,12 @@ pub fn run(
         let ego = *snapshots
             .first()
             .ok_or_else(|| RunError::Setup("the ego was not spawned".into()))?;
-        let ego_lane = traffic.ego().and_then(|e| e.lane).map(|(l, _)| l);
 
         // 1. A control boundary.
         let mut computed = None;
         if delay.is_boundary(tick) {
-            let front_s = route
-                .points
-                .get(route_monitor.index())
-                .map_or(0.0, |p| p.route_s)
-                + ego.extent.x / 2.0;
-            let input = SelectorInput {
-                current_scale: scale,
-                lane_light_distance_m: lane_light_distance(
-                    &town,
-                    ego_lane,
-                    ego.position.truncate(),
-                ),
-                route_light_distance_m: stops
-                    .iter()
-                    .find(|s| s.route_s > front_s)
-                    .map(|s| s.route_s - front_s),
-                speed_mps: ego.speed_mps,
-            };
-            let new_scale = selector.select(&input);
+            let input = selector_input(route, route_monitor.index(), &ego, &stops);
+            let new_scale = f64::from(selector.select(&input));
             if new_scale != scale {
                 scale = new_scale;
                 let (t, l) = timing_at(scenario, scale);
@@ -594,7 +552,7 @@ pub fn run(
             seed,
             delay_ms: scenario.timing.delay_ms,
             control_period_ms: scenario.timing.control_period_ms,
-            resolution: selector.describe(),
+            resolution: selector.name(),
             vehicles: scenario.traffic.vehicles,
             pedestrians: scenario.traffic.pedestrians,
         },

@@ -4,13 +4,15 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use clap::Args;
+use policy::PolicyDriver;
 use sim::driver::Driver;
 use sim::expert::{Expert, ExpertParams};
 use sim::record::RunRecord;
 use sim::recorder::{RecordOptions, Recorder};
 use sim::render::{Renderer, RigConfig};
-use sim::runner::{self, FixedScale, Overrides, Prepared, RunInputs, Selector};
+use sim::runner::{self, Overrides, Prepared, RunInputs};
 use sim::scenario::{DriverKind, RigKind, Scenario, SelectorKind};
+use sim::selector::{Fixed, LatencyBudget, LatencyTable, Lookahead, Oracle, ResolutionSelector};
 
 /// `run` arguments.
 #[derive(Args)]
@@ -41,23 +43,75 @@ pub struct RunArgs {
     pub quiet: bool,
 }
 
+/// The latency table of a scenario (`timing.latency_ms`), if it has one.
+fn latency_table(scenario: &Scenario) -> anyhow::Result<Option<LatencyTable>> {
+    if scenario.timing.latency_ms.is_empty() {
+        return Ok(None);
+    }
+    let pairs: Vec<(f32, f64)> = scenario
+        .timing
+        .latency_ms
+        .iter()
+        .map(|(k, v)| k.parse::<f32>().map(|s| (s, *v)))
+        .collect::<Result<_, _>>()
+        .with_context(|| {
+            format!(
+                "scenario {}: timing.latency_ms keys are scales like \"0.75\"",
+                scenario.name
+            )
+        })?;
+    Ok(Some(LatencyTable::new(&pairs).with_context(|| {
+        format!("scenario {}: timing.latency_ms", scenario.name)
+    })?))
+}
+
 /// The selector a scenario asks for (the scale flag overrides it).
-pub fn selector_for(scenario: &Scenario, scale: Option<f64>) -> anyhow::Result<Box<dyn Selector>> {
+pub fn selector_for(
+    scenario: &Scenario,
+    scale: Option<f64>,
+) -> anyhow::Result<Box<dyn ResolutionSelector>> {
     if let Some(s) = scale {
         anyhow::ensure!(
             s > 0.0 && s <= 1.0,
             "--scale {s}: scales are fractions of S0 in (0, 1]"
         );
-        return Ok(Box::new(FixedScale(s)));
+        return Ok(Box::new(Fixed { scale: s as f32 }));
     }
     let r = &scenario.resolution;
-    match r.selector {
-        SelectorKind::Fixed => Ok(Box::new(FixedScale(r.scale))),
-        other => anyhow::bail!(
-            "scenario {}: resolution.selector = {other:?} is not available in this build yet; use \"fixed\"",
+    let (low, high) = (r.low as f32, r.high as f32);
+    let needs_table = |what: &str| {
+        format!(
+            "scenario {}: resolution.selector = \"{what}\" needs timing.latency_ms for the scales {low} and {high}, e.g. latency_ms = {{ \"{low}\" = 50.0, \"{high}\" = 100.0 }}",
             scenario.name
-        ),
-    }
+        )
+    };
+    Ok(match r.selector {
+        SelectorKind::Fixed => Box::new(Fixed {
+            scale: r.scale as f32,
+        }),
+        SelectorKind::Oracle => Box::new(Oracle {
+            low,
+            high,
+            enter_m: r.near_m as f32,
+            exit_m: r.far_m as f32,
+            active: false,
+        }),
+        SelectorKind::Lookahead => {
+            let table = latency_table(scenario)?.with_context(|| needs_table("lookahead"))?;
+            let mut l =
+                Lookahead::covering(low, high, &table).with_context(|| needs_table("lookahead"))?;
+            l.enter_m = r.near_m as f32;
+            l.exit_m = r.far_m as f32;
+            Box::new(l)
+        }
+        SelectorKind::Budget => {
+            let table = latency_table(scenario)?.with_context(|| needs_table("budget"))?;
+            Box::new(LatencyBudget {
+                table,
+                budget_ms: r.budget_ms.unwrap_or(f64::INFINITY),
+            })
+        }
+    })
 }
 
 /// The driver a scenario asks for.
@@ -68,30 +122,74 @@ pub fn driver_for(scenario: &Scenario, prepared: &Prepared) -> anyhow::Result<Bo
             &prepared.route,
             ExpertParams::default(),
         ))),
-        DriverKind::Policy => anyhow::bail!(
-            "scenario {}: driver.kind = \"policy\" is not available in this build yet; use \"expert\"",
-            scenario.name
-        ),
+        DriverKind::Policy => {
+            let path = scenario
+                .driver
+                .checkpoint
+                .as_deref()
+                .context("driver.checkpoint is required for a policy")?;
+            let device = match scenario.driver.device.as_deref().unwrap_or("cpu") {
+                "cpu" => policy::burn::tensor::Device::flex(),
+                other => anyhow::bail!(
+                    "scenario {}: driver.device = \"{other}\": this build has only the CPU backend; use \"cpu\"",
+                    scenario.name
+                ),
+            };
+            Ok(Box::new(PolicyDriver::from_checkpoint(path, device)?))
+        }
     }
 }
 
-/// The rig a scenario asks for.
-pub fn rig_for(scenario: &Scenario) -> RigConfig {
+/// The base size S0 (height, width) a policy checkpoint was trained at, if
+/// the scenario's driver is a policy.
+fn policy_s0(scenario: &Scenario) -> anyhow::Result<Option<(u32, u32)>> {
+    if scenario.driver.kind != DriverKind::Policy {
+        return Ok(None);
+    }
+    let path = scenario
+        .driver
+        .checkpoint
+        .as_deref()
+        .context("driver.checkpoint is required for a policy")?;
+    let (cfg, _) = policy::checkpoint::read_manifest(path)?;
+    let [h, w] = cfg.input_size(1.0);
+    Ok(Some((h as u32, w as u32)))
+}
+
+/// The rig a scenario asks for: a policy's own S0 if it drives, else the
+/// scenario's `[camera]` rig. The crop keeps WoR's proportions (the top
+/// fifth of each camera's image is cut).
+pub fn rig_for(scenario: &Scenario) -> anyhow::Result<RigConfig> {
     let base = match scenario.camera.rig {
         RigKind::Cpu => RigConfig::cpu_default(),
         RigKind::Paper => RigConfig::paper(),
     };
-    RigConfig {
+    let base = match policy_s0(scenario)? {
+        Some((h0, w0)) => {
+            anyhow::ensure!(
+                w0 % 3 == 0 && h0 % 4 == 0,
+                "checkpoint S0 {w0}x{h0}: the rig needs a width divisible by 3 and a height by 4"
+            );
+            RigConfig {
+                cam_width_px: w0 / 3,
+                cam_height_px: h0 * 5 / 4,
+                crop_top_px: h0 / 4,
+                ..base
+            }
+        }
+        None => base,
+    };
+    Ok(RigConfig {
         supersample: scenario.camera.supersample,
         ..base
-    }
+    })
 }
 
 /// The wgpu renderer for a scenario's town (seeded from its traffic seed).
 pub fn camera_for(scenario: &Scenario, prepared: &Prepared) -> anyhow::Result<Renderer> {
     Ok(Renderer::new(
         &prepared.town,
-        rig_for(scenario),
+        rig_for(scenario)?,
         scenario.traffic.seed,
     )?)
 }
