@@ -188,6 +188,7 @@ mod tests {
                 command: Command::LaneFollow,
                 scale,
                 image: Some(&img),
+                privileged: None,
             };
             let ca = a.act(&obs);
             assert_eq!(ca, b.act(&obs));
@@ -219,6 +220,7 @@ mod tests {
             command: Command::Left,
             scale: 1.0,
             image: None,
+            privileged: None,
         };
         assert_eq!(d.act(&obs).brake, 1.0);
     }

@@ -68,6 +68,7 @@ fn a_checkpoint_drives_a_scripted_approach_with_each_selector() {
                 command: Command::LaneFollow,
                 scale,
                 image: Some(&image),
+                privileged: None,
             };
             let c = driver.act(&obs);
             assert!(
