@@ -301,6 +301,16 @@ impl Traffic {
         self.stats
     }
 
+    /// The junction reservations in force.
+    pub fn reservations(&self) -> &Reservations {
+        &self.reservations
+    }
+
+    /// The stop lines and junction conflicts the NPCs obey.
+    pub fn road_rules(&self) -> &RoadRules {
+        &self.rules
+    }
+
     /// The walk graph.
     pub fn walk_graph(&self) -> &WalkGraph {
         &self.walk
@@ -502,7 +512,7 @@ impl Traffic {
             let stop_for_light = before
                 && entry.is_some_and(|d_entry| {
                     self.light_stop(n, lights)
-                        .is_some_and(|(stop, d, _)| stop && d > 0.5 && d <= d_entry + 0.1)
+                        .is_some_and(|(stop, d, _)| stop && d > -0.3 && d <= d_entry + 0.1)
                 });
             if left || lost || stop_for_light {
                 let id = n.id;
