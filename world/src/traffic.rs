@@ -269,6 +269,7 @@ impl Traffic {
                 route: Vec::new(),
                 wait_ticks: 0,
                 blocked_ticks: 0,
+                held_by_vehicle: false,
                 crosswalk_legs: 0,
                 jaywalk_legs: 0,
                 rng,
@@ -696,7 +697,11 @@ impl Traffic {
             p.arrive(&self.walk, out.position, z, DT_S);
             // A walker held up by a vehicle for half a second turns back (cars wait for walkers
             // in front of them; this keeps the two from waiting for each other).
-            p.note_blocked(&self.walk, out.hit.is_some() && out.fraction < 0.5, 20);
+            p.note_blocked(
+                &self.walk,
+                p.held_by_vehicle || (out.hit.is_some() && out.fraction < 0.5),
+                20,
+            );
         }
         // Respawn NPCs stuck too long or pushed off their path.
         for i in 0..self.npcs.len() {
