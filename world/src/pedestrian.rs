@@ -487,6 +487,7 @@ fn seg_dist(p: Vec2, a: Vec2, b: Vec2) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::actor::ActorKind;
     use crate::testtown::grid;
     use rand::SeedableRng;
 
@@ -512,6 +513,79 @@ mod tests {
             }
         }
         assert!(seen.iter().all(|&s| s), "walk graph is not connected");
+    }
+
+    fn walker_at(g: &WalkGraph, from: u32, route: Vec<u32>) -> Pedestrian {
+        Pedestrian {
+            id: 1,
+            position: g.nodes[from as usize].position,
+            z: g.nodes[from as usize].z,
+            yaw: 0.0,
+            speed_mps: 1.5,
+            current_speed_mps: 0.0,
+            jaywalker: false,
+            from,
+            route,
+            wait_ticks: 0,
+            blocked_ticks: 0,
+            held_by_vehicle: false,
+            crosswalk_legs: 0,
+            jaywalk_legs: 0,
+            rng: ChaCha8Rng::seed_from_u64(5),
+        }
+    }
+
+    #[test]
+    fn walker_waits_while_a_car_stands_on_its_crossing_and_never_walks_into_one() {
+        let t = grid(3, 3, 60.0);
+        let p = PedestrianParams {
+            regoal_p: 0.0,
+            ..PedestrianParams::default()
+        };
+        let g = WalkGraph::new(&t, &p);
+        let (a, b) = (0..g.nodes.len() as u32)
+            .find_map(|a| {
+                g.edges[a as usize]
+                    .iter()
+                    .find(|e| e.2 == EdgeKind::Crosswalk)
+                    .map(|e| (a, e.0))
+            })
+            .unwrap();
+        let (pa, pb) = (g.nodes[a as usize].position, g.nodes[b as usize].position);
+        let along = (pb - pa).normalize();
+        // A car stands across the middle of the crossing (its long side blocks the walk).
+        let car = ActorView {
+            id: 9,
+            kind: ActorKind::Vehicle,
+            position: (pa + pb) * 0.5,
+            yaw: along.perp().to_angle(),
+            speed_mps: 0.0,
+            half_length_m: 2.4,
+            half_width_m: 1.08,
+        };
+        let clear = |w: &Pedestrian| box_dist(&car, w.position);
+        // At the curb: it waits, longer than `max_wait_s`, while the car stands there.
+        let mut w = walker_at(&g, a, vec![b]);
+        for _ in 0..((p.max_wait_s / 0.025) as u32 + 200) {
+            let (np, z) = w.decide(&g, &p, &[car], 0.025);
+            w.arrive(&g, np, z, 0.025);
+        }
+        assert!((w.position - pa).length() < 1e-4, "stepped off the curb");
+        // Already on the crossing when the car stopped there: it stops short of the car's body.
+        let mut w = walker_at(&g, a, vec![b]);
+        w.position = pa + along * 0.5;
+        let mut held = false;
+        for _ in 0..400 {
+            let (np, z) = w.decide(&g, &p, &[car], 0.025);
+            held |= w.held_by_vehicle;
+            w.arrive(&g, np, z, 0.025);
+            assert!(
+                clear(&w) >= PEDESTRIAN_RADIUS_M + VEHICLE_MARGIN_M - 1e-4,
+                "walked into the car: {} m from its body",
+                clear(&w)
+            );
+        }
+        assert!(held, "the walker was never held by the car");
     }
 
     #[test]
