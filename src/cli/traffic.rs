@@ -73,7 +73,12 @@ struct TableArgs {
 
 fn load_town(t: &TownArgs) -> Result<world::Town> {
     match (&t.map, &t.fixture) {
-        (Some(path), _) => Ok(world::Town::from_xodr_file(path)?),
+        (Some(path), _) => world::Town::from_xodr_file(path).with_context(|| {
+            format!(
+                "--map {}: could not load the map (or run the built-in grid town with --fixture)",
+                path.display()
+            )
+        }),
         (None, Some(spec)) => {
             let (nx, ny) = spec
                 .split_once('x')

@@ -11,7 +11,8 @@
 //!   ([`crate::ahead::nearest_ahead`]), minimum gap 3.0 m, (b) the stop line
 //!   of a red light, or of a yellow one it can still stop for comfortably,
 //!   (c) the entry of a junction it holds no reservation for;
-//! - lateral: pure pursuit on the path, lookahead `max(4 m, 2 m + 1 s * v)`.
+//! - lateral: pure pursuit on the path from the rear axle, lookahead
+//!   `clamp(2 m + 0.5 s * v, 3.5 m, 10 m)` ([`pursuit_steer`]).
 //!
 //! Junction yielding: connecting lanes of one junction conflict when their
 //! centrelines come within 3 m of each other. Before entering a junction an
@@ -361,14 +362,7 @@ pub fn decide(
     }
     accel = accel.clamp(-vp.brake_decel_mps2, p.max_accel_mps2);
 
-    // Pure pursuit.
-    let ld = (2.0 + v).max(4.0);
-    let (target, _, _) = npc.path.point_ahead(town, ld);
-    let to = target - npc.state.position;
-    let alpha = to.y.atan2(to.x) - npc.state.yaw;
-    let dist = to.length().max(0.5);
-    let kappa = 2.0 * alpha.sin() / dist;
-    let steer = vp.steer_for_curvature(kappa);
+    let steer = pursuit_steer(town, vp, npc);
     let (throttle, brake) = if v < 0.05 && accel <= 0.0 {
         (0.0, 1.0)
     } else {
@@ -383,6 +377,32 @@ pub fn decide(
         accel_mps2: accel,
         free_accel_mps2: free,
     }
+}
+
+/// Lookahead of the pure pursuit, measured from the rear axle (metres) at a speed (m/s).
+pub fn pursuit_lookahead_m(speed_mps: f32) -> f32 {
+    (2.0 + 0.5 * speed_mps).clamp(3.5, 10.0)
+}
+
+/// Steer that follows the NPC's path: pure pursuit from the rear axle.
+///
+/// The rear axle moves along the heading (the body centre does not: it
+/// slips by the side-slip angle in a turn), so pursuing from the rear axle
+/// keeps the rear wheels on the lane through tight junction turns instead of
+/// cutting across the inside curb. The pursued curvature is the rear axle's;
+/// it is converted to the body centre's for [`VehicleParams::steer_for_curvature`].
+pub fn pursuit_steer(town: &Town, vp: &VehicleParams, npc: &Npc) -> f32 {
+    let forward = Vec2::from_angle(npc.state.yaw);
+    let rear = npc.state.position - forward * vp.rear_wb_m;
+    let ld = pursuit_lookahead_m(npc.state.speed_mps);
+    let (target, _, _) = npc.path.point_ahead(town, ld - vp.rear_wb_m);
+    let rel = target - rear;
+    let (dx, dy) = (rel.dot(forward), forward.perp_dot(rel));
+    let d2 = (dx * dx + dy * dy).max(1e-3);
+    let kappa_rear = 2.0 * dy / d2;
+    // Rear axle curvature tan(delta) / L; body centre: sin(beta) / l_r with tan(beta) = l_r * kappa_rear.
+    let kappa_centre = (vp.rear_wb_m * kappa_rear).atan().sin() / vp.rear_wb_m;
+    vp.steer_for_curvature(kappa_centre)
 }
 
 /// Curvature of the circle through three points (1 / metres, unsigned).

@@ -11,13 +11,15 @@
 //! CARLA's `set_pedestrians_cross_factor`) use jaywalk edges. Before stepping
 //! onto a crossing or jaywalk edge a walker waits while a vehicle moving
 //! faster than 0.5 m/s is within `wait_vehicle_m` of the crossing (or
-//! `wait_time_gap_s` seconds at its speed) or any
-//! vehicle stands on it, for at most `max_wait_s`, then goes anyway. On the
-//! road it stops rather than step into the next 1.5 s of a moving vehicle's
-//! path; a walker held up by a vehicle for half a second turns back.
+//! `wait_time_gap_s` seconds at its speed), for at most `max_wait_s`, then
+//! goes anyway; and it waits as long as any vehicle stands on the crossing.
+//! On the road it stops rather than step into the next 1.5 s of a moving
+//! vehicle's path, and nowhere does it step within [`VEHICLE_MARGIN_M`] of a
+//! vehicle's body; a walker held up by a vehicle for half a second turns back.
 
 use crate::actor::ActorKind;
 use crate::ahead::ActorView;
+use crate::physics::PEDESTRIAN_RADIUS_M;
 use crate::town::Town;
 use glam::Vec2;
 use rand::RngExt;
@@ -63,6 +65,9 @@ impl Default for PedestrianParams {
         }
     }
 }
+
+/// Gap a walker keeps to a vehicle's body (metres, beyond its own radius).
+pub const VEHICLE_MARGIN_M: f32 = 0.2;
 
 /// How a walk edge is walked.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -307,6 +312,8 @@ pub struct Pedestrian {
     pub wait_ticks: u32,
     /// Consecutive ticks its walk was blocked by a vehicle.
     pub blocked_ticks: u32,
+    /// Whether its last decision was to stand still short of a vehicle's body.
+    pub held_by_vehicle: bool,
     /// Crosswalks it has walked over.
     pub crosswalk_legs: u32,
     /// Times it has crossed the road between crosswalks.
@@ -324,6 +331,7 @@ impl Pedestrian {
         vehicles: &[ActorView],
         dt_s: f32,
     ) -> (Vec2, f32) {
+        self.held_by_vehicle = false;
         if self.rng.random::<f32>() < p.regoal_p || self.route.is_empty() {
             let start = self.route.first().copied().unwrap_or(self.from);
             let mut r = g.random_route(start, self.jaywalker, &mut self.rng);
@@ -342,18 +350,19 @@ impl Pedestrian {
             .find(|e| e.0 == next)
             .map(|e| e.2);
         let at_curb = (self.position - g.nodes[self.from as usize].position).length() < 0.05;
-        if matches!(kind, Some(EdgeKind::Crosswalk | EdgeKind::Jaywalk))
-            && at_curb
-            && (self.wait_ticks as f32 * dt_s) < p.max_wait_s
-        {
+        if matches!(kind, Some(EdgeKind::Crosswalk | EdgeKind::Jaywalk)) && at_curb {
             let a = self.position;
+            let patient = (self.wait_ticks as f32 * dt_s) < p.max_wait_s;
             let busy = vehicles.iter().any(|v| {
                 if v.kind == ActorKind::Pedestrian {
                     return false;
                 }
                 let d = seg_dist(v.position, a, target);
-                // A moving vehicle nearby, or any vehicle standing on the crossing itself.
-                (v.speed_mps > 0.5 && d < p.wait_vehicle_m.max(v.speed_mps * p.wait_time_gap_s))
+                // A moving vehicle nearby (waited for at most `max_wait_s`), or any
+                // vehicle standing on the crossing itself (waited for as long as it stands there).
+                (patient
+                    && v.speed_mps > 0.5
+                    && d < p.wait_vehicle_m.max(v.speed_mps * p.wait_time_gap_s))
                     || d < v.half_length_m + 1.0
             });
             if busy {
@@ -372,6 +381,21 @@ impl Pedestrian {
             }) {
                 return (self.position, self.z);
             }
+        }
+        // Never walk into a vehicle's body: stop short of it (stepping away stays allowed).
+        let np = if d <= step {
+            target
+        } else {
+            self.position + to / d * step
+        };
+        if vehicles.iter().any(|v| {
+            v.kind != ActorKind::Pedestrian && {
+                let after = box_dist(v, np);
+                after < PEDESTRIAN_RADIUS_M + VEHICLE_MARGIN_M && after < box_dist(v, self.position)
+            }
+        }) {
+            self.held_by_vehicle = true;
+            return (self.position, self.z);
         }
         let z0 = g.nodes[self.from as usize].z;
         let z1 = g.nodes[next as usize].z;
@@ -447,6 +471,13 @@ fn sweeps_over(v: &ActorView, p: Vec2, horizon_s: f32) -> bool {
         && along < v.half_length_m + margin + v.speed_mps * horizon_s
 }
 
+/// Distance from `p` to a vehicle's footprint (metres; 0 inside).
+fn box_dist(v: &ActorView, p: Vec2) -> f32 {
+    let local = Vec2::from_angle(-v.yaw).rotate(p - v.position);
+    let q = local.abs() - Vec2::new(v.half_length_m, v.half_width_m);
+    q.max(Vec2::ZERO).length()
+}
+
 fn seg_dist(p: Vec2, a: Vec2, b: Vec2) -> f32 {
     let ab = b - a;
     let t = ((p - a).dot(ab) / ab.length_squared().max(1e-12)).clamp(0.0, 1.0);
@@ -456,6 +487,7 @@ fn seg_dist(p: Vec2, a: Vec2, b: Vec2) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::actor::ActorKind;
     use crate::testtown::grid;
     use rand::SeedableRng;
 
@@ -481,6 +513,79 @@ mod tests {
             }
         }
         assert!(seen.iter().all(|&s| s), "walk graph is not connected");
+    }
+
+    fn walker_at(g: &WalkGraph, from: u32, route: Vec<u32>) -> Pedestrian {
+        Pedestrian {
+            id: 1,
+            position: g.nodes[from as usize].position,
+            z: g.nodes[from as usize].z,
+            yaw: 0.0,
+            speed_mps: 1.5,
+            current_speed_mps: 0.0,
+            jaywalker: false,
+            from,
+            route,
+            wait_ticks: 0,
+            blocked_ticks: 0,
+            held_by_vehicle: false,
+            crosswalk_legs: 0,
+            jaywalk_legs: 0,
+            rng: ChaCha8Rng::seed_from_u64(5),
+        }
+    }
+
+    #[test]
+    fn walker_waits_while_a_car_stands_on_its_crossing_and_never_walks_into_one() {
+        let t = grid(3, 3, 60.0);
+        let p = PedestrianParams {
+            regoal_p: 0.0,
+            ..PedestrianParams::default()
+        };
+        let g = WalkGraph::new(&t, &p);
+        let (a, b) = (0..g.nodes.len() as u32)
+            .find_map(|a| {
+                g.edges[a as usize]
+                    .iter()
+                    .find(|e| e.2 == EdgeKind::Crosswalk)
+                    .map(|e| (a, e.0))
+            })
+            .unwrap();
+        let (pa, pb) = (g.nodes[a as usize].position, g.nodes[b as usize].position);
+        let along = (pb - pa).normalize();
+        // A car stands across the middle of the crossing (its long side blocks the walk).
+        let car = ActorView {
+            id: 9,
+            kind: ActorKind::Vehicle,
+            position: (pa + pb) * 0.5,
+            yaw: along.perp().to_angle(),
+            speed_mps: 0.0,
+            half_length_m: 2.4,
+            half_width_m: 1.08,
+        };
+        let clear = |w: &Pedestrian| box_dist(&car, w.position);
+        // At the curb: it waits, longer than `max_wait_s`, while the car stands there.
+        let mut w = walker_at(&g, a, vec![b]);
+        for _ in 0..((p.max_wait_s / 0.025) as u32 + 200) {
+            let (np, z) = w.decide(&g, &p, &[car], 0.025);
+            w.arrive(&g, np, z, 0.025);
+        }
+        assert!((w.position - pa).length() < 1e-4, "stepped off the curb");
+        // Already on the crossing when the car stopped there: it stops short of the car's body.
+        let mut w = walker_at(&g, a, vec![b]);
+        w.position = pa + along * 0.5;
+        let mut held = false;
+        for _ in 0..400 {
+            let (np, z) = w.decide(&g, &p, &[car], 0.025);
+            held |= w.held_by_vehicle;
+            w.arrive(&g, np, z, 0.025);
+            assert!(
+                clear(&w) >= PEDESTRIAN_RADIUS_M + VEHICLE_MARGIN_M - 1e-4,
+                "walked into the car: {} m from its body",
+                clear(&w)
+            );
+        }
+        assert!(held, "the walker was never held by the car");
     }
 
     #[test]
@@ -514,6 +619,7 @@ mod tests {
             route,
             wait_ticks: 0,
             blocked_ticks: 0,
+            held_by_vehicle: false,
             crosswalk_legs: 0,
             jaywalk_legs: 0,
             rng,

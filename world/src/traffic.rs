@@ -269,6 +269,7 @@ impl Traffic {
                 route: Vec::new(),
                 wait_ticks: 0,
                 blocked_ticks: 0,
+                held_by_vehicle: false,
                 crosswalk_legs: 0,
                 jaywalk_legs: 0,
                 rng,
@@ -299,6 +300,35 @@ impl Traffic {
     /// The counters so far.
     pub fn stats(&self) -> TrafficStats {
         self.stats
+    }
+
+    /// Puts NPC number `index` (in [`Traffic::npcs`]) at rest at the start of `path`, extended with random successors; drops its reservation and request. For tests and scripted scenes: the caller checks that the spot is free.
+    pub fn place_npc(&mut self, index: usize, path: LanePath) {
+        let n = &mut self.npcs[index];
+        let id = n.id;
+        if let Some(r) = n.reservation.take() {
+            self.reservations.release(r, id);
+        }
+        let (p, yaw, z) = lane_point(&self.town, path.lane(), path.s_m);
+        n.state = VehicleState::at_rest(p, yaw);
+        n.ground_z = z;
+        n.path = path;
+        n.request = None;
+        n.stuck_ticks = 0;
+        n.stopped_ticks = 0;
+        npc::extend_path(&self.town, &mut n.path, &mut n.rng, 80.0);
+        self.physics.teleport(id, p, yaw);
+        self.refresh_views();
+    }
+
+    /// The junction reservations in force.
+    pub fn reservations(&self) -> &Reservations {
+        &self.reservations
+    }
+
+    /// The stop lines and junction conflicts the NPCs obey.
+    pub fn road_rules(&self) -> &RoadRules {
+        &self.rules
     }
 
     /// The walk graph.
@@ -502,7 +532,7 @@ impl Traffic {
             let stop_for_light = before
                 && entry.is_some_and(|d_entry| {
                     self.light_stop(n, lights)
-                        .is_some_and(|(stop, d, _)| stop && d > 0.5 && d <= d_entry + 0.1)
+                        .is_some_and(|(stop, d, _)| stop && d > -0.3 && d <= d_entry + 0.1)
                 });
             if left || lost || stop_for_light {
                 let id = n.id;
@@ -686,7 +716,11 @@ impl Traffic {
             p.arrive(&self.walk, out.position, z, DT_S);
             // A walker held up by a vehicle for half a second turns back (cars wait for walkers
             // in front of them; this keeps the two from waiting for each other).
-            p.note_blocked(&self.walk, out.hit.is_some() && out.fraction < 0.5, 20);
+            p.note_blocked(
+                &self.walk,
+                p.held_by_vehicle || (out.hit.is_some() && out.fraction < 0.5),
+                20,
+            );
         }
         // Respawn NPCs stuck too long or pushed off their path.
         for i in 0..self.npcs.len() {
@@ -1135,6 +1169,34 @@ mod tests {
             tr.npcs[0].state.position.x > entry_x + 10.0,
             "NPC did not go after the ego left"
         );
+    }
+
+    #[test]
+    fn an_npc_stopping_for_a_red_at_the_line_gives_its_reservation_back() {
+        let t = town();
+        let mut tr = Traffic::new(t.clone(), cfg(1, 0, 6), None);
+        let sl = t.lights[0].stop_lines[0].clone();
+        let half = tr.config().vehicle.length_m * 0.5;
+        let turn = t.lanes[sl.lane.0 as usize].successors[0];
+        // Front bumper 0.2 m before the stop line, at rest, going into the junction.
+        let mut path = LanePath::new(sl.lane, sl.s - half - 0.2);
+        path.lanes.push_back(turn);
+        tr.place_npc(0, path);
+        let id = tr.npcs[0].id;
+        tr.step(&vec![LightState::Green; t.lights.len()]);
+        assert_eq!(tr.npcs[0].reservation, Some(turn), "granted on green");
+        // The light turns red before it has crossed the line: it stops there and
+        // must not keep the junction from the crossing traffic meanwhile.
+        let red = vec![LightState::Red; t.lights.len()];
+        for _ in 0..(40 * 5) {
+            tr.step(&red);
+        }
+        let (d, _) = npc::next_stop_line(&t, &tr.rules, &tr.npcs[0], &tr.cfg.vehicle, 10.0)
+            .expect("still before the line");
+        assert!(d > -0.3, "crossed the red line: {d}");
+        assert_eq!(tr.npcs[0].reservation, None);
+        assert!(!tr.reservations().holders(turn).contains(&id));
+        assert_eq!(tr.stats().npc_red_runs, 0);
     }
 
     #[test]
