@@ -1,0 +1,166 @@
+//! The regression suite: short scenarios driven by the expert at D = 0, 100
+//! and 200 ms and each traffic density, whose exact infraction counts and
+//! route completion are golden files in `tests/golden/`.
+//!
+//! Runs are deterministic, so counts are exact: any change shows as a
+//! readable line diff. After a deliberate change, `cargo xtask bless`
+//! rewrites the golden files (it sets `MRDRIVE_BLESS=1`). The golden lines
+//! record the render backend of each run ("none" for the expert, which draws
+//! nothing).
+//!
+//! Scenarios on CARLA's maps need `../shared/carla/`; without it they are
+//! skipped with a message, unless `MRDRIVE_REQUIRE_SHARED=1`.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+const DELAYS: &str = "0,100,200";
+const DENSITIES: &str = "0:0,5:10,20:40";
+const SEED: &str = "1";
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// One line per run: its settings and every count that must not drift.
+fn golden_line(record: &serde_json::Value) -> String {
+    let r = &record["result"];
+    let s = &r["settings"];
+    let counts = r["counts"].as_object().expect("counts");
+    let counts: Vec<String> = counts.iter().map(|(k, v)| format!("{k}={v}")).collect();
+    format!(
+        "D={:>3} v={:>2} p={:>2} | realised {}/{} | success={} completion={:.2} score={:.2} ticks={} end={} | {} | backend={}",
+        s["delay_ms"],
+        s["vehicles"],
+        s["pedestrians"],
+        r["traffic"]["vehicles"],
+        r["traffic"]["pedestrians"],
+        r["success"],
+        r["completion_pct"].as_f64().unwrap_or(f64::NAN),
+        r["driving_score"].as_f64().unwrap_or(f64::NAN),
+        r["ticks"],
+        r["termination"].as_str().unwrap_or("-"),
+        counts.join(" "),
+        r["provenance"]["render_backend"].as_str().unwrap_or("?"),
+    )
+}
+
+/// Runs one regression scenario through `mrdrive sweep` and returns its lines.
+fn run_scenario(scenario: &Path, out: &Path) -> Vec<String> {
+    let status = Command::new(env!("CARGO_BIN_EXE_mrdrive"))
+        .args(["sweep"])
+        .arg(scenario)
+        .args([
+            "--delays",
+            DELAYS,
+            "--densities",
+            DENSITIES,
+            "--seeds",
+            SEED,
+            "--jobs",
+            "2",
+            "--out",
+        ])
+        .arg(out)
+        .output()
+        .expect("mrdrive starts");
+    assert!(
+        status.status.success(),
+        "sweep of {} failed:\n{}",
+        scenario.display(),
+        String::from_utf8_lossy(&status.stderr)
+    );
+    let plan: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("plan.json")).unwrap()).unwrap();
+    let mut lines = Vec::new();
+    for run in plan["runs"].as_array().unwrap() {
+        let spec: sim::sweep::RunSpec = serde_json::from_value(run.clone()).unwrap();
+        let text =
+            std::fs::read_to_string(out.join("runs").join(format!("{}.json", spec.key()))).unwrap();
+        lines.push(golden_line(&serde_json::from_str(&text).unwrap()));
+    }
+    lines
+}
+
+/// Compares against (or, when blessing, writes) the golden file.
+fn check(name: &str, lines: &[String]) -> Result<(), String> {
+    let path = root().join("tests/golden").join(format!("{name}.txt"));
+    let got = lines.join("\n") + "\n";
+    if std::env::var("MRDRIVE_BLESS").as_deref() == Ok("1") {
+        std::fs::write(&path, &got).unwrap();
+        eprintln!("blessed {}", path.display());
+        return Ok(());
+    }
+    let want = std::fs::read_to_string(&path).map_err(|e| {
+        format!(
+            "{}: {e} (run `cargo xtask bless` to create it)",
+            path.display()
+        )
+    })?;
+    if want == got {
+        return Ok(());
+    }
+    let mut diff = format!("{name}: counts changed (golden file {}):\n", path.display());
+    let (w, g): (Vec<&str>, Vec<&str>) = (want.lines().collect(), got.lines().collect());
+    for i in 0..w.len().max(g.len()) {
+        match (w.get(i), g.get(i)) {
+            (Some(a), Some(b)) if a == b => {}
+            (a, b) => {
+                diff += &format!(
+                    "  - {}\n  + {}\n",
+                    a.unwrap_or(&"(none)"),
+                    b.unwrap_or(&"(none)")
+                );
+            }
+        }
+    }
+    diff += "If the change is deliberate, run `cargo xtask bless` and commit the golden files.\n";
+    Err(diff)
+}
+
+fn shared_available(scenario: &str) -> bool {
+    if root().join("../shared/carla/Town01.xodr").is_file() {
+        return true;
+    }
+    assert!(
+        std::env::var("MRDRIVE_REQUIRE_SHARED").as_deref() != Ok("1"),
+        "{scenario}: ../shared/carla not found and MRDRIVE_REQUIRE_SHARED=1"
+    );
+    println!("SKIPPED: {scenario}: ../shared/carla not found");
+    false
+}
+
+fn regression(name: &str, needs_carla: bool) {
+    if needs_carla && !shared_available(name) {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let lines = run_scenario(
+        &root().join("tests/regression").join(format!("{name}.toml")),
+        tmp.path(),
+    );
+    assert_eq!(lines.len(), 9, "3 delays x 3 densities");
+    if let Err(diff) = check(name, &lines) {
+        panic!("{diff}");
+    }
+}
+
+#[test]
+fn gen01_route0() {
+    regression("gen01_route0", false);
+}
+
+#[test]
+fn gen02_route1() {
+    regression("gen02_route1", false);
+}
+
+#[test]
+fn town01_route0_segment() {
+    regression("town01_route0_segment", true);
+}
+
+#[test]
+fn town02_route1_segment() {
+    regression("town02_route1_segment", true);
+}
