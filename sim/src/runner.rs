@@ -159,6 +159,10 @@ impl Overrides {
     }
 }
 
+/// A callback given every tick: the tick, every actor (ego first) and the
+/// light states.
+pub type TickObserver = dyn FnMut(u64, &[ActorSnapshot], &[LightState]);
+
 /// Everything a run is given besides the scenario.
 pub struct RunInputs<'a> {
     /// The loaded town and planned route.
@@ -177,7 +181,7 @@ pub struct RunInputs<'a> {
     pub max_ticks: Option<u64>,
     /// Called after every tick with the tick, every actor (ego first) and
     /// the light states: for data collection and snapshots.
-    pub observer: Option<&'a mut dyn FnMut(u64, &[ActorSnapshot], &[LightState])>,
+    pub observer: Option<&'a mut TickObserver>,
 }
 
 /// The git commit and version this binary was built from.
@@ -485,7 +489,7 @@ pub fn run(
                 rec.infraction(t_ns, i)?;
             }
             rec.control(t_ns, computed, control)?;
-            if tick % ticks_per_frame == 0 {
+            if tick.is_multiple_of(ticks_per_frame) {
                 traffic.snapshots(&mut snapshots);
                 let ego_now = snapshots[0];
                 rec.ego_transform(t_ns, &ego_now)?;

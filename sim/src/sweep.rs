@@ -476,7 +476,7 @@ mod tests {
                     pedestrians: spec.density.unwrap_or((0, 0)).1,
                 },
                 completion_pct: 100.0,
-                success: spec.seed % 2 == 0,
+                success: spec.seed.is_multiple_of(2),
                 driving_score: 100.0,
                 counts: count_by_kind(&infractions),
                 termination: None,
