@@ -5,7 +5,8 @@
 //! | `setup` | installs what the tests and the camera need and are missing (Debian packages, a Python venv) |
 //! | `run [ARGS]` | `setup`, then `cargo run --release -- run scenarios/default.toml` (or the given arguments) |
 //! | `test [ARGS]` | `setup`, then the whole test suite in release mode |
-//! | `ci` | what `.ci/run` runs: formatting, lints, then `test` with every skip turned into a failure |
+//! | `ci` | what `.ci/run` runs: formatting, then `test` with every skip turned into a failure |
+//! | `lint` | `cargo fmt --check` and `cargo clippy --all-targets -- -D warnings` (run before committing; kept out of CI because it needs a second, check-mode build of every dependency) |
 //! | `bless` | rewrites the regression suite's golden files after a deliberate change |
 //!
 //! The set-up never asks: it installs a missing Debian package when it runs as
@@ -37,6 +38,7 @@ fn main() -> ExitCode {
         Some("run") => setup(&root).and_then(|env| run(&root, &env, &args[1..])),
         Some("test") => setup(&root).and_then(|env| test(&root, &env, &args[1..], false)),
         Some("ci") => ci(&root),
+        Some("lint") => lint(&root),
         Some("bless") => bless(&root),
         _ => {
             eprintln!(
@@ -175,6 +177,12 @@ fn test(root: &Path, env: &Env, args: &[String], strict: bool) -> Result<(), Str
 
 fn ci(root: &Path) -> Result<(), String> {
     status_in(root, &["cargo", "fmt", "--all", "--", "--check"], &[])?;
+    let env = setup(root)?;
+    test(root, &env, &[], true)
+}
+
+fn lint(root: &Path) -> Result<(), String> {
+    status_in(root, &["cargo", "fmt", "--all", "--", "--check"], &[])?;
     status_in(
         root,
         &[
@@ -188,9 +196,7 @@ fn ci(root: &Path) -> Result<(), String> {
             "warnings",
         ],
         &[],
-    )?;
-    let env = setup(root)?;
-    test(root, &env, &[], true)
+    )
 }
 
 fn bless(root: &Path) -> Result<(), String> {
