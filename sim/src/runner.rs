@@ -182,6 +182,9 @@ pub struct RunInputs<'a> {
     /// Called after every tick with the tick, every actor (ego first) and
     /// the light states: for data collection and snapshots.
     pub observer: Option<&'a mut TickObserver>,
+    /// Render the rig at every camera tick even when nothing consumes it
+    /// (what data collection costs; for timing).
+    pub render_every_frame: bool,
 }
 
 /// The git commit and version this binary was built from.
@@ -286,6 +289,7 @@ pub fn run(
         progress,
         max_ticks,
         mut observer,
+        render_every_frame,
     } = inputs;
     let wall = Instant::now();
     let mut perf = RunPerf::default();
@@ -515,6 +519,19 @@ pub fn run(
         infractions.append(&mut new_infractions);
         perf.other_s += started.elapsed().as_secs_f64() - (perf.render_s - render_before);
 
+        if render_every_frame && recorder.is_none() && tick.is_multiple_of(ticks_per_frame) {
+            if let Some(cam) = camera.as_deref_mut() {
+                traffic.snapshots(&mut snapshots);
+                let started = Instant::now();
+                let frame = CameraFrame {
+                    ego: &snapshots[0],
+                    actors: &snapshots,
+                    lights: &light_states,
+                };
+                cam.render(&frame, scale).map_err(RunError::Camera)?;
+                perf.render_s += started.elapsed().as_secs_f64();
+            }
+        }
         if let Some(obs) = observer.as_deref_mut() {
             traffic.snapshots(&mut snapshots);
             obs(tick, &snapshots, &light_states);

@@ -29,6 +29,12 @@ pub struct RunArgs {
     /// The traffic seed, over the scenario's.
     #[arg(long)]
     pub seed: Option<u64>,
+    /// Target NPC vehicles, over the scenario's.
+    #[arg(long)]
+    pub vehicles: Option<u32>,
+    /// Target pedestrians, over the scenario's.
+    #[arg(long)]
+    pub pedestrians: Option<u32>,
     /// Write the result record as JSON to this file.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -38,6 +44,10 @@ pub struct RunArgs {
     /// With --record: also log the class image.
     #[arg(long)]
     pub labels: bool,
+    /// Render the camera rig at every camera tick even if the driver does not
+    /// need it (the cost of data collection; shows in the time split).
+    #[arg(long)]
+    pub camera: bool,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -200,6 +210,7 @@ pub fn run_one(
     overrides: &Overrides,
     scale: Option<f64>,
     record: Option<(&Path, RecordOptions)>,
+    render_every_frame: bool,
     progress: &mut dyn FnMut(f64),
 ) -> anyhow::Result<RunRecord> {
     let scenario = Scenario::from_file(path)?;
@@ -221,7 +232,7 @@ pub fn run_one(
     });
     let mut record_opts = record_path.as_ref().map(|(_, o)| *o);
     let wants_images = record_opts.is_some_and(|o| o.camera || o.labels);
-    let mut camera = if driver.needs().camera || wants_images {
+    let mut camera = if driver.needs().camera || wants_images || render_every_frame {
         match camera_for(&scenario, &prepared) {
             Ok(r) => Some(r),
             Err(e) if !driver.needs().camera => {
@@ -254,6 +265,7 @@ pub fn run_one(
             progress,
             max_ticks: None,
             observer: None,
+            render_every_frame,
         },
     )?;
     if let Some(rec) = recorder {
@@ -267,7 +279,8 @@ pub fn run(a: RunArgs) -> anyhow::Result<()> {
     let overrides = Overrides {
         delay_ms: a.delay_ms,
         seed: a.seed,
-        ..Default::default()
+        vehicles: a.vehicles,
+        pedestrians: a.pedestrians,
     };
     let bar = if a.quiet {
         indicatif::ProgressBar::hidden()
@@ -290,6 +303,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<()> {
         &overrides,
         a.scale,
         a.record.as_deref().map(|p| (p, record_opts)),
+        a.camera,
         &mut |pct| bar.set_position(pct.floor() as u64),
     )?;
     bar.finish_and_clear();

@@ -204,8 +204,15 @@ fn run_sweep(a: SweepRunArgs) -> anyhow::Result<()> {
             let record = a
                 .record
                 .then_some((log.as_path(), RecordOptions::default()));
-            super::run::run_one(&spec.scenario, &overrides, spec.scale, record, &mut |_| {})
-                .map_err(|e| format!("{e:#}"))
+            super::run::run_one(
+                &spec.scenario,
+                &overrides,
+                spec.scale,
+                record,
+                false,
+                &mut |_| {},
+            )
+            .map_err(|e| format!("{e:#}"))
         },
         |_| bar.inc(1),
     );
