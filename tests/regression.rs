@@ -29,7 +29,7 @@ fn golden_line(record: &serde_json::Value) -> String {
     let counts = r["counts"].as_object().expect("counts");
     let counts: Vec<String> = counts.iter().map(|(k, v)| format!("{k}={v}")).collect();
     format!(
-        "D={:>3} v={:>2} p={:>2} | realised {}/{} | success={} completion={:.2} score={:.2} ticks={} end={} | {} | backend={}",
+        "D={:>3} v={:>2} p={:>2} | realised {}/{} | success={} completion={:.2} score={:.2} outside_lane={:.2}% ticks={} end={} | {} | backend={}",
         s["delay_ms"],
         s["vehicles"],
         s["pedestrians"],
@@ -38,6 +38,7 @@ fn golden_line(record: &serde_json::Value) -> String {
         r["success"],
         r["completion_pct"].as_f64().unwrap_or(f64::NAN),
         r["driving_score"].as_f64().unwrap_or(f64::NAN),
+        r["outside_lane_pct"].as_f64().unwrap_or(f64::NAN),
         r["ticks"],
         r["termination"].as_str().unwrap_or("-"),
         counts.join(" "),

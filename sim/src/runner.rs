@@ -36,6 +36,7 @@ use crate::expert::{RouteStop, stops_on_route};
 use crate::monitors::blocked::BlockedMonitor;
 use crate::monitors::collision::CollisionMonitor;
 use crate::monitors::lane_crossing::LaneCrossingMonitor;
+use crate::monitors::outside_lane::OutsideLaneMonitor;
 use crate::monitors::red_light::RedLightMonitor;
 use crate::monitors::route::RouteMonitor;
 use crate::monitors::score::driving_score;
@@ -44,7 +45,7 @@ use crate::record::{
     Provenance, RealisedTraffic, RunPerf, RunRecord, RunResult, RunSettings, count_by_kind,
 };
 use crate::recorder::{Recorder, tick_ns};
-use crate::scenario::Scenario;
+use crate::scenario::{LatencyModel, Scenario};
 use crate::selector::{ResolutionSelector, SelectorInput};
 
 /// Seconds of route timeout per metre of route, plus a fixed allowance
@@ -197,7 +198,8 @@ pub fn build_id() -> String {
 }
 
 /// The timing in force at `scale`: the delay is `max(D, Lexec(scale))`, the
-/// period `max(Tc, delay)` (PROTOCOL §1).
+/// period `max(Tc, delay)` (PROTOCOL §1). With `latency = "measured"` the
+/// loop replaces `Lexec` by the driver's real compute time at each boundary.
 pub fn timing_at(scenario: &Scenario, scale: f64) -> (DelayTiming, f64) {
     let t = &scenario.timing;
     let latency_ms = t.delay_ms.max(scenario.latency_ms_at(scale));
@@ -331,6 +333,7 @@ pub fn run(
     let mut collisions = CollisionMonitor::default();
     let mut lane_crossings = LaneCrossingMonitor::new(&town);
     let mut red_lights = RedLightMonitor::new(&town);
+    let mut outside_lane = OutsideLaneMonitor::default();
     let timeout_s = scenario
         .termination
         .timeout_s
@@ -430,7 +433,19 @@ pub fn run(
             };
             let started = Instant::now();
             let control = driver.act(&obs);
-            perf.driver_s += started.elapsed().as_secs_f64();
+            let compute_s = started.elapsed().as_secs_f64();
+            perf.driver_s += compute_s;
+            if scenario.timing.latency == LatencyModel::Measured {
+                // The control lands after the time it really took (at least D).
+                let l = scenario.timing.delay_ms.max(compute_s * 1000.0);
+                delay.set_timing(DelayTiming::from_period_and_latency(
+                    scenario.timing.control_period_ms,
+                    l,
+                    tick_s,
+                ));
+                latency_ms = l;
+                max_latency_ms = max_latency_ms.max(l);
+            }
             delay.submit(tick, control);
             computed = Some(control);
         }
@@ -485,6 +500,7 @@ pub fn run(
         }
         lane_crossings.observe(&ego_tick, &mut new_infractions);
         red_lights.observe(&ego_tick, &mut new_infractions);
+        outside_lane.observe(&ego_tick, e.lane.is_some());
         blocked.observe(&ego_tick, tick_s, &mut new_infractions);
 
         if let Some(rec) = recorder.as_deref_mut() {
@@ -584,6 +600,7 @@ pub fn run(
         completion_pct,
         success,
         driving_score: driving_score(completion_pct, infractions.iter().map(|i| i.kind)),
+        outside_lane_pct: outside_lane.outside_pct(),
         counts: count_by_kind(&infractions),
         termination,
         route_length_m: f64::from(route.length_m),

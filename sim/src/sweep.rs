@@ -478,6 +478,7 @@ mod tests {
                 completion_pct: 100.0,
                 success: spec.seed.is_multiple_of(2),
                 driving_score: 100.0,
+                outside_lane_pct: 0.0,
                 counts: count_by_kind(&infractions),
                 termination: None,
                 route_length_m: 100.0,

@@ -350,6 +350,10 @@ pub fn print_result(record: &RunRecord) {
         r.route_length_m,
         r.driving_score
     );
+    println!(
+        "outside lanes {:.1} % of the distance driven",
+        r.outside_lane_pct
+    );
     if let Some(t) = r.termination {
         println!("ended by      {}", t.name());
     }

@@ -8,6 +8,7 @@
 //! | [`collision`] | collisions by other actor's kind, once per actor, with a cooldown |
 //! | [`lane_crossing`] | every painted marking the footprint crosses |
 //! | [`red_light`] | passages over a red light's stop line |
+//! | [`outside_lane`] | the share of the distance driven off the driving lanes (or against them) |
 //! | [`route`] | route completion, success, deviation from the route |
 //! | [`blocked`] | stuck, low-speed and route timeouts |
 //! | [`score`] | leaderboard-1.0's driving score from the counts above |
@@ -15,6 +16,7 @@
 pub mod blocked;
 pub mod collision;
 pub mod lane_crossing;
+pub mod outside_lane;
 pub mod red_light;
 pub mod route;
 pub mod score;
