@@ -157,3 +157,52 @@ fn a_killed_sweep_resumes_with_every_finished_record_intact() {
     }
     assert!(out.join("summary.md").is_file() && out.join("summary.csv").is_file());
 }
+
+#[test]
+fn a_policy_checkpoint_drives_a_scenario_with_each_selector() {
+    let tmp = tempfile::tempdir().unwrap();
+    let weights = tmp.path().join("random.safetensors");
+    let init = mrdrive()
+        .args(["policy", "init", "--seed", "1", "--out"])
+        .arg(&weights)
+        .output()
+        .unwrap();
+    assert!(
+        init.status.success(),
+        "{}",
+        String::from_utf8_lossy(&init.stderr)
+    );
+    for selector in ["fixed", "oracle", "lookahead", "budget"] {
+        let scenario = tmp.path().join(format!("{selector}.toml"));
+        std::fs::write(
+            &scenario,
+            format!(
+                "[map]\nfile = {:?}\n[route]\nfile = {:?}\nid = 0\n[driver]\nkind = \"policy\"\ncheckpoint = \"random.safetensors\"\n\
+                 [timing]\nlatency_ms = {{ \"0.75\" = 50.0, \"1.0\" = 100.0 }}\n[resolution]\nselector = \"{selector}\"\nscale = 0.75\nbudget_ms = 75.0\n\
+                 [termination]\ntimeout_s = 1.5\n",
+                root().join("maps/gen01.xodr"),
+                root().join("routes/gen01.toml"),
+            ),
+        )
+        .unwrap();
+        let json = tmp.path().join(format!("{selector}.json"));
+        let record = run_json(&[scenario.to_str().unwrap()], &json);
+        let r = &record["result"];
+        assert!(
+            r["provenance"]["driver"]
+                .as_str()
+                .unwrap()
+                .contains("random.safetensors"),
+            "{selector}: {r}"
+        );
+        assert!(
+            r["provenance"]["render_backend"].as_str().unwrap() != "none",
+            "{selector}: the policy needs the camera"
+        );
+        assert!(r["ticks"].as_u64().unwrap() > 0);
+        assert!(
+            r["max_latency_ms"].as_f64().unwrap() <= 100.0,
+            "{selector}: latency above L_high"
+        );
+    }
+}
