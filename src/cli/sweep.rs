@@ -238,7 +238,7 @@ fn run_sweep(a: SweepRunArgs) -> anyhow::Result<()> {
 /// The configuration a record belongs to in the main table: delay and resolution.
 fn by_delay_and_scale(r: &RunRecord) -> String {
     format!(
-        "D={} ms, {}",
+        "D={:>3} ms, {}",
         r.result.settings.delay_ms, r.result.settings.resolution
     )
 }
