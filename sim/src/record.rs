@@ -135,21 +135,8 @@ impl RunResult {
 
 /// Counts infractions by kind, listing every kind (zeros included).
 pub fn count_by_kind(infractions: &[Infraction]) -> BTreeMap<InfractionKind, u32> {
-    use InfractionKind::*;
-    let mut counts: BTreeMap<InfractionKind, u32> = [
-        CollisionPedestrian,
-        CollisionVehicle,
-        CollisionStatic,
-        RedLight,
-        LaneCrossing,
-        RouteDeviation,
-        Stuck,
-        LowSpeedTimeout,
-        RouteTimeout,
-    ]
-    .into_iter()
-    .map(|k| (k, 0))
-    .collect();
+    let mut counts: BTreeMap<InfractionKind, u32> =
+        InfractionKind::ALL.into_iter().map(|k| (k, 0)).collect();
     for i in infractions {
         *counts.entry(i.kind).or_default() += 1;
     }

@@ -489,7 +489,7 @@ pub fn tick_ns(tick: u64, tick_s: f64) -> u64 {
 mod tests {
     use super::*;
     use std::io::Cursor;
-    use world::{Mesh, Vec2};
+    use world::Vec2;
 
     #[test]
     fn base64_matches_rfc4648_vectors() {
@@ -525,16 +525,8 @@ mod tests {
 
     pub(crate) fn tiny_town() -> Town {
         Town {
-            name: "tiny".into(),
-            lanes: vec![],
-            markings: vec![],
-            sidewalks: vec![],
-            crosswalks: vec![],
-            junctions: vec![],
-            lights: vec![],
-            buildings: vec![],
-            road_surface: Mesh::default(),
             bounds: (Vec2::ZERO, Vec2::ONE),
+            ..Town::empty("tiny")
         }
     }
 

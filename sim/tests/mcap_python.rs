@@ -13,7 +13,7 @@ use sim::driver::{Control, RgbImage};
 use sim::monitors::{Infraction, InfractionKind};
 use sim::recorder::{RecordOptions, Recorder, tick_ns};
 use world::{
-    ActorKind, ActorSnapshot, LaneMarking, LightState, MarkColor, MarkKind, Mesh, Town, Vec2, Vec3,
+    ActorKind, ActorSnapshot, LaneMarking, LightState, MarkColor, MarkKind, Town, Vec2, Vec3,
 };
 
 fn python() -> Option<PathBuf> {
@@ -34,8 +34,6 @@ fn python() -> Option<PathBuf> {
 
 fn town() -> Town {
     Town {
-        name: "strip".into(),
-        lanes: vec![],
         markings: vec![LaneMarking {
             points: vec![Vec3::ZERO, Vec3::new(50.0, 0.0, 0.0)],
             kind: MarkKind::Broken,
@@ -43,13 +41,8 @@ fn town() -> Town {
             width_m: 0.15,
             dash_m: Some((3.0, 9.0)),
         }],
-        sidewalks: vec![],
-        crosswalks: vec![],
-        junctions: vec![],
-        lights: vec![],
-        buildings: vec![],
-        road_surface: Mesh::default(),
         bounds: (Vec2::ZERO, Vec2::new(50.0, 5.0)),
+        ..Town::empty("strip")
     }
 }
 

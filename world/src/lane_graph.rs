@@ -184,16 +184,8 @@ mod tests {
 
     pub(crate) fn town(lanes: Vec<DriveLane>) -> Town {
         Town {
-            name: "t".into(),
             lanes,
-            markings: vec![],
-            sidewalks: vec![],
-            crosswalks: vec![],
-            junctions: vec![],
-            lights: vec![],
-            buildings: vec![],
-            road_surface: Mesh::default(),
-            bounds: (Vec2::ZERO, Vec2::ZERO),
+            ..Town::empty("t")
         }
     }
 

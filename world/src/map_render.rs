@@ -338,16 +338,10 @@ mod tests {
             stop_lines: vec![],
         };
         let town = Town {
-            name: "t".into(),
             lanes: vec![lane],
-            markings: vec![],
-            sidewalks: vec![],
-            crosswalks: vec![],
-            junctions: vec![],
             lights: vec![light],
-            buildings: vec![],
-            road_surface: Mesh::default(),
             bounds: (Vec2::new(0.0, -2.0), Vec2::new(20.0, 2.0)),
+            ..Town::empty("t")
         };
         let opts = RenderOptions {
             metres_per_pixel: 0.5,

@@ -197,6 +197,25 @@ pub struct Town {
     pub bounds: (Vec2, Vec2),
 }
 
+impl Town {
+    /// A town with nothing in it, named `name`: the base that tests and
+    /// hand-made scenes fill in (`Town { lights, ..Town::empty("x") }`).
+    pub fn empty(name: &str) -> Town {
+        Town {
+            name: name.to_string(),
+            lanes: Vec::new(),
+            markings: Vec::new(),
+            sidewalks: Vec::new(),
+            crosswalks: Vec::new(),
+            junctions: Vec::new(),
+            lights: Vec::new(),
+            buildings: Vec::new(),
+            road_surface: Mesh::default(),
+            bounds: (Vec2::ZERO, Vec2::ZERO),
+        }
+    }
+}
+
 /// The state of a traffic light's lamps.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum LightState {

@@ -181,7 +181,7 @@ impl LightController {
 mod tests {
     use super::*;
     use crate::town::*;
-    use glam::{Vec2, Vec3};
+    use glam::Vec3;
 
     fn light(j: Option<u32>, group: u32) -> TrafficLight {
         TrafficLight {
@@ -197,11 +197,6 @@ mod tests {
 
     fn town(lights: Vec<TrafficLight>, junctions: usize) -> Town {
         Town {
-            name: "t".into(),
-            lanes: vec![],
-            markings: vec![],
-            sidewalks: vec![],
-            crosswalks: vec![],
             junctions: (0..junctions)
                 .map(|i| Junction {
                     od_id: i.to_string(),
@@ -210,9 +205,7 @@ mod tests {
                 })
                 .collect(),
             lights,
-            buildings: vec![],
-            road_surface: Mesh::default(),
-            bounds: (Vec2::ZERO, Vec2::ZERO),
+            ..Town::empty("t")
         }
     }
 

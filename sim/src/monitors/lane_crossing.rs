@@ -108,7 +108,7 @@ impl LaneCrossingMonitor {
 mod tests {
     use super::super::{EgoPose, scripted};
     use super::*;
-    use world::{LaneMarking, MarkColor, Mesh};
+    use world::{LaneMarking, MarkColor};
 
     /// A town with one broken centre line along y = 0 and a curb at y = -4.
     fn two_lane_road() -> Town {
@@ -120,16 +120,9 @@ mod tests {
             dash_m: Some((3.0, 9.0)),
         };
         Town {
-            name: "road".into(),
-            lanes: vec![],
             markings: vec![line(0.0, MarkKind::Broken), line(-4.0, MarkKind::Curb)],
-            sidewalks: vec![],
-            crosswalks: vec![],
-            junctions: vec![],
-            lights: vec![],
-            buildings: vec![],
-            road_surface: Mesh::default(),
             bounds: (Vec2::new(0.0, -5.0), Vec2::new(100.0, 5.0)),
+            ..Town::empty("road")
         }
     }
 

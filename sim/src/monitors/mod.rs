@@ -115,6 +115,19 @@ pub enum InfractionKind {
 }
 
 impl InfractionKind {
+    /// Every kind, in table order.
+    pub const ALL: [InfractionKind; 9] = [
+        Self::CollisionPedestrian,
+        Self::CollisionVehicle,
+        Self::CollisionStatic,
+        Self::RedLight,
+        Self::LaneCrossing,
+        Self::RouteDeviation,
+        Self::Stuck,
+        Self::LowSpeedTimeout,
+        Self::RouteTimeout,
+    ];
+
     /// Whether this event ends the run.
     pub fn terminates(self) -> bool {
         matches!(

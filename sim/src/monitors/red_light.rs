@@ -68,18 +68,12 @@ impl RedLightMonitor {
 mod tests {
     use super::super::{EgoPose, scripted};
     use super::*;
-    use world::{LaneIdx, Mesh, StopLine, TrafficLight, Vec3};
+    use world::{LaneIdx, StopLine, TrafficLight, Vec3};
 
     /// One light with a stop line across the lane y in [-3.5, 0] at x = 50,
     /// for traffic heading +x.
     fn town_with_light() -> Town {
         Town {
-            name: "light".into(),
-            lanes: vec![],
-            markings: vec![],
-            sidewalks: vec![],
-            crosswalks: vec![],
-            junctions: vec![],
             lights: vec![TrafficLight {
                 od_id: "1".into(),
                 position: Vec3::new(52.0, -5.0, 0.0),
@@ -93,9 +87,8 @@ mod tests {
                     ends: [Vec3::new(50.0, 0.0, 0.0), Vec3::new(50.0, -3.5, 0.0)],
                 }],
             }],
-            buildings: vec![],
-            road_surface: Mesh::default(),
             bounds: (Vec2::new(0.0, -5.0), Vec2::new(100.0, 5.0)),
+            ..Town::empty("light")
         }
     }
 
