@@ -43,7 +43,7 @@ use crate::monitors::{ContactKind, EgoContact, EgoPose, EgoTick, Infraction, Inf
 use crate::record::{
     Provenance, RealisedTraffic, RunPerf, RunRecord, RunResult, RunSettings, count_by_kind,
 };
-use crate::recorder::{Recorder, tick_ns};
+use crate::recorder::{BEV_EXTENT_M, BEV_SIZE_PX, Recorder, tick_ns};
 use crate::scenario::Scenario;
 use crate::selector::{ResolutionSelector, SelectorInput};
 
@@ -124,6 +124,28 @@ pub trait Camera {
     fn render(&mut self, frame: &CameraFrame<'_>, scale: f64) -> Result<&RgbImage, String>;
     /// The backend and adapter, for result records.
     fn backend(&self) -> String;
+    /// Renders the rig at `scale` like [`Camera::render`] and paints its
+    /// class image in the label palette into `labels`; `None` if this camera
+    /// has no class image.
+    fn render_labelled(
+        &mut self,
+        _frame: &CameraFrame<'_>,
+        _scale: f64,
+        _labels: &mut RgbImage,
+    ) -> Option<Result<&RgbImage, String>> {
+        None
+    }
+    /// Renders the bird's-eye view around the ego (forward up), `extent_m`
+    /// metres across, `width` x `height` pixels; `None` if this camera cannot.
+    fn render_bev(
+        &mut self,
+        _frame: &CameraFrame<'_>,
+        _width: u32,
+        _height: u32,
+        _extent_m: f32,
+    ) -> Option<Result<&RgbImage, String>> {
+        None
+    }
 }
 
 /// Settings given on the command line over the scenario's.
@@ -355,6 +377,7 @@ pub fn run(
     let mut snapshots: Vec<ActorSnapshot> = Vec::new();
     let mut ahead_path: Vec<Vec2> = Vec::with_capacity(64);
     let mut contacts: Vec<EgoContact> = Vec::new();
+    let mut label_image = RgbImage::default();
     let max_ticks = max_ticks
         .unwrap_or(u64::MAX)
         .min((timeout_s / tick_s).ceil() as u64 + 1);
@@ -507,9 +530,26 @@ pub fn run(
                         actors: &snapshots,
                         lights: &light_states,
                     };
-                    let image = cam.render(&frame, scale).map_err(RunError::Camera)?;
+                    let opts = rec.options();
+                    let labelled = if opts.labels {
+                        cam.render_labelled(&frame, scale, &mut label_image)
+                    } else {
+                        None
+                    };
+                    if let Some(image) = labelled {
+                        rec.camera(t_ns, image.map_err(RunError::Camera)?)?;
+                        rec.labels(t_ns, &label_image)?;
+                    } else if opts.camera {
+                        let image = cam.render(&frame, scale).map_err(RunError::Camera)?;
+                        rec.camera(t_ns, image)?;
+                    }
+                    if opts.bev
+                        && let Some(image) =
+                            cam.render_bev(&frame, BEV_SIZE_PX, BEV_SIZE_PX, BEV_EXTENT_M)
+                    {
+                        rec.bev(t_ns, image.map_err(RunError::Camera)?)?;
+                    }
                     perf.render_s += started.elapsed().as_secs_f64();
-                    rec.camera(t_ns, image)?;
                 }
             }
         }
