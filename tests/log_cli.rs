@@ -96,7 +96,10 @@ fn two_recordings_are_byte_identical_and_summarised() {
     assert_eq!(count(&summary, "/infractions/events"), 1, "{summary}");
     assert!(summary.contains("route_timeout"), "{summary}");
     assert!(summary.contains("result        FAILURE"), "{summary}");
-    assert!(summary.contains("counts        route_timeout 1"), "{summary}");
+    assert!(
+        summary.contains("counts        route_timeout 1"),
+        "{summary}"
+    );
 }
 
 #[test]
@@ -106,7 +109,10 @@ fn summary_of_a_missing_or_broken_file_names_it() {
     let o = mrdrive(&["log", "summary", missing.to_str().unwrap()]);
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("nope.mcap") && err.contains("--record"), "{err}");
+    assert!(
+        err.contains("nope.mcap") && err.contains("--record"),
+        "{err}"
+    );
 
     let broken = dir.path().join("broken.mcap");
     std::fs::write(&broken, b"\x89MCAP0\r\nnot a log").unwrap();

@@ -42,8 +42,7 @@ impl Camera for Renderer {
         extent_m: f32,
     ) -> Option<Result<&RgbImage, String>> {
         let ego = EgoPose::from(frame.ego);
-        let drawn =
-            self.render_top_down(&ego, frame.actors, frame.lights, width, height, extent_m);
+        let drawn = self.render_top_down(&ego, frame.actors, frame.lights, width, height, extent_m);
         Some(drawn.map(|(rgb, _classes)| rgb).map_err(|e| e.to_string()))
     }
 }

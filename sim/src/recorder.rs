@@ -494,7 +494,9 @@ pub fn base64(data: &[u8]) -> String {
 #[derive(Debug, thiserror::Error)]
 pub enum ReadError {
     /// The file could not be opened or read.
-    #[error("cannot read the log {path}: {message} (check the path; logs are written by `mrdrive run SCENARIO --record FILE`)")]
+    #[error(
+        "cannot read the log {path}: {message} (check the path; logs are written by `mrdrive run SCENARIO --record FILE`)"
+    )]
     Io {
         /// The log file.
         path: PathBuf,
@@ -502,7 +504,9 @@ pub enum ReadError {
         message: String,
     },
     /// The file is not a complete MCAP log.
-    #[error("the log {path} is not a complete MCAP file: {message} (was the run interrupted before the log was closed? record it again with `mrdrive run SCENARIO --record FILE`)")]
+    #[error(
+        "the log {path} is not a complete MCAP file: {message} (was the run interrupted before the log was closed? record it again with `mrdrive run SCENARIO --record FILE`)"
+    )]
     Corrupt {
         /// The log file.
         path: PathBuf,
@@ -581,10 +585,12 @@ pub fn summarize(mut source: impl std::io::Read, path: &Path) -> Result<LogSumma
     while let Some(event) = reader.next_event() {
         match event.map_err(|e| corrupt(&e))? {
             LinearReadEvent::ReadRequest(need) => {
-                let n = source.read(reader.insert(need)).map_err(|e| ReadError::Io {
-                    path: path.to_path_buf(),
-                    message: e.to_string(),
-                })?;
+                let n = source
+                    .read(reader.insert(need))
+                    .map_err(|e| ReadError::Io {
+                        path: path.to_path_buf(),
+                        message: e.to_string(),
+                    })?;
                 reader.notify_read(n);
             }
             LinearReadEvent::Record { opcode, data } => {

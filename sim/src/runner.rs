@@ -524,32 +524,39 @@ pub fn run(
                 let command = route.command_ahead(route_monitor.index(), 0.0);
                 rec.ego_state(t_ns, &ego_now, command, scale, latency_ms)?;
                 if let Some(cam) = camera.as_deref_mut() {
-                    let started = Instant::now();
+                    // Rendering counts as render time; encoding and writing
+                    // the images as other time.
                     let frame = CameraFrame {
                         ego: &ego_now,
                         actors: &snapshots,
                         lights: &light_states,
                     };
                     let opts = rec.options();
+                    let started = Instant::now();
                     let labelled = if opts.labels {
                         cam.render_labelled(&frame, scale, &mut label_image)
                     } else {
                         None
                     };
                     if let Some(image) = labelled {
-                        rec.camera(t_ns, image.map_err(RunError::Camera)?)?;
+                        let image = image.map_err(RunError::Camera)?;
+                        perf.render_s += started.elapsed().as_secs_f64();
+                        rec.camera(t_ns, image)?;
                         rec.labels(t_ns, &label_image)?;
                     } else if opts.camera {
                         let image = cam.render(&frame, scale).map_err(RunError::Camera)?;
+                        perf.render_s += started.elapsed().as_secs_f64();
                         rec.camera(t_ns, image)?;
                     }
+                    let started = Instant::now();
                     if opts.bev
                         && let Some(image) =
                             cam.render_bev(&frame, BEV_SIZE_PX, BEV_SIZE_PX, BEV_EXTENT_M)
                     {
-                        rec.bev(t_ns, image.map_err(RunError::Camera)?)?;
+                        let image = image.map_err(RunError::Camera)?;
+                        perf.render_s += started.elapsed().as_secs_f64();
+                        rec.bev(t_ns, image)?;
                     }
-                    perf.render_s += started.elapsed().as_secs_f64();
                 }
             }
         }

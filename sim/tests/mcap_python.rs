@@ -11,12 +11,12 @@ use std::process::Command;
 
 use sim::driver::{Control, RgbImage};
 use sim::expert::{Expert, ExpertParams};
+use sim::monitors::{Infraction, InfractionKind};
+use sim::recorder::{RecordOptions, Recorder, tick_ns};
 use sim::render::{Renderer, RigConfig};
 use sim::runner::{self, RunInputs};
 use sim::scenario::Scenario;
 use sim::selector::Fixed;
-use sim::monitors::{Infraction, InfractionKind};
-use sim::recorder::{RecordOptions, Recorder, tick_ns};
 use world::{
     ActorKind, ActorSnapshot, LaneMarking, LightState, MarkColor, MarkKind, Mesh, Town, Vec2, Vec3,
 };
