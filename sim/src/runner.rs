@@ -566,18 +566,20 @@ pub fn run(
         infractions.append(&mut new_infractions);
         perf.other_s += started.elapsed().as_secs_f64() - (perf.render_s - render_before);
 
-        if render_every_frame && recorder.is_none() && tick.is_multiple_of(ticks_per_frame) {
-            if let Some(cam) = camera.as_deref_mut() {
-                traffic.snapshots(&mut snapshots);
-                let started = Instant::now();
-                let frame = CameraFrame {
-                    ego: &snapshots[0],
-                    actors: &snapshots,
-                    lights: &light_states,
-                };
-                cam.render(&frame, scale).map_err(RunError::Camera)?;
-                perf.render_s += started.elapsed().as_secs_f64();
-            }
+        if render_every_frame
+            && recorder.is_none()
+            && tick.is_multiple_of(ticks_per_frame)
+            && let Some(cam) = camera.as_deref_mut()
+        {
+            traffic.snapshots(&mut snapshots);
+            let started = Instant::now();
+            let frame = CameraFrame {
+                ego: &snapshots[0],
+                actors: &snapshots,
+                lights: &light_states,
+            };
+            cam.render(&frame, scale).map_err(RunError::Camera)?;
+            perf.render_s += started.elapsed().as_secs_f64();
         }
         if let Some(obs) = observer.as_deref_mut() {
             traffic.snapshots(&mut snapshots);
