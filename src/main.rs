@@ -36,6 +36,9 @@ enum Command {
     Train(cli::policy::TrainArgs),
     /// Benchmarks that print figures.
     Bench(cli::bench::BenchArgs),
+    /// Run logs (MCAP): summary.
+    #[command(subcommand)]
+    Log(cli::log::LogCommand),
 }
 
 /// Runs the command; a failure prints one readable message (the error and
@@ -66,5 +69,6 @@ fn run() -> anyhow::Result<()> {
         Command::Policy(a) => cli::policy::run_policy(a),
         Command::Train(a) => cli::policy::run_train(a),
         Command::Bench(a) => cli::bench::run(a),
+        Command::Log(c) => cli::log::run(c),
     }
 }

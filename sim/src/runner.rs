@@ -44,7 +44,7 @@ use crate::monitors::{ContactKind, EgoContact, EgoPose, EgoTick, Infraction, Inf
 use crate::record::{
     Provenance, RealisedTraffic, RunPerf, RunRecord, RunResult, RunSettings, count_by_kind,
 };
-use crate::recorder::{Recorder, tick_ns};
+use crate::recorder::{BEV_EXTENT_M, BEV_SIZE_PX, Recorder, tick_ns};
 use crate::scenario::{LatencyModel, Scenario};
 use crate::selector::{ResolutionSelector, SelectorInput};
 
@@ -125,6 +125,28 @@ pub trait Camera {
     fn render(&mut self, frame: &CameraFrame<'_>, scale: f64) -> Result<&RgbImage, String>;
     /// The backend and adapter, for result records.
     fn backend(&self) -> String;
+    /// Renders the rig at `scale` like [`Camera::render`] and paints its
+    /// class image in the label palette into `labels`; `None` if this camera
+    /// has no class image.
+    fn render_labelled(
+        &mut self,
+        _frame: &CameraFrame<'_>,
+        _scale: f64,
+        _labels: &mut RgbImage,
+    ) -> Option<Result<&RgbImage, String>> {
+        None
+    }
+    /// Renders the bird's-eye view around the ego (forward up), `extent_m`
+    /// metres across, `width` x `height` pixels; `None` if this camera cannot.
+    fn render_bev(
+        &mut self,
+        _frame: &CameraFrame<'_>,
+        _width: u32,
+        _height: u32,
+        _extent_m: f32,
+    ) -> Option<Result<&RgbImage, String>> {
+        None
+    }
 }
 
 /// Settings given on the command line over the scenario's.
@@ -358,6 +380,7 @@ pub fn run(
     let mut snapshots: Vec<ActorSnapshot> = Vec::new();
     let mut ahead_path: Vec<Vec2> = Vec::with_capacity(64);
     let mut contacts: Vec<EgoContact> = Vec::new();
+    let mut label_image = RgbImage::default();
     let max_ticks = max_ticks
         .unwrap_or(u64::MAX)
         .min((timeout_s / tick_s).ceil() as u64 + 1);
@@ -517,15 +540,39 @@ pub fn run(
                 let command = route.command_ahead(route_monitor.index(), 0.0);
                 rec.ego_state(t_ns, &ego_now, command, scale, latency_ms)?;
                 if let Some(cam) = camera.as_deref_mut() {
-                    let started = Instant::now();
+                    // Rendering counts as render time; encoding and writing
+                    // the images as other time.
                     let frame = CameraFrame {
                         ego: &ego_now,
                         actors: &snapshots,
                         lights: &light_states,
                     };
-                    let image = cam.render(&frame, scale).map_err(RunError::Camera)?;
-                    perf.render_s += started.elapsed().as_secs_f64();
-                    rec.camera(t_ns, image)?;
+                    let opts = rec.options();
+                    let started = Instant::now();
+                    let labelled = if opts.labels {
+                        cam.render_labelled(&frame, scale, &mut label_image)
+                    } else {
+                        None
+                    };
+                    if let Some(image) = labelled {
+                        let image = image.map_err(RunError::Camera)?;
+                        perf.render_s += started.elapsed().as_secs_f64();
+                        rec.camera(t_ns, image)?;
+                        rec.labels(t_ns, &label_image)?;
+                    } else if opts.camera {
+                        let image = cam.render(&frame, scale).map_err(RunError::Camera)?;
+                        perf.render_s += started.elapsed().as_secs_f64();
+                        rec.camera(t_ns, image)?;
+                    }
+                    let started = Instant::now();
+                    if opts.bev
+                        && let Some(image) =
+                            cam.render_bev(&frame, BEV_SIZE_PX, BEV_SIZE_PX, BEV_EXTENT_M)
+                    {
+                        let image = image.map_err(RunError::Camera)?;
+                        perf.render_s += started.elapsed().as_secs_f64();
+                        rec.bev(t_ns, image)?;
+                    }
                 }
             }
         }
@@ -535,9 +582,11 @@ pub fn run(
         infractions.append(&mut new_infractions);
         perf.other_s += started.elapsed().as_secs_f64() - (perf.render_s - render_before);
 
-        let idle_frame =
-            render_every_frame && recorder.is_none() && tick.is_multiple_of(ticks_per_frame);
-        if let (true, Some(cam)) = (idle_frame, camera.as_deref_mut()) {
+        if render_every_frame
+            && recorder.is_none()
+            && tick.is_multiple_of(ticks_per_frame)
+            && let Some(cam) = camera.as_deref_mut()
+        {
             traffic.snapshots(&mut snapshots);
             let started = Instant::now();
             let frame = CameraFrame {

@@ -10,8 +10,13 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use sim::driver::{Control, RgbImage};
+use sim::expert::{Expert, ExpertParams};
 use sim::monitors::{Infraction, InfractionKind};
 use sim::recorder::{RecordOptions, Recorder, tick_ns};
+use sim::render::{Renderer, RigConfig};
+use sim::runner::{self, RunInputs};
+use sim::scenario::Scenario;
+use sim::selector::Fixed;
 use world::{
     ActorKind, ActorSnapshot, LaneMarking, LightState, MarkColor, MarkKind, Town, Vec2, Vec3,
 };
@@ -43,6 +48,94 @@ fn town() -> Town {
         }],
         bounds: (Vec2::ZERO, Vec2::new(50.0, 5.0)),
         ..Town::empty("strip")
+    }
+}
+
+/// Runs `check_mcap.py` on a log; returns its output after checking it passed.
+fn check_with_python(python: &Path, log: &Path) -> String {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let out = Command::new(python)
+        .arg(root.join("tests/check_mcap.py"))
+        .arg(log)
+        .arg(root.join("schemas/foxglove"))
+        .output()
+        .expect("python starts");
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "check_mcap.py failed:\n{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    stdout
+}
+
+#[test]
+fn python_mcap_reads_and_validates_a_log_of_the_real_loop() {
+    let Some(python) = python() else { return };
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let mut scenario = Scenario::from_file(&root.join("scenarios/default.toml")).unwrap();
+    scenario.termination.timeout_s = Some(2.0);
+    let prepared = runner::prepare(&scenario).unwrap();
+    let mut camera = match Renderer::new(&prepared.town, RigConfig::cpu_default(), 1) {
+        Ok(r) => Some(r),
+        Err(e) => {
+            assert!(
+                std::env::var_os("MRDRIVE_REQUIRE_GPU_API").is_none(),
+                "no renderer: {e}"
+            );
+            eprintln!("SKIPPED (camera topics): no renderer here: {e}");
+            None
+        }
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("loop.mcap");
+    let options = RecordOptions {
+        camera: true,
+        labels: true,
+        bev: true,
+    };
+    let mut rec = Recorder::create(&path, options, &prepared.town).unwrap();
+    let mut driver = Expert::new(&prepared.town, &prepared.route, ExpertParams::default());
+    let mut selector = Fixed { scale: 1.0 };
+    let record = runner::run(
+        &scenario,
+        &root.join("scenarios/default.toml"),
+        RunInputs {
+            prepared: &prepared,
+            driver: &mut driver,
+            selector: &mut selector,
+            camera: camera.as_mut().map(|c| c as &mut dyn runner::Camera),
+            recorder: Some(&mut rec),
+            progress: &mut |_| {},
+            max_ticks: None,
+            observer: None,
+            render_every_frame: false,
+        },
+    )
+    .unwrap();
+    rec.finish(&record.result).unwrap();
+    assert!(record.result.ticks >= 40, "{} ticks", record.result.ticks);
+
+    let stdout = check_with_python(&python, &path);
+    let mut expected = vec![
+        ("/tf", "foxglove.FrameTransform"),
+        ("/scene/map", "foxglove.SceneUpdate"),
+        ("/scene/actors", "foxglove.SceneUpdate"),
+        ("/control", "mrdrive.Control"),
+        ("/ego", "mrdrive.EgoState"),
+    ];
+    if camera.is_some() {
+        expected.extend([
+            ("/camera/image", "foxglove.CompressedImage"),
+            ("/camera/labels", "foxglove.CompressedImage"),
+            ("/bev/image", "foxglove.CompressedImage"),
+        ]);
+    }
+    for (topic, schema) in expected {
+        assert!(
+            stdout.contains(&format!("{topic}\t{schema}\tdecoded+validated")),
+            "{topic} missing in:\n{stdout}"
+        );
     }
 }
 
@@ -110,19 +203,7 @@ fn python_mcap_reads_and_validates_every_topic() {
     rec.finish(&serde_json::json!({ "completion_pct": 12.5 }))
         .unwrap();
 
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let out = Command::new(&python)
-        .arg(root.join("tests/check_mcap.py"))
-        .arg(&path)
-        .arg(root.join("schemas/foxglove"))
-        .output()
-        .expect("python starts");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "check_mcap.py failed:\n{stdout}\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let stdout = check_with_python(&python, &path);
     for (topic, schema) in [
         ("/camera/image", "foxglove.CompressedImage"),
         ("/camera/labels", "foxglove.CompressedImage"),

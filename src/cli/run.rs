@@ -42,12 +42,16 @@ pub struct RunArgs {
     #[arg(long)]
     pub record: Option<PathBuf>,
     /// With --record: also log the class image.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "no_images")]
     pub labels: bool,
     /// Render the camera rig at every camera tick even if the driver does not
     /// need it (the cost of data collection; shows in the time split).
     #[arg(long)]
     pub camera: bool,
+    /// With --record: log no images (no camera view, no bird's-eye view),
+    /// only the state topics.
+    #[arg(long)]
+    pub no_images: bool,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -231,16 +235,16 @@ pub fn run_one(
         })
     });
     let mut record_opts = record_path.as_ref().map(|(_, o)| *o);
-    let wants_images = record_opts.is_some_and(|o| o.camera || o.labels);
+    let wants_images = record_opts.is_some_and(|o| o.camera || o.labels || o.bev);
     let mut camera = if driver.needs().camera || wants_images || render_every_frame {
         match camera_for(&scenario, &prepared) {
             Ok(r) => Some(r),
             Err(e) if !driver.needs().camera => {
                 eprintln!("warning: recording without camera images: {e:#}");
-                record_opts = record_opts.map(|o| RecordOptions {
+                record_opts = record_opts.map(|_| RecordOptions {
                     camera: false,
                     labels: false,
-                    ..o
+                    bev: false,
                 });
                 None
             }
@@ -294,9 +298,17 @@ pub fn run(a: RunArgs) -> anyhow::Result<()> {
         .expect("a valid template")
         .progress_chars("=> "),
     );
-    let record_opts = RecordOptions {
-        labels: a.labels,
-        ..Default::default()
+    let record_opts = if a.no_images {
+        RecordOptions {
+            camera: false,
+            labels: false,
+            bev: false,
+        }
+    } else {
+        RecordOptions {
+            labels: a.labels,
+            ..Default::default()
+        }
     };
     let record = run_one(
         &a.scenario,
