@@ -7,7 +7,7 @@ use clap::{Args, Subcommand};
 use sim::driver::RgbImage;
 use sim::render::image::save_png;
 use sim::render::{EgoPose, RigConfig, demo, measure};
-use sim::runner::{self, RunInputs};
+use sim::runner::{self, Overrides, RunInputs};
 use sim::scenario::Scenario;
 use world::{ActorSnapshot, LightState, Town, Vec2};
 
@@ -70,6 +70,15 @@ pub struct RenderAtArgs {
     /// Draw the top-down view (this many pixels square, 60 m across) instead of the rig.
     #[arg(long)]
     pub top_down: Option<u32>,
+    /// NPC vehicles, over the scenario's.
+    #[arg(long)]
+    pub vehicles: Option<u32>,
+    /// NPC pedestrians, over the scenario's.
+    #[arg(long)]
+    pub pedestrians: Option<u32>,
+    /// The traffic seed, over the scenario's.
+    #[arg(long)]
+    pub seed: Option<u64>,
 }
 
 /// Subcommands of `mrdrive render`.
@@ -165,7 +174,13 @@ fn render_at(a: &RenderAtArgs) -> Result<()> {
             "--top-down {px}: give the view's side in pixels, 1 to 8192, e.g. --top-down 256"
         );
     }
-    let scenario = Scenario::from_file(path)?;
+    let overrides = Overrides {
+        seed: a.seed,
+        vehicles: a.vehicles,
+        pedestrians: a.pedestrians,
+        ..Default::default()
+    };
+    let scenario = overrides.apply(&Scenario::from_file(path)?);
     let prepared =
         runner::prepare(&scenario).with_context(|| format!("scenario {}", path.display()))?;
     let tick_s = scenario.timing.tick_s;
