@@ -109,6 +109,10 @@ pub enum BenchCmd {
         /// Supersampling factor per axis.
         #[arg(long, default_value_t = 2)]
         supersample: u32,
+        /// Render along this scenario's route (its town, its rig; lights red,
+        /// no actors) instead of the demo town.
+        #[arg(long)]
+        scenario: Option<PathBuf>,
     },
 }
 
@@ -156,7 +160,9 @@ struct Moment {
 /// Runs `render SCENARIO --at SECONDS`.
 fn render_at(a: &RenderAtArgs) -> Result<()> {
     let (Some(path), Some(out)) = (&a.scenario, &a.out) else {
-        bail!("render needs a scenario and --out, e.g. mrdrive render scenarios/default.toml --at 10 --out frame.png");
+        bail!(
+            "render needs a scenario and --out, e.g. mrdrive render scenarios/default.toml --at 10 --out frame.png"
+        );
     };
     ensure!(
         a.at.is_finite() && a.at >= 0.0,
@@ -286,6 +292,60 @@ fn light_ahead(town: &Town, ego: &EgoPose, states: &[LightState]) -> Option<(f32
         .min_by(|a, b| a.0.total_cmp(&b.0))
 }
 
+/// `bench render --scenario`: rig fps along a scenario's route, one pose
+/// per metre, at 1.0 and 0.75 of the scenario's S0.
+fn bench_scenario(
+    path: &std::path::Path,
+    frames: usize,
+    repeats: usize,
+    supersample: u32,
+) -> Result<()> {
+    let scenario = Scenario::from_file(path)?;
+    let prepared =
+        runner::prepare(&scenario).with_context(|| format!("scenario {}", path.display()))?;
+    let rig = RigConfig {
+        supersample,
+        ..run::rig_for(&scenario)?
+    };
+    let mut r = sim::render::Renderer::new(&prepared.town, rig, scenario.traffic.seed)?;
+    let mut poses = Vec::new();
+    let mut next_s = 0.0;
+    for p in &prepared.route.points {
+        if p.route_s >= next_s {
+            poses.push(EgoPose {
+                position: p.position,
+                heading: p.heading,
+            });
+            next_s = p.route_s + 1.0;
+        }
+    }
+    let states = vec![LightState::Red; prepared.town.lights.len()];
+    println!(
+        "backend: {}\ntown {}: {} static triangles in {} cells; route {} ({} poses, 1 m apart); \
+         no actors, all lights red; supersampling {}x; {} frames x {} repeats",
+        r.backend(),
+        prepared.town.name,
+        r.scene().triangle_count(),
+        r.scene().cells.len(),
+        prepared.route.id,
+        poses.len(),
+        r.rig().supersample,
+        frames,
+        repeats
+    );
+    for m in measure::bench_poses(
+        &mut r,
+        &poses,
+        (&[], &states),
+        &[1.0, 0.75],
+        frames,
+        repeats,
+    )? {
+        println!("{}", measure::speed_line("scenario", &m));
+    }
+    Ok(())
+}
+
 /// Runs one render benchmark.
 pub fn bench_command(cmd: &BenchCmd) -> Result<()> {
     match cmd {
@@ -293,6 +353,7 @@ pub fn bench_command(cmd: &BenchCmd) -> Result<()> {
             frames,
             repeats,
             supersample,
+            scenario: None,
         } => {
             print!(
                 "{}",
@@ -300,5 +361,11 @@ pub fn bench_command(cmd: &BenchCmd) -> Result<()> {
             );
             Ok(())
         }
+        BenchCmd::Render {
+            frames,
+            repeats,
+            supersample,
+            scenario: Some(path),
+        } => bench_scenario(path, *frames, *repeats, *supersample),
     }
 }
