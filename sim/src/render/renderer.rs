@@ -36,6 +36,10 @@ pub const DRAW_DISTANCE_M: f32 = 200.0;
 /// radiance is cut by the area ratio. 1.6 > sqrt(2) / cos(22.5 deg): an
 /// octagon this size always covers a sample point.
 pub const MIN_LAMP_PX: f32 = 1.6;
+/// Most vertices one static draw call holds (a multiple of 3). Measured on
+/// lavapipe (Mesa 22.3) along real routes: 768 beats 192, 384 and 1536, and
+/// is ~1.5x faster than unsplit runs of whole cells.
+const MAX_DRAW_VERTICES: u32 = 768;
 /// Most views one frame may hold (three rig cameras, or one top-down).
 const MAX_VIEWS: usize = 4;
 const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
@@ -673,6 +677,14 @@ impl Renderer {
                 match visible.last_mut() {
                     Some(last) if last.0 + last.1 == c.first => last.1 += c.count,
                     _ => visible.push((c.first, c.count)),
+                }
+                // Split long runs: lavapipe's clipper resets every vertex of
+                // a draw each time its vertex buffer fills, so its cost grows
+                // with the square of a draw's size.
+                while let Some(last) = visible.last_mut().filter(|l| l.1 > MAX_DRAW_VERTICES) {
+                    let rest = (last.0 + MAX_DRAW_VERTICES, last.1 - MAX_DRAW_VERTICES);
+                    last.1 = MAX_DRAW_VERTICES;
+                    visible.push(rest);
                 }
             }
         }

@@ -15,7 +15,7 @@ use world::{ActorKind, ActorSnapshot, LightState, MarkColor, MarkKind, Town};
 use super::classes::{self, ClassId};
 
 /// Side of a ground cell for culling (metres).
-pub const CELL_M: f32 = 50.0;
+pub const CELL_M: f32 = 25.0;
 /// Lift of paint above the surface it lies on (metres), against z-fighting.
 const PAINT_LIFT_M: f32 = 0.02;
 /// Diameter of a traffic-light lamp (metres): the common 300 mm lens.
