@@ -97,6 +97,9 @@ pub struct Cell {
     pub first: u32,
     /// Number of vertices.
     pub count: u32,
+    /// Whether the cell holds small things (lane paint, crosswalks, trees,
+    /// street lamps), drawn only within the renderer's detail distance.
+    pub detail: bool,
 }
 
 /// Where the three lamps of one traffic light sit.
@@ -399,16 +402,18 @@ impl StaticScene {
     /// beside the road from `seed`.
     pub fn build(town: &Town, seed: u64) -> StaticScene {
         let mut t = Tris::default();
+        // Small things (paint, trees, street lamps), drawn nearer.
+        let mut detail = Tris::default();
         let ground_z = ground_level(town);
         road(town, &mut t);
-        markings(town, &mut t);
+        markings(town, &mut detail);
         sidewalks(town, ground_z, &mut t);
-        crosswalks(town, &mut t);
+        crosswalks(town, &mut detail);
         buildings(town, ground_z, seed, &mut t);
-        props(town, ground_z, seed, &mut t);
+        props(town, ground_z, seed, &mut detail);
         let lamps = lights(town, &mut t);
         terrain(town, ground_z, &mut t);
-        let (mut vertices, cells) = into_cells(t.v);
+        let (mut vertices, cells) = into_cells(t.v, detail.v);
         let mut units = [(0, 0); UNIT_MESHES];
         for (kind, slot) in [UnitMesh::Box, UnitMesh::Prism, UnitMesh::Disc]
             .iter()
@@ -892,17 +897,24 @@ fn terrain(town: &Town, ground_z: f32, t: &mut Tris) {
     }
 }
 
-/// Sorts triangles into ground cells by centroid, in (row, column) order.
-fn into_cells(v: Vec<Vertex>) -> (Vec<Vertex>, Vec<Cell>) {
-    let mut by_cell: BTreeMap<(i32, i32), Vec<Vertex>> = BTreeMap::new();
-    for tri in v.chunks_exact(3) {
-        let c = tri.iter().fold(Vec3::ZERO, |a, q| a + Vec3::from(q.pos)) / 3.0;
-        let key = ((c.y / CELL_M).floor() as i32, (c.x / CELL_M).floor() as i32);
-        by_cell.entry(key).or_default().extend_from_slice(tri);
+/// Sorts triangles into ground cells by centroid: the large things' cells
+/// in (row, column) order, then the small things' (`detail`) cells.
+fn into_cells(large: Vec<Vertex>, detail: Vec<Vertex>) -> (Vec<Vertex>, Vec<Cell>) {
+    let mut by_cell: BTreeMap<(bool, i32, i32), Vec<Vertex>> = BTreeMap::new();
+    for (is_detail, v) in [(false, &large), (true, &detail)] {
+        for tri in v.chunks_exact(3) {
+            let c = tri.iter().fold(Vec3::ZERO, |a, q| a + Vec3::from(q.pos)) / 3.0;
+            let key = (
+                is_detail,
+                (c.y / CELL_M).floor() as i32,
+                (c.x / CELL_M).floor() as i32,
+            );
+            by_cell.entry(key).or_default().extend_from_slice(tri);
+        }
     }
-    let mut out = Vec::with_capacity(v.len());
+    let mut out = Vec::with_capacity(large.len() + detail.len());
     let mut cells = Vec::with_capacity(by_cell.len());
-    for ((row, col), tris) in by_cell {
+    for ((detail, row, col), tris) in by_cell {
         // Bounds from the triangles themselves: big ones may poke out of the cell.
         let mut min = Vec2::new(col as f32, row as f32) * CELL_M;
         let mut max = min + Vec2::splat(CELL_M);
@@ -915,6 +927,7 @@ fn into_cells(v: Vec<Vertex>) -> (Vec<Vertex>, Vec<Cell>) {
             max,
             first: out.len() as u32,
             count: tris.len() as u32,
+            detail,
         });
         out.extend(tris);
     }
