@@ -1,11 +1,17 @@
-//! Camera commands: `render-demo`, `render lamp-size`, `bench render`.
+//! Camera commands: `render SCENARIO --at`, `render-demo`, `render lamp-size`, `bench render`.
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail, ensure};
 use clap::{Args, Subcommand};
+use sim::driver::RgbImage;
 use sim::render::image::save_png;
-use sim::render::{RigConfig, demo, measure};
+use sim::render::{EgoPose, RigConfig, demo, measure};
+use sim::runner::{self, Overrides, RunInputs};
+use sim::scenario::Scenario;
+use world::{ActorSnapshot, LightState, Town, Vec2};
+
+use super::run;
 
 /// `mrdrive render-demo`: a hand-made junction scene, rendered.
 #[derive(Debug, Args)]
@@ -30,12 +36,49 @@ pub struct RenderDemoArgs {
     pub supersample: u32,
 }
 
-/// `mrdrive render ...`.
+/// `mrdrive render SCENARIO --at SECONDS ...` or `mrdrive render lamp-size`.
 #[derive(Debug, Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
 pub struct RenderArgs {
-    /// What to render.
+    /// Another render command.
     #[command(subcommand)]
-    pub cmd: RenderCmd,
+    pub cmd: Option<RenderCmd>,
+    /// Render a moment of a scenario.
+    #[command(flatten)]
+    pub at: RenderAtArgs,
+}
+
+/// `mrdrive render SCENARIO --at SECONDS --scale R --out PNG`: the policy's
+/// view at a moment of a scenario, driven there by the scenario's driver.
+#[derive(Debug, Args)]
+pub struct RenderAtArgs {
+    /// The scenario file (see scenarios/README.md).
+    #[arg(required = true)]
+    pub scenario: Option<PathBuf>,
+    /// The moment to render (seconds of simulated time from the start).
+    #[arg(long, default_value_t = 0.0)]
+    pub at: f64,
+    /// Scale of S0 (the rig's base size) to render at.
+    #[arg(long, default_value_t = 1.0)]
+    pub scale: f32,
+    /// Where to write the PNG.
+    #[arg(long, required = true)]
+    pub out: Option<PathBuf>,
+    /// Write the class image (in its label colours) instead of the colour image.
+    #[arg(long)]
+    pub labels: bool,
+    /// Draw the top-down view (this many pixels square, 60 m across) instead of the rig.
+    #[arg(long)]
+    pub top_down: Option<u32>,
+    /// NPC vehicles, over the scenario's.
+    #[arg(long)]
+    pub vehicles: Option<u32>,
+    /// NPC pedestrians, over the scenario's.
+    #[arg(long)]
+    pub pedestrians: Option<u32>,
+    /// The traffic seed, over the scenario's.
+    #[arg(long)]
+    pub seed: Option<u64>,
 }
 
 /// Subcommands of `mrdrive render`.
@@ -66,6 +109,10 @@ pub enum BenchCmd {
         /// Supersampling factor per axis.
         #[arg(long, default_value_t = 2)]
         supersample: u32,
+        /// Render along this scenario's route (its town, its rig; lights red,
+        /// no actors) instead of the demo town.
+        #[arg(long)]
+        scenario: Option<PathBuf>,
     },
 }
 
@@ -94,11 +141,209 @@ pub fn render_demo(a: &RenderDemoArgs) -> Result<()> {
 /// Runs `render ...`.
 pub fn render(a: &RenderArgs) -> Result<()> {
     match &a.cmd {
-        RenderCmd::LampSize { scales, distances } => {
+        Some(RenderCmd::LampSize { scales, distances }) => {
             print!("{}", measure::lamp_size_report(scales, distances)?);
             Ok(())
         }
+        None => render_at(&a.at),
     }
+}
+
+/// The last tick's actors (ego first) and light states.
+#[derive(Default)]
+struct Moment {
+    tick: Option<u64>,
+    actors: Vec<ActorSnapshot>,
+    lights: Vec<LightState>,
+}
+
+/// Runs `render SCENARIO --at SECONDS`.
+fn render_at(a: &RenderAtArgs) -> Result<()> {
+    let (Some(path), Some(out)) = (&a.scenario, &a.out) else {
+        bail!(
+            "render needs a scenario and --out, e.g. mrdrive render scenarios/default.toml --at 10 --out frame.png"
+        );
+    };
+    ensure!(
+        a.at.is_finite() && a.at >= 0.0,
+        "--at {}: give the moment as seconds of simulated time, 0 or more, e.g. --at 12.5",
+        a.at
+    );
+    ensure!(
+        a.scale.is_finite() && a.scale > 0.0 && a.scale <= 8.0,
+        "--scale {}: scales are fractions of S0 in (0, 8], e.g. --scale 0.75",
+        a.scale
+    );
+    if let Some(px) = a.top_down {
+        ensure!(
+            (1..=8192).contains(&px),
+            "--top-down {px}: give the view's side in pixels, 1 to 8192, e.g. --top-down 256"
+        );
+    }
+    let overrides = Overrides {
+        seed: a.seed,
+        vehicles: a.vehicles,
+        pedestrians: a.pedestrians,
+        ..Default::default()
+    };
+    let scenario = overrides.apply(&Scenario::from_file(path)?);
+    let prepared =
+        runner::prepare(&scenario).with_context(|| format!("scenario {}", path.display()))?;
+    let tick_s = scenario.timing.tick_s;
+    let ticks = (a.at / tick_s).round() as u64;
+    let mut driver = run::driver_for(&scenario, &prepared)?;
+    let mut selector = run::selector_for(&scenario, None)?;
+    let mut camera = run::camera_for(&scenario, &prepared)?;
+    let mut moment = Moment::default();
+    let mut keep = |tick: u64, actors: &[ActorSnapshot], lights: &[LightState]| {
+        moment.tick = Some(tick);
+        moment.actors.clear();
+        moment.actors.extend_from_slice(actors);
+        moment.lights.clear();
+        moment.lights.extend_from_slice(lights);
+    };
+    let needs_camera = driver.needs().camera;
+    let record = runner::run(
+        &scenario,
+        path,
+        RunInputs {
+            prepared: &prepared,
+            driver: driver.as_mut(),
+            selector: selector.as_mut(),
+            camera: needs_camera.then_some(&mut camera as &mut dyn sim::runner::Camera),
+            recorder: None,
+            progress: &mut |_| {},
+            max_ticks: Some(ticks),
+            observer: Some(&mut keep),
+        },
+    )?;
+    let (tick, ego) = match (moment.tick, moment.actors.first()) {
+        (Some(t), Some(e)) => (t, EgoPose::from(e)),
+        _ => {
+            // --at 0 (or a run that ended before its first tick): the start.
+            let p = prepared
+                .route
+                .points
+                .first()
+                .with_context(|| format!("route {} has no points", prepared.route.id))?;
+            (
+                0,
+                EgoPose {
+                    position: p.position,
+                    heading: p.heading,
+                },
+            )
+        }
+    };
+    let reached_s = tick as f64 * tick_s;
+    ensure!(
+        tick >= ticks,
+        "--at {}: the run ended at {reached_s:.2} s ({}), before that moment; give --at {reached_s:.2} or less",
+        a.at,
+        record
+            .result
+            .termination
+            .map_or("route completed", |t| t.name())
+    );
+    let (rgb, class) = match a.top_down {
+        Some(px) => camera.render_top_down(&ego, &moment.actors, &moment.lights, px, px, 60.0)?,
+        None => camera.render_rig(&ego, &moment.actors, &moment.lights, a.scale)?,
+    };
+    let img = if a.labels {
+        let mut img = RgbImage::default();
+        class.to_label_rgb(&mut img);
+        img
+    } else {
+        rgb.clone()
+    };
+    save_png(&img, out).with_context(|| format!("writing {}", out.display()))?;
+    println!(
+        "wrote {} ({}x{}) at {reached_s:.2} s: ego at ({:.1}, {:.1}) heading {:.0} deg, {:.1} m/s",
+        out.display(),
+        img.width,
+        img.height,
+        ego.position.x,
+        ego.position.y,
+        ego.heading.to_degrees(),
+        moment.actors.first().map_or(0.0, |e| e.speed_mps),
+    );
+    match light_ahead(&prepared.town, &ego, &moment.lights) {
+        Some((d, state)) => println!("light ahead   {d:.1} m, {state:?}"),
+        None => println!("light ahead   none facing the ego within 60 m"),
+    }
+    println!("camera        {}", camera.backend());
+    Ok(())
+}
+
+/// The nearest traffic light within 60 m ahead of the ego (within 35 deg of
+/// its heading) that faces it: distance (metres) and state.
+fn light_ahead(town: &Town, ego: &EgoPose, states: &[LightState]) -> Option<(f32, LightState)> {
+    let fwd = Vec2::from_angle(ego.heading);
+    town.lights
+        .iter()
+        .enumerate()
+        .filter_map(|(i, l)| {
+            let to = (l.position - ego.position).truncate();
+            let d = to.length();
+            let ahead = to.dot(fwd) > d * 35f32.to_radians().cos();
+            let facing = Vec2::from_angle(l.heading).dot(fwd) < -0.7;
+            (d < 60.0 && ahead && facing).then(|| (d, states.get(i).copied().unwrap_or_default()))
+        })
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+}
+
+/// `bench render --scenario`: rig fps along a scenario's route, one pose
+/// per metre, at 1.0 and 0.75 of the scenario's S0.
+fn bench_scenario(
+    path: &std::path::Path,
+    frames: usize,
+    repeats: usize,
+    supersample: u32,
+) -> Result<()> {
+    let scenario = Scenario::from_file(path)?;
+    let prepared =
+        runner::prepare(&scenario).with_context(|| format!("scenario {}", path.display()))?;
+    let rig = RigConfig {
+        supersample,
+        ..run::rig_for(&scenario)?
+    };
+    let mut r = sim::render::Renderer::new(&prepared.town, rig, scenario.traffic.seed)?;
+    let mut poses = Vec::new();
+    let mut next_s = 0.0;
+    for p in &prepared.route.points {
+        if p.route_s >= next_s {
+            poses.push(EgoPose {
+                position: p.position,
+                heading: p.heading,
+            });
+            next_s = p.route_s + 1.0;
+        }
+    }
+    let states = vec![LightState::Red; prepared.town.lights.len()];
+    println!(
+        "backend: {}\ntown {}: {} static triangles in {} cells; route {} ({} poses, 1 m apart); \
+         no actors, all lights red; supersampling {}x; {} frames x {} repeats",
+        r.backend(),
+        prepared.town.name,
+        r.scene().triangle_count(),
+        r.scene().cells.len(),
+        prepared.route.id,
+        poses.len(),
+        r.rig().supersample,
+        frames,
+        repeats
+    );
+    for m in measure::bench_poses(
+        &mut r,
+        &poses,
+        (&[], &states),
+        &[1.0, 0.75],
+        frames,
+        repeats,
+    )? {
+        println!("{}", measure::speed_line("scenario", &m));
+    }
+    Ok(())
 }
 
 /// Runs one render benchmark.
@@ -108,6 +353,7 @@ pub fn bench_command(cmd: &BenchCmd) -> Result<()> {
             frames,
             repeats,
             supersample,
+            scenario: None,
         } => {
             print!(
                 "{}",
@@ -115,5 +361,11 @@ pub fn bench_command(cmd: &BenchCmd) -> Result<()> {
             );
             Ok(())
         }
+        BenchCmd::Render {
+            frames,
+            repeats,
+            supersample,
+            scenario: Some(path),
+        } => bench_scenario(path, *frames, *repeats, *supersample),
     }
 }

@@ -152,6 +152,53 @@ pub fn bench_rig(
     Ok(out)
 }
 
+/// Times `frames` rig renders per repeat at each scale, cycling through
+/// `poses` (e.g. points along a route).
+pub fn bench_poses(
+    renderer: &mut Renderer,
+    poses: &[EgoPose],
+    (actors, states): (&[ActorSnapshot], &[LightState]),
+    scales: &[f32],
+    frames: usize,
+    repeats: usize,
+) -> Result<Vec<RigSpeed>, RenderError> {
+    let mut out = Vec::new();
+    let Some(&first) = poses.first() else {
+        return Ok(out);
+    };
+    for &scale in scales {
+        for _ in 0..5 {
+            renderer.render_rig(&first, actors, states, scale)?;
+        }
+        let mut fps = Vec::with_capacity(repeats);
+        let mut size = (0, 0);
+        for _ in 0..repeats {
+            let t0 = Instant::now();
+            for f in 0..frames {
+                let (rgb, _) =
+                    renderer.render_rig(&poses[f % poses.len()], actors, states, scale)?;
+                size = (rgb.width, rgb.height);
+            }
+            fps.push(frames as f64 / t0.elapsed().as_secs_f64());
+        }
+        out.push(RigSpeed { scale, size, fps });
+    }
+    Ok(out)
+}
+
+/// One line of a bench report.
+pub fn speed_line(name: &str, m: &RigSpeed) -> String {
+    let fps: Vec<String> = m.fps.iter().map(|f| format!("{f:.0}")).collect();
+    format!(
+        "{name:<9} scale {:.2} {:>4}x{:<4} median {:>7.1} rig fps  (repeats: {})",
+        m.scale,
+        m.size.0,
+        m.size.1,
+        m.median_fps(),
+        fps.join(" ")
+    )
+}
+
 /// The `render lamp-size` table: lamp sizes for the CPU and the paper's S0.
 pub fn lamp_size_report(scales: &[f32], distances_m: &[f32]) -> Result<String, RenderError> {
     use std::fmt::Write;
@@ -241,16 +288,7 @@ pub fn bench_report(
             frames,
             repeats,
         )? {
-            let fps: Vec<String> = m.fps.iter().map(|f| format!("{f:.0}")).collect();
-            let _ = writeln!(
-                s,
-                "{name:<9} scale {:.2} {:>4}x{:<4} median {:>7.1} rig fps  (repeats: {})",
-                m.scale,
-                m.size.0,
-                m.size.1,
-                m.median_fps(),
-                fps.join(" ")
-            );
+            let _ = writeln!(s, "{}", speed_line(name, &m));
         }
     }
     Ok(s)
