@@ -215,6 +215,7 @@ fn render_at(a: &RenderAtArgs) -> Result<()> {
             progress: &mut |_| {},
             max_ticks: Some(ticks),
             observer: Some(&mut keep),
+            render_every_frame: false,
         },
     )?;
     let (tick, ego) = match (moment.tick, moment.actors.first()) {
