@@ -184,7 +184,7 @@ impl Overrides {
 
 /// A callback given every tick: the tick, every actor (ego first) and the
 /// light states.
-pub type TickObserver = dyn FnMut(u64, &[ActorSnapshot], &[LightState]);
+pub type TickObserver<'a> = dyn FnMut(u64, &[ActorSnapshot], &[LightState]) + 'a;
 
 /// Everything a run is given besides the scenario.
 pub struct RunInputs<'a> {
@@ -204,7 +204,7 @@ pub struct RunInputs<'a> {
     pub max_ticks: Option<u64>,
     /// Called after every tick with the tick, every actor (ego first) and
     /// the light states: for data collection and snapshots.
-    pub observer: Option<&'a mut TickObserver>,
+    pub observer: Option<&'a mut TickObserver<'a>>,
     /// Render the rig at every camera tick even when nothing consumes it
     /// (what data collection costs; for timing).
     pub render_every_frame: bool,
