@@ -11,7 +11,7 @@ use world::{ActorKind, ActorSnapshot, DriveLane, LightState, Town, TrafficLight}
 /// A straight road along +x through the origin, a light facing the ego
 /// `light_at` metres ahead of the camera, nothing else.
 fn straight_road(light_at: f32) -> Town {
-    let mut town = demo::empty_town("straight");
+    let mut town = Town::empty("straight");
     let centerline: Vec<Vec3> = (-50..=150).map(|x| Vec3::new(x as f32, 0.0, 0.0)).collect();
     let n = centerline.len();
     town.lanes.push(DriveLane {

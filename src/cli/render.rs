@@ -7,7 +7,7 @@ use clap::{Args, Subcommand};
 use sim::driver::RgbImage;
 use sim::render::image::save_png;
 use sim::render::{EgoPose, RigConfig, demo, measure};
-use sim::runner::{self, Overrides, RunInputs};
+use sim::runner::{self, RunInputs};
 use sim::scenario::Scenario;
 use world::{ActorSnapshot, LightState, Town, Vec2};
 
@@ -70,15 +70,8 @@ pub struct RenderAtArgs {
     /// Draw the top-down view (this many pixels square, 60 m across) instead of the rig.
     #[arg(long)]
     pub top_down: Option<u32>,
-    /// NPC vehicles, over the scenario's.
-    #[arg(long)]
-    pub vehicles: Option<u32>,
-    /// NPC pedestrians, over the scenario's.
-    #[arg(long)]
-    pub pedestrians: Option<u32>,
-    /// The traffic seed, over the scenario's.
-    #[arg(long)]
-    pub seed: Option<u64>,
+    #[command(flatten)]
+    pub traffic: super::run::TrafficFlags,
 }
 
 /// Subcommands of `mrdrive render`.
@@ -180,12 +173,7 @@ fn render_at(a: &RenderAtArgs) -> Result<()> {
             "--top-down {px}: give the view's side in pixels, 1 to 8192, e.g. --top-down 256"
         );
     }
-    let overrides = Overrides {
-        seed: a.seed,
-        vehicles: a.vehicles,
-        pedestrians: a.pedestrians,
-        ..Default::default()
-    };
+    let overrides = a.traffic.overrides(None);
     let scenario = overrides.apply(&Scenario::from_file(path)?);
     let prepared =
         runner::prepare(&scenario).with_context(|| format!("scenario {}", path.display()))?;

@@ -26,15 +26,8 @@ pub struct RunArgs {
     /// A fixed input scale (fraction of S0), over the scenario's selector.
     #[arg(long)]
     pub scale: Option<f64>,
-    /// The traffic seed, over the scenario's.
-    #[arg(long)]
-    pub seed: Option<u64>,
-    /// Target NPC vehicles, over the scenario's.
-    #[arg(long)]
-    pub vehicles: Option<u32>,
-    /// Target pedestrians, over the scenario's.
-    #[arg(long)]
-    pub pedestrians: Option<u32>,
+    #[command(flatten)]
+    pub traffic: TrafficFlags,
     /// Write the result record as JSON to this file.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -55,6 +48,32 @@ pub struct RunArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// Traffic settings given on the command line over a scenario's.
+#[derive(Args, Debug, Clone, Default)]
+pub struct TrafficFlags {
+    /// The traffic seed, over the scenario's.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Target NPC vehicles, over the scenario's.
+    #[arg(long)]
+    pub vehicles: Option<u32>,
+    /// Target pedestrians, over the scenario's.
+    #[arg(long)]
+    pub pedestrians: Option<u32>,
+}
+
+impl TrafficFlags {
+    /// These flags (and a delay) as overrides of a scenario.
+    pub fn overrides(&self, delay_ms: Option<f64>) -> Overrides {
+        Overrides {
+            delay_ms,
+            seed: self.seed,
+            vehicles: self.vehicles,
+            pedestrians: self.pedestrians,
+        }
+    }
 }
 
 /// The latency table of a scenario (`timing.latency_ms`), if it has one.
@@ -280,12 +299,7 @@ pub fn run_one(
 
 /// Runs `run`.
 pub fn run(a: RunArgs) -> anyhow::Result<()> {
-    let overrides = Overrides {
-        delay_ms: a.delay_ms,
-        seed: a.seed,
-        vehicles: a.vehicles,
-        pedestrians: a.pedestrians,
-    };
+    let overrides = a.traffic.overrides(a.delay_ms);
     let bar = if a.quiet {
         indicatif::ProgressBar::hidden()
     } else {

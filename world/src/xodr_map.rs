@@ -158,7 +158,7 @@ fn load_impl(
     let mut b = Builder {
         ctx,
         prov: &prov,
-        town: empty_town(name),
+        town: Town::empty(name),
         lane_of: HashMap::new(),
         junction_of: BTreeMap::new(),
     };
@@ -174,21 +174,6 @@ fn load_impl(
     b.surface();
     b.bounds();
     Ok((b.town, report))
-}
-
-fn empty_town(name: &str) -> Town {
-    Town {
-        name: name.to_string(),
-        lanes: Vec::new(),
-        markings: Vec::new(),
-        sidewalks: Vec::new(),
-        crosswalks: Vec::new(),
-        junctions: Vec::new(),
-        lights: Vec::new(),
-        buildings: Vec::new(),
-        road_surface: Mesh::default(),
-        bounds: (Vec2::ZERO, Vec2::ZERO),
-    }
 }
 
 struct Ctx<'a> {

@@ -9,8 +9,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use world::{
     ActorKind, ActorSnapshot, Building, Crosswalk, DriveLane, Junction, JunctionIdx, LaneIdx,
-    LaneMarking, LightIdx, LightState, MarkColor, MarkKind, Mesh, Sidewalk, StopLine, Town,
-    TrafficLight,
+    LaneMarking, LightIdx, LightState, MarkColor, MarkKind, Sidewalk, StopLine, Town, TrafficLight,
 };
 
 use super::rig::EgoPose;
@@ -25,7 +24,7 @@ pub const HEAD_HEIGHT_M: f32 = 3.0;
 /// A grid town: `nx` x `ny` junctions `block_m` apart, the junction (0, 0) at the origin.
 pub fn grid_town(nx: u32, ny: u32, block_m: f32, seed: u64) -> Town {
     let mut b = Builder {
-        town: empty_town(""),
+        town: Town::empty(""),
     };
     let half = LANE_W_M;
     let ext = block_m * 0.5;
@@ -100,22 +99,6 @@ pub fn grid_town(nx: u32, ny: u32, block_m: f32, seed: u64) -> Town {
 
 struct Builder {
     town: Town,
-}
-
-/// A town with nothing in it.
-pub fn empty_town(name: &str) -> Town {
-    Town {
-        name: name.to_string(),
-        lanes: Vec::new(),
-        markings: Vec::new(),
-        sidewalks: Vec::new(),
-        crosswalks: Vec::new(),
-        junctions: Vec::new(),
-        lights: Vec::new(),
-        buildings: Vec::new(),
-        road_surface: Mesh::default(),
-        bounds: (Vec2::ZERO, Vec2::ZERO),
-    }
 }
 
 impl Builder {

@@ -5,7 +5,7 @@
 use std::time::Instant;
 
 use glam::{Vec2, Vec3};
-use world::{ActorSnapshot, LightState, TrafficLight};
+use world::{ActorSnapshot, LightState, Town, TrafficLight};
 
 use super::classes;
 use super::demo;
@@ -46,7 +46,7 @@ pub fn lamp_sizes(
     for &d in distances_m {
         // The light faces the ego; its red lamp is on the centre camera's axis
         // horizontally, `d` metres ahead of the camera.
-        let mut town = demo::empty_town("lamp-size");
+        let mut town = Town::empty("lamp-size");
         town.bounds = (Vec2::splat(-60.0), Vec2::splat(60.0));
         let cam_x = rig.mount_m.x;
         let housing_front = 0.35 * 0.5 + 0.015;
