@@ -153,18 +153,7 @@ impl Traffic {
             spawn_lanes,
         };
         if let Some(e) = ego {
-            let size = t.vehicle_size();
-            t.physics
-                .add_vehicle(0, ActorKind::Ego, size, e.position, e.z, e.yaw);
-            t.ego = Some(Ego {
-                state: VehicleState::at_rest(e.position, e.yaw),
-                z: e.z,
-                control: VehicleControl::BRAKE,
-                lane: t
-                    .lane_index
-                    .locate(&t.town, e.position, e.yaw, 0.5)
-                    .map(|(l, s, _)| (l, s)),
-            });
+            t.teleport_ego(e);
         }
         t.spawn_vehicles();
         t.spawn_pedestrians();
