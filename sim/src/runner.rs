@@ -375,7 +375,7 @@ pub fn run(
     let (timing, mut latency_ms) = timing_at(scenario, scale);
     let mut delay = DelayLine::new(timing);
     let mut max_latency_ms = latency_ms;
-    let mut scale_counts: std::collections::BTreeMap<String, u64> = Default::default();
+    let mut scale_counts: std::collections::BTreeMap<u64, u64> = Default::default();
 
     let mut snapshots: Vec<ActorSnapshot> = Vec::new();
     let mut ahead_path: Vec<Vec2> = Vec::with_capacity(64);
@@ -406,7 +406,7 @@ pub fn run(
                 latency_ms = l;
                 max_latency_ms = max_latency_ms.max(l);
             }
-            *scale_counts.entry(format!("{scale}")).or_default() += 1;
+            *scale_counts.entry(scale.to_bits()).or_default() += 1;
             let image = if needs.camera {
                 let started = Instant::now();
                 let frame = CameraFrame {
@@ -415,7 +415,8 @@ pub fn run(
                     lights: &light_states,
                 };
                 let cam = camera.as_deref_mut().expect("checked above");
-                let image = cam.render(&frame, scale).map_err(RunError::Camera)?.clone();
+                // Borrowed from the camera until the driver has acted: no copy.
+                let image = cam.render(&frame, scale).map_err(RunError::Camera)?;
                 perf.render_s += started.elapsed().as_secs_f64();
                 Some(image)
             } else {
@@ -451,7 +452,7 @@ pub fn run(
                 speed_mps: ego.speed_mps,
                 command,
                 scale: scale as f32,
-                image: image.as_ref(),
+                image,
                 privileged: needs.privileged.then_some(&privileged),
             };
             let started = Instant::now();
@@ -622,7 +623,12 @@ pub fn run(
     let total_boundaries: u64 = scale_counts.values().sum();
     let scale_share = scale_counts
         .into_iter()
-        .map(|(k, n)| (k, n as f64 / total_boundaries.max(1) as f64))
+        .map(|(bits, n)| {
+            (
+                format!("{}", f64::from_bits(bits)),
+                n as f64 / total_boundaries.max(1) as f64,
+            )
+        })
         .collect();
     let result = RunResult {
         provenance: Provenance {

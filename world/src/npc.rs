@@ -291,6 +291,28 @@ pub struct Scratch {
     pub pts: Vec<Vec2>,
 }
 
+/// Whether an NPC stops for a light whose stop line is `d` metres ahead at
+/// speed `v` (m/s): always on red, on yellow when it can still stop at
+/// `comfort_decel_mps2` (half a metre of slack); a light missing from
+/// `lights` counts as green.
+pub fn must_stop_for_light(
+    lights: &[LightState],
+    light: LightIdx,
+    d: f32,
+    v: f32,
+    comfort_decel_mps2: f32,
+) -> bool {
+    match lights
+        .get(light.0 as usize)
+        .copied()
+        .unwrap_or(LightState::Green)
+    {
+        LightState::Red => true,
+        LightState::Yellow => d > v * v / (2.0 * comfort_decel_mps2) - 0.5,
+        LightState::Green => false,
+    }
+}
+
 /// Decides one NPC's control for this tick. `granted` says whether it holds the reservation for its next junction lane.
 #[allow(clippy::too_many_arguments)]
 pub fn decide(
@@ -340,15 +362,7 @@ pub fn decide(
     }
     // Lights.
     if let Some((d, light)) = next_stop_line(town, rules, npc, vp, look) {
-        let st = lights
-            .get(light.0 as usize)
-            .copied()
-            .unwrap_or(LightState::Green);
-        let stop = match st {
-            LightState::Red => true,
-            LightState::Yellow => d > v * v / (2.0 * p.comfort_decel_mps2) - 0.5,
-            LightState::Green => false,
-        };
+        let stop = must_stop_for_light(lights, light, d, v, p.comfort_decel_mps2);
         if stop {
             accel = accel.min(free + idm_term(p, v, d, 0.0, p.stop_gap_m));
         }

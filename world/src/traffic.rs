@@ -474,15 +474,8 @@ impl Traffic {
         let v = n.state.speed_mps;
         npc::next_stop_line(&self.town, &self.rules, n, &self.cfg.vehicle, 80.0).map(
             |(d, light)| {
-                let st = lights
-                    .get(light.0 as usize)
-                    .copied()
-                    .unwrap_or(LightState::Green);
-                let stop = match st {
-                    LightState::Red => true,
-                    LightState::Yellow => d > v * v / (2.0 * self.cfg.npc.comfort_decel_mps2) - 0.5,
-                    LightState::Green => false,
-                };
+                let stop =
+                    npc::must_stop_for_light(lights, light, d, v, self.cfg.npc.comfort_decel_mps2);
                 (stop, d, light)
             },
         )
