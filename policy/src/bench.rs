@@ -81,6 +81,45 @@ pub fn inference_latency(
         .collect()
 }
 
+/// Batch-1 latency of the fused CPU path ([`crate::fused::FusedPolicy`]) of `config` at each
+/// scale, from an RGB8 image (normalisation included) to the action logits, on `threads` threads.
+pub fn fused_latency(
+    config: &PolicyConfig,
+    threads: usize,
+    warmup: usize,
+    repeats: usize,
+) -> Vec<(f32, [usize; 2], Latency)> {
+    let device = Device::flex();
+    device.seed(0);
+    let fused = crate::fused::FusedPolicy::from_net(&config.init(&device));
+    let images: Vec<Vec<u8>> = config
+        .scales
+        .iter()
+        .map(|&r| {
+            let [h, w] = config.input_size(r);
+            (0..h * w * 3).map(|i| (i * 131 % 251) as u8).collect()
+        })
+        .collect();
+    let mut times = vec![Vec::with_capacity(repeats); images.len()];
+    for round in 0..warmup + repeats {
+        for (branch, rgb) in images.iter().enumerate() {
+            let [h, w] = config.input_size(config.scales[branch]);
+            let t0 = Instant::now();
+            let z = fused.forward_rgb8(rgb, h, w, branch, threads);
+            std::hint::black_box(z);
+            if round >= warmup {
+                times[branch].push(t0.elapsed().as_secs_f64() * 1e3);
+            }
+        }
+    }
+    config
+        .scales
+        .iter()
+        .zip(times)
+        .map(|(&r, t)| (r, config.input_size(r), Latency::of(t)))
+        .collect()
+}
+
 /// Training throughput of the multi-resolution step (samples per second; each sample is
 /// seen once at every scale of R) with settings `train`, batch `batch`, on `device` (autodiff).
 pub fn train_throughput(

@@ -3,7 +3,7 @@
 //! selectors, checkpoints, the training step, and the `Driver` the loop calls.
 //!
 //! Read in this order: [`bn_bank`], [`backbone`], [`heads`], [`model`],
-//! [`action`], [`decode`], [`checkpoint`], [`selector`], [`driver`], [`train`], [`bench`].
+//! [`action`], [`decode`], [`device`], [`checkpoint`], [`selector`], [`fused`], [`driver`], [`train`], [`bench`].
 
 pub mod action;
 pub mod backbone;
@@ -11,7 +11,9 @@ pub mod bench;
 pub mod bn_bank;
 pub mod checkpoint;
 pub mod decode;
+pub mod device;
 pub mod driver;
+pub mod fused;
 pub mod heads;
 pub mod model;
 pub use sim::selector;

@@ -4,6 +4,7 @@ pub mod bench;
 pub mod log;
 pub mod map;
 pub mod policy;
+pub mod recalibrate;
 pub mod render;
 pub mod routes;
 pub mod run;

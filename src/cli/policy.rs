@@ -5,6 +5,7 @@ use clap::{Args, Subcommand, ValueEnum};
 use policy::backbone::Depth;
 use policy::bench;
 use policy::checkpoint::{self, ModelCard};
+pub use policy::device::DeviceKind;
 use policy::model::PolicyConfig;
 use policy::train::synthetic::toy_batch;
 use policy::train::{MultiResTrainer, TrainConfig};
@@ -41,25 +42,9 @@ impl Preset {
     }
 }
 
-/// Which device runs the network.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum DeviceKind {
-    /// burn's `flex` CPU backend.
-    Cpu,
-    /// CUDA (needs a build with burn's `cuda` feature).
-    Cuda,
-    /// wgpu (needs a build with burn's `wgpu` feature).
-    Wgpu,
-}
-
-/// The burn device for `kind`.
+/// The burn device for `kind` (an error names the feature to build with when it is missing).
 pub fn device(kind: DeviceKind) -> Result<policy::burn::tensor::Device> {
-    match kind {
-        DeviceKind::Cpu => Ok(policy::burn::tensor::Device::flex()),
-        other => bail!(
-            "--device {other:?}: this build has only burn's CPU backend (flex); rebuild with burn's `cuda`/`wgpu` feature to use a GPU"
-        ),
-    }
+    Ok(policy::device::open(kind)?)
 }
 
 /// `mrdrive policy ...`
@@ -106,6 +91,9 @@ enum PolicyCommand {
         #[arg(long, value_delimiter = ',', default_value = "0.75,1.0")]
         scales: Vec<f32>,
     },
+    /// Re-estimate every BN branch's running statistics on frames rendered along scenarios
+    /// (PROTOCOL §6: 200 batches), each branch on frames drawn at its own scale.
+    Recalibrate(super::recalibrate::RecalibrateArgs),
     /// Print a checkpoint's config and card.
     Info {
         /// Weights path.
@@ -193,6 +181,7 @@ pub fn run_policy(args: PolicyArgs) -> Result<()> {
             println!("wrote {}", out.display());
             Ok(())
         }
+        PolicyCommand::Recalibrate(a) => super::recalibrate::recalibrate(&a),
         PolicyCommand::Info { weights } => {
             let (cfg, card) = checkpoint::read_manifest(&weights)?;
             println!(
@@ -228,8 +217,8 @@ pub struct TrainArgs {
     /// Seed (initialisation and data).
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Device.
-    #[arg(long, value_enum, default_value = "cpu")]
+    /// Device: cpu, wgpu or cuda (GPU devices need a build with that cargo feature).
+    #[arg(long, default_value = "cpu")]
     device: DeviceKind,
 }
 
@@ -306,8 +295,8 @@ pub enum BenchCommand {
         /// Only the default model (skip ResNet-34/18 at the paper's S0).
         #[arg(long)]
         quick: bool,
-        /// Device.
-        #[arg(long, value_enum, default_value = "cpu")]
+        /// Device: cpu, wgpu or cuda (GPU devices need a build with that cargo feature).
+        #[arg(long, default_value = "cpu")]
         device: DeviceKind,
     },
 }
@@ -325,7 +314,7 @@ pub fn run_bench_command(command: BenchCommand) -> Result<()> {
     let threads = policy::cpu_threads();
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     println!(
-        "policy benchmark: burn flex CPU backend, {threads} rayon threads (RAYON_NUM_THREADS), batch 1 inference, median of {repeats} (scales interleaved)"
+        "policy benchmark: device {kind} (burn; cpu = flex with {threads} rayon threads, RAYON_NUM_THREADS), batch 1 inference, median of {repeats} (scales interleaved)"
     );
     println!("load average before: {}", load.trim());
     let mut nets = vec![(
@@ -364,34 +353,42 @@ pub fn run_bench_command(command: BenchCommand) -> Result<()> {
         ));
     }
     println!(
-        "{:<36} {:>6} {:>10} {:>10} {:>9} {:>9} {:>12}",
-        "network", "scale", "input WxH", "median ms", "min ms", "max ms", "t(.75)/t(1)"
+        "{:<36} {:<6} {:>6} {:>10} {:>10} {:>9} {:>9} {:>12}",
+        "network", "engine", "scale", "input WxH", "median ms", "min ms", "max ms", "t(.75)/t(1)"
     );
     for (name, cfg) in &nets {
-        let rows = bench::inference_latency(cfg, &dev, 3, repeats);
-        let t = |s: f32| rows.iter().find(|r| r.0 == s).map(|r| r.2.median_ms);
-        let ratio = match (t(0.75), t(1.0)) {
-            (Some(a), Some(b)) => format!("{:.3}", a / b),
-            _ => "-".into(),
-        };
-        for (i, (r, [h, w], l)) in rows.iter().enumerate() {
-            println!(
-                "{:<36} {:>6} {:>10} {:>10.2} {:>9.2} {:>9.2} {:>12}",
-                if i == 0 { *name } else { "" },
-                r,
-                format!("{w}x{h}"),
-                l.median_ms,
-                l.min_ms,
-                l.max_ms,
-                if i + 1 == rows.len() {
-                    ratio.as_str()
-                } else {
-                    ""
-                }
-            );
+        let mut engines = vec![("burn", bench::inference_latency(cfg, &dev, 3, repeats))];
+        if kind == DeviceKind::Cpu {
+            engines.push(("fused", bench::fused_latency(cfg, threads, 3, repeats)));
+        }
+        for (e, (engine, rows)) in engines.iter().enumerate() {
+            let t = |s: f32| rows.iter().find(|r| r.0 == s).map(|r| r.2.median_ms);
+            let ratio = match (t(0.75), t(1.0)) {
+                (Some(a), Some(b)) => format!("{:.3}", a / b),
+                _ => "-".into(),
+            };
+            for (i, (r, [h, w], l)) in rows.iter().enumerate() {
+                println!(
+                    "{:<36} {:<6} {:>6} {:>10} {:>10.2} {:>9.2} {:>9.2} {:>12}",
+                    if i == 0 && e == 0 { *name } else { "" },
+                    if i == 0 { *engine } else { "" },
+                    r,
+                    format!("{w}x{h}"),
+                    l.median_ms,
+                    l.min_ms,
+                    l.max_ms,
+                    if i + 1 == rows.len() {
+                        ratio.as_str()
+                    } else {
+                        ""
+                    }
+                );
+            }
         }
     }
-    println!("(ideal t(0.75)/t(1.0) = 0.5625, the area ratio)");
+    println!(
+        "(ideal t(0.75)/t(1.0) = 0.5625, the area ratio; burn: tensor in, logits read back; fused: the driver's CPU path, RGB8 in, normalisation included)"
+    );
     println!(
         "load average after inference: {}",
         std::fs::read_to_string("/proc/loadavg")

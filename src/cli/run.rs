@@ -161,13 +161,11 @@ pub fn driver_for(scenario: &Scenario, prepared: &Prepared) -> anyhow::Result<Bo
                 .checkpoint
                 .as_deref()
                 .context("driver.checkpoint is required for a policy")?;
-            let device = match scenario.driver.device.as_deref().unwrap_or("cpu") {
-                "cpu" => policy::burn::tensor::Device::flex(),
-                other => anyhow::bail!(
-                    "scenario {}: driver.device = \"{other}\": this build has only the CPU backend; use \"cpu\"",
-                    scenario.name
-                ),
-            };
+            let name = scenario.driver.device.as_deref().unwrap_or("cpu");
+            let device = name
+                .parse()
+                .and_then(policy::device::open)
+                .with_context(|| format!("scenario {}: driver.device", scenario.name))?;
             Ok(Box::new(PolicyDriver::from_checkpoint(path, device)?))
         }
     }

@@ -8,6 +8,7 @@
 //! | `ci` | what `.ci/run` runs: formatting, then `test` with every skip turned into a failure |
 //! | `lint` | `cargo fmt --check` and `cargo clippy --all-targets -- -D warnings` (run before committing; kept out of CI because it needs a second, check-mode build of every dependency) |
 //! | `bless` | rewrites the regression suite's golden files after a deliberate change |
+//! | `gpu-test [FEATURES]` | the policy crate's tests built with burn's GPU backends (default `wgpu`; `wgpu,cuda` for both), in `target/gpu` so the main build is kept; lavapipe is enough for `wgpu`, CUDA needs an NVIDIA GPU |
 //!
 //! The set-up never asks: it installs a missing Debian package when it runs as
 //! root (or with password-less sudo), and otherwise prints the exact command to
@@ -40,9 +41,10 @@ fn main() -> ExitCode {
         Some("ci") => ci(&root),
         Some("lint") => lint(&root),
         Some("bless") => bless(&root),
+        Some("gpu-test") => setup(&root).and_then(|env| gpu_test(&root, &env, &args[1..])),
         _ => {
             eprintln!(
-                "usage: cargo xtask <setup|run|test|ci|bless> [ARGS]\n\nSee xtask/src/main.rs for what each task does."
+                "usage: cargo xtask <setup|run|test|ci|lint|bless|gpu-test> [ARGS]\n\nSee xtask/src/main.rs for what each task does."
             );
             return ExitCode::from(2);
         }
@@ -196,6 +198,30 @@ fn lint(root: &Path) -> Result<(), String> {
             "warnings",
         ],
         &[],
+    )
+}
+
+fn gpu_test(root: &Path, env: &Env, args: &[String]) -> Result<(), String> {
+    let features = args.first().map_or("wgpu", String::as_str);
+    let target = root.join("target").join("gpu");
+    let target = target.to_str().ok_or("the target path is not UTF-8")?;
+    let mut vars = borrow(env);
+    vars.push(("CARGO_TARGET_DIR", target));
+    // The root package's features switch the backends on for the policy crate too.
+    status_in(
+        root,
+        &[
+            "cargo",
+            "test",
+            "--release",
+            "--workspace",
+            "--features",
+            features,
+            "--lib",
+            "--",
+            "device",
+        ],
+        &vars,
     )
 }
 

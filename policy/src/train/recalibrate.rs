@@ -13,6 +13,23 @@ use burn::prelude::*;
 /// Recalibrates every branch of `net` on `batches` (at S0, resized per scale), on `device`
 /// (an autodiff device: BatchNorm updates statistics only in training mode there).
 pub fn recalibrate(net: PolicyNet, batches: &[Batch], device: &Device) -> PolicyNet {
+    let scales = net.config.scales.clone();
+    recalibrate_with(net, batches.len(), device, |branch, k| {
+        resize_to_scale(batches[k].images.clone(), scales[branch])
+    })
+}
+
+/// Recalibrates every branch of `net` on `n_batches` normalised image batches per branch:
+/// `images(branch, k)` gives batch `k` at branch `branch`'s scale, on `device` (autodiff).
+///
+/// Use this when the images come at each scale directly (rendered at that scale, as the
+/// policy sees them in the loop) rather than resized from S0.
+pub fn recalibrate_with(
+    net: PolicyNet,
+    n_batches: usize,
+    device: &Device,
+    mut images: impl FnMut(usize, usize) -> Tensor<4>,
+) -> PolicyNet {
     // Statistics only: no parameter needs a gradient.
     let mut net = net.fork(device).train().no_grad();
     let momentum: Vec<f64> = net
@@ -21,21 +38,20 @@ pub fn recalibrate(net: PolicyNet, batches: &[Batch], device: &Device) -> Policy
         .map(|b| b.branches[0].momentum)
         .collect();
     for branch in 0..net.config.scales.len() {
-        let r = net.config.scales[branch];
         for bank in net.banks_mut() {
             bank.reset_running_stats(branch);
         }
-        for (k, batch) in batches.iter().enumerate() {
+        for k in 0..n_batches {
             for bank in net.banks_mut() {
                 bank.set_momentum(1.0 / (k as f64 + 1.0));
             }
-            let x = resize_to_scale(batch.images.clone(), r);
-            let _ = net.forward(x, branch, true);
+            let _ = net.forward(images(branch, k), branch, true);
         }
     }
     for (bank, m) in net.banks_mut().into_iter().zip(momentum) {
         bank.set_momentum(m);
     }
+    net.sync_running_stats();
     net
 }
 

@@ -1,0 +1,598 @@
+//! Fast CPU inference: a frozen copy of a [`PolicyNet`]'s driving path.
+//!
+//! burn's CPU backend spends most of a batch-1 forward outside its matrix
+//! products (layout changes, im2col, output scatter, BatchNorm as separate
+//! passes; see `docs/policy-bench.md`). This module runs the same network the
+//! way inference engines do:
+//! - activations stay channels-last (`[H, W, C]`, batch 1), which is what an
+//!   RGB8 camera image already is, so nothing is transposed;
+//! - every BatchNorm is folded into a per-channel scale and shift applied in
+//!   the epilogue of its convolution, together with the residual add and ReLU;
+//!   the convolution weights stay shared, each branch of a bank keeps its own
+//!   scale and shift (so switching scales costs nothing);
+//! - a k x k convolution is one im2col copy (each tap a contiguous run of C
+//!   floats) and one matrix product (`gemm`, the kernel burn itself uses).
+//!
+//! Only the driving path is here: backbone, global average pool, action head.
+//! Training and the segmentation decoder stay in burn. [`FusedPolicy::from_net`]
+//! is checked against [`PolicyNet::forward`] in the tests (same logits to 1e-4).
+//! Results are deterministic for a fixed thread count.
+
+use crate::action::{NUM_ACTIONS, NUM_STEERS, NUM_THROTTLES};
+use crate::backbone::BasicBlock;
+use crate::bn_bank::BnBank;
+use crate::model::{PolicyConfig, PolicyNet};
+use burn::nn::conv::Conv2d;
+use burn::nn::{Linear, PaddingConfig2d};
+use burn::prelude::*;
+
+/// A feature map of one image, channels last: `data[(y * w + x) * c + ch]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fmap {
+    /// Rows.
+    pub h: usize,
+    /// Columns.
+    pub w: usize,
+    /// Channels.
+    pub c: usize,
+    /// `h * w * c` values.
+    pub data: Vec<f32>,
+}
+
+/// A bias-free square convolution, weights laid out for `col [HoWo, K] x w [K, Cout]`.
+#[derive(Debug, Clone)]
+struct Conv {
+    cin: usize,
+    cout: usize,
+    k: usize,
+    stride: usize,
+    pad: usize,
+    /// `w[((ky * k + kx) * cin + ci) * cout + co]`.
+    w: Vec<f32>,
+}
+
+/// A folded BatchNorm: `y = x * scale + shift`, per channel.
+#[derive(Debug, Clone)]
+struct Affine {
+    scale: Vec<f32>,
+    shift: Vec<f32>,
+}
+
+/// A convolution followed by a BN bank (one folded affine per branch).
+#[derive(Debug, Clone)]
+struct ConvBn {
+    conv: Conv,
+    bn: Vec<Affine>,
+}
+
+#[derive(Debug, Clone)]
+struct Block {
+    conv1: ConvBn,
+    conv2: ConvBn,
+    downsample: Option<ConvBn>,
+}
+
+/// A dense layer `y = x w + b`, `w[i * n_out + o]`.
+#[derive(Debug, Clone)]
+struct Dense {
+    n_in: usize,
+    n_out: usize,
+    w: Vec<f32>,
+    b: Vec<f32>,
+}
+
+/// The frozen driving path of a policy network, for batch-1 CPU inference.
+#[derive(Debug, Clone)]
+pub struct FusedPolicy {
+    config: PolicyConfig,
+    stem: ConvBn,
+    blocks: Vec<Block>,
+    head: [Dense; 3],
+    factorised: bool,
+}
+
+fn values<const D: usize>(t: Tensor<D>) -> Vec<f32> {
+    t.into_data()
+        .convert::<f32>()
+        .try_to_vec::<f32>()
+        .expect("f32 weights")
+}
+
+impl Conv {
+    fn from_burn(c: &Conv2d) -> Self {
+        let [cout, cin, kh, kw] = c.weight.val().dims();
+        assert_eq!(kh, kw, "square kernels only");
+        assert!(c.bias.is_none(), "the backbone's convolutions have no bias");
+        let (k, stride) = (kh, c.stride[0]);
+        let pad = match c.padding {
+            PaddingConfig2d::Valid => 0,
+            PaddingConfig2d::Explicit(t, l, b, r) if t == l && t == b && t == r => t,
+            ref other => panic!("the backbone pads symmetrically, not {other:?}"),
+        };
+        let src = values(c.weight.val());
+        let mut w = vec![0.0; cout * cin * k * k];
+        for co in 0..cout {
+            for ci in 0..cin {
+                for t in 0..k * k {
+                    w[(t * cin + ci) * cout + co] = src[(co * cin + ci) * k * k + t];
+                }
+            }
+        }
+        Conv {
+            cin,
+            cout,
+            k,
+            stride,
+            pad,
+            w,
+        }
+    }
+
+    fn out_len(&self, n: usize) -> usize {
+        (n + 2 * self.pad - self.k) / self.stride + 1
+    }
+
+    /// The raw products `[Ho * Wo, cout]` (before the epilogue) and the output size.
+    fn apply(&self, x: &Fmap, col: &mut Vec<f32>, threads: usize) -> (usize, usize, Vec<f32>) {
+        debug_assert_eq!(x.c, self.cin);
+        let (ho, wo) = (self.out_len(x.h), self.out_len(x.w));
+        let kdim = self.k * self.k * self.cin;
+        let lhs: &[f32] = if self.k == 1 && self.stride == 1 {
+            &x.data
+        } else {
+            im2col(x, self, ho, wo, col);
+            col
+        };
+        let mut out = vec![0.0; ho * wo * self.cout];
+        matmul(lhs, &self.w, &mut out, ho * wo, kdim, self.cout, threads);
+        (ho, wo, out)
+    }
+}
+
+/// Writes the im2col matrix `[Ho * Wo, k * k * cin]` of `x` into `col` (zeros where padded).
+fn im2col(x: &Fmap, conv: &Conv, ho: usize, wo: usize, col: &mut Vec<f32>) {
+    let (k, s, p, c) = (conv.k, conv.stride, conv.pad, x.c);
+    let row_len = k * k * c;
+    col.clear();
+    col.resize(ho * wo * row_len, 0.0);
+    for oy in 0..ho {
+        for ox in 0..wo {
+            let row = &mut col[(oy * wo + ox) * row_len..][..row_len];
+            for ky in 0..k {
+                let iy = (oy * s + ky) as isize - p as isize;
+                if iy < 0 || iy >= x.h as isize {
+                    continue; // Already zero.
+                }
+                for kx in 0..k {
+                    let ix = (ox * s + kx) as isize - p as isize;
+                    if ix < 0 || ix >= x.w as isize {
+                        continue;
+                    }
+                    let src = (iy as usize * x.w + ix as usize) * c;
+                    row[(ky * k + kx) * c..][..c].copy_from_slice(&x.data[src..src + c]);
+                }
+            }
+        }
+    }
+}
+
+/// `out [m, n] = lhs [m, k] x rhs [k, n]`, all row-major, overwriting `out`.
+fn matmul(lhs: &[f32], rhs: &[f32], out: &mut [f32], m: usize, k: usize, n: usize, threads: usize) {
+    assert!(lhs.len() >= m * k && rhs.len() >= k * n && out.len() >= m * n);
+    // Small products are not worth waking a second thread for.
+    let parallelism = if threads > 1 && m * n * k >= 1 << 20 {
+        gemm::Parallelism::Rayon(threads)
+    } else {
+        gemm::Parallelism::None
+    };
+    // SAFETY: the slices hold at least m*k, k*n and m*n elements (asserted above) and the
+    // strides below describe row-major matrices of exactly those shapes; `out` does not
+    // alias the inputs (it is a distinct `&mut`).
+    unsafe {
+        gemm::gemm(
+            m,
+            n,
+            k,
+            out.as_mut_ptr(),
+            1,
+            n as isize,
+            false,
+            lhs.as_ptr(),
+            1,
+            k as isize,
+            rhs.as_ptr(),
+            1,
+            n as isize,
+            0.0,
+            1.0,
+            false,
+            false,
+            false,
+            parallelism,
+        );
+    }
+}
+
+impl ConvBn {
+    fn from_burn(conv: &Conv2d, bank: &BnBank) -> Self {
+        let bn = bank
+            .branches
+            .iter()
+            .map(|b| {
+                let mean = values(b.running_mean.value_sync());
+                let var = values(b.running_var.value_sync());
+                let gamma = values(b.gamma.val());
+                let beta = values(b.beta.val());
+                let scale: Vec<f32> = gamma
+                    .iter()
+                    .zip(&var)
+                    .map(|(g, v)| g / (v + b.epsilon as f32).sqrt())
+                    .collect();
+                let shift = beta
+                    .iter()
+                    .zip(&mean)
+                    .zip(&scale)
+                    .map(|((be, m), s)| be - m * s)
+                    .collect();
+                Affine { scale, shift }
+            })
+            .collect();
+        ConvBn {
+            conv: Conv::from_burn(conv),
+            bn,
+        }
+    }
+
+    /// `relu?(bn(conv(x)) + residual?)` with BN branch `branch`.
+    fn apply(
+        &self,
+        x: &Fmap,
+        branch: usize,
+        residual: Option<&Fmap>,
+        relu: bool,
+        col: &mut Vec<f32>,
+        threads: usize,
+    ) -> Fmap {
+        let (h, w, mut data) = self.conv.apply(x, col, threads);
+        let Affine { scale, shift } = &self.bn[branch];
+        let c = self.conv.cout;
+        for (i, px) in data.chunks_exact_mut(c).enumerate() {
+            let res = residual.map(|r| &r.data[i * c..(i + 1) * c]);
+            for ch in 0..c {
+                let mut v = px[ch] * scale[ch] + shift[ch];
+                if let Some(r) = res {
+                    v += r[ch];
+                }
+                px[ch] = if relu { v.max(0.0) } else { v };
+            }
+        }
+        Fmap { h, w, c, data }
+    }
+}
+
+impl Block {
+    fn from_burn(b: &BasicBlock) -> Self {
+        Block {
+            conv1: ConvBn::from_burn(&b.conv1, &b.bn1),
+            conv2: ConvBn::from_burn(&b.conv2, &b.bn2),
+            downsample: b
+                .downsample
+                .as_ref()
+                .map(|d| ConvBn::from_burn(&d.conv, &d.bn)),
+        }
+    }
+
+    fn apply(&self, x: &Fmap, branch: usize, col: &mut Vec<f32>, threads: usize) -> Fmap {
+        let projected = self
+            .downsample
+            .as_ref()
+            .map(|d| d.apply(x, branch, None, false, col, threads));
+        let shortcut = projected.as_ref().unwrap_or(x);
+        let y = self.conv1.apply(x, branch, None, true, col, threads);
+        self.conv2
+            .apply(&y, branch, Some(shortcut), true, col, threads)
+    }
+}
+
+impl Dense {
+    fn from_burn(l: &Linear) -> Self {
+        let [n_in, n_out] = l.weight.val().dims();
+        Dense {
+            n_in,
+            n_out,
+            w: values(l.weight.val()),
+            b: l.bias
+                .as_ref()
+                .map(|b| values(b.val()))
+                .unwrap_or_else(|| vec![0.0; n_out]),
+        }
+    }
+
+    fn apply(&self, x: &[f32], relu: bool) -> Vec<f32> {
+        let mut y = self.b.clone();
+        for (i, &xi) in x.iter().enumerate().take(self.n_in) {
+            for (yo, wo) in y
+                .iter_mut()
+                .zip(&self.w[i * self.n_out..(i + 1) * self.n_out])
+            {
+                *yo += xi * wo;
+            }
+        }
+        if relu {
+            y.iter_mut().for_each(|v| *v = v.max(0.0));
+        }
+        y
+    }
+}
+
+/// 3x3 stride-2 max-pool with padding 1 (padding never wins).
+fn maxpool3x3s2(x: &Fmap) -> Fmap {
+    let (ho, wo) = ((x.h + 2 - 3) / 2 + 1, (x.w + 2 - 3) / 2 + 1);
+    let c = x.c;
+    let mut data = vec![f32::NEG_INFINITY; ho * wo * c];
+    for oy in 0..ho {
+        for ox in 0..wo {
+            let out = &mut data[(oy * wo + ox) * c..][..c];
+            for iy in (2 * oy).saturating_sub(1)..(2 * oy + 2).min(x.h) {
+                for ix in (2 * ox).saturating_sub(1)..(2 * ox + 2).min(x.w) {
+                    let src = &x.data[(iy * x.w + ix) * c..][..c];
+                    for (o, v) in out.iter_mut().zip(src) {
+                        *o = o.max(*v);
+                    }
+                }
+            }
+        }
+    }
+    Fmap {
+        h: ho,
+        w: wo,
+        c,
+        data,
+    }
+}
+
+impl FusedPolicy {
+    /// Freezes `net` (its BN running statistics, read after a sync) for CPU inference.
+    pub fn from_net(net: &PolicyNet) -> Self {
+        net.sync_running_stats();
+        let bb = &net.backbone;
+        let blocks = bb
+            .layer1
+            .iter()
+            .chain(&bb.layer2)
+            .chain(&bb.layer3)
+            .chain(&bb.layer4)
+            .map(Block::from_burn)
+            .collect();
+        let h = &net.action_head;
+        FusedPolicy {
+            config: net.config.clone(),
+            stem: ConvBn::from_burn(&bb.conv1, &bb.bn1),
+            blocks,
+            head: [
+                Dense::from_burn(&h.fc1),
+                Dense::from_burn(&h.fc2),
+                Dense::from_burn(&h.fc3),
+            ],
+            factorised: h.factorised,
+        }
+    }
+
+    /// The network's config.
+    pub fn config(&self) -> &PolicyConfig {
+        &self.config
+    }
+
+    /// Normalises an RGB8 image (row-major, 3 bytes a pixel: already channels-last).
+    pub fn normalize(&self, rgb: &[u8], height: usize, width: usize) -> Fmap {
+        let (m, s) = (self.config.mean, self.config.std);
+        let data = rgb
+            .chunks_exact(3)
+            .take(height * width)
+            .flat_map(|px| (0..3).map(move |c| (px[c] as f32 / 255.0 - m[c]) / s[c]))
+            .collect();
+        Fmap {
+            h: height,
+            w: width,
+            c: 3,
+            data,
+        }
+    }
+
+    /// The globally pooled backbone feature `[D]` of a normalised image, BN branch `branch`.
+    pub fn features(&self, x: &Fmap, branch: usize, threads: usize) -> Vec<f32> {
+        let mut col = Vec::new();
+        let y = self.stem.apply(x, branch, None, true, &mut col, threads);
+        let mut y = maxpool3x3s2(&y);
+        for block in &self.blocks {
+            y = block.apply(&y, branch, &mut col, threads);
+        }
+        let n = (y.h * y.w) as f32;
+        let mut f = vec![0.0f32; y.c];
+        for px in y.data.chunks_exact(y.c) {
+            for (a, v) in f.iter_mut().zip(px) {
+                *a += v;
+            }
+        }
+        f.iter_mut().for_each(|v| *v /= n);
+        f
+    }
+
+    /// Action logits `[commands][speed bins][28]` (flattened) from a pooled feature.
+    pub fn action_logits(&self, features: &[f32]) -> Vec<f32> {
+        let h = self.head[0].apply(features, true);
+        let h = self.head[1].apply(&h, true);
+        let raw = self.head[2].apply(&h, false);
+        if !self.factorised {
+            return raw;
+        }
+        let per = NUM_STEERS + NUM_THROTTLES + 1;
+        raw.chunks_exact(per)
+            .flat_map(|cell| {
+                let (steer, rest) = cell.split_at(NUM_STEERS);
+                let (throttle, brake) = rest.split_at(NUM_THROTTLES);
+                let mut z = [0.0f32; NUM_ACTIONS];
+                for (t, th) in throttle.iter().enumerate() {
+                    for (s, st) in steer.iter().enumerate() {
+                        z[t * NUM_STEERS + s] = st + th;
+                    }
+                }
+                z[NUM_ACTIONS - 1] = brake[0];
+                z
+            })
+            .collect()
+    }
+
+    /// Action logits of an RGB8 image through BN branch `branch`, using up to `threads` threads.
+    pub fn forward_rgb8(
+        &self,
+        rgb: &[u8],
+        height: usize,
+        width: usize,
+        branch: usize,
+        threads: usize,
+    ) -> Vec<f32> {
+        let x = self.normalize(rgb, height, width);
+        self.action_logits(&self.features(&x, branch, threads))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::backbone::Depth;
+    use burn::module::{Module, RunningState};
+    use burn::tensor::Distribution;
+
+    fn image(h: usize, w: usize, seed: u8) -> Vec<u8> {
+        (0..h * w * 3)
+            .map(|i| ((i * 37) as u8).wrapping_add(seed).wrapping_mul(13))
+            .collect()
+    }
+
+    /// A net whose BN statistics and affine parameters are far from the identity, so that a
+    /// wrong fold or a wrong branch shows.
+    fn perturbed(cfg: &PolicyConfig, device: &Device) -> PolicyNet {
+        let mut net = cfg.init(device);
+        for (i, bank) in net.banks_mut().into_iter().enumerate() {
+            for (b, bn) in bank.branches.iter_mut().enumerate() {
+                let n = bn.gamma.val().dims()[0];
+                let r = |lo: f64, hi: f64| {
+                    Tensor::<1>::random([n], Distribution::Uniform(lo, hi), device)
+                };
+                bn.running_mean = RunningState::new(r(-0.3, 0.3));
+                bn.running_var = RunningState::new(r(0.5, 2.0));
+                bn.gamma = burn::module::Param::from_tensor(r(0.5, 1.5).add_scalar(0.1 * b as f64));
+                bn.beta =
+                    burn::module::Param::from_tensor(r(-0.2, 0.2).add_scalar(0.01 * i as f64));
+            }
+        }
+        net.valid()
+    }
+
+    fn burn_logits(net: &PolicyNet, rgb: &[u8], h: usize, w: usize, branch: usize) -> Vec<f32> {
+        let x = net.config.normalize_rgb8(rgb, h, w);
+        let x = Tensor::<4>::from_data(TensorData::new(x, [1, 3, h, w]), &Device::flex());
+        values(net.forward(x, branch, false).action_logits)
+    }
+
+    fn assert_close(a: &[f32], b: &[f32], what: &str) {
+        assert_eq!(a.len(), b.len());
+        let scale = a.iter().fold(1.0f32, |m, v| m.max(v.abs()));
+        let worst = a
+            .iter()
+            .zip(b)
+            .map(|(p, q)| (p - q).abs())
+            .fold(0.0, f32::max);
+        assert!(
+            worst <= 1e-4 * scale,
+            "{what}: max diff {worst} (scale {scale})"
+        );
+    }
+
+    #[test]
+    fn matches_burn_at_every_branch_for_resnet18_and_34() {
+        let device = Device::flex();
+        device.seed(41);
+        for depth in [Depth::Resnet18, Depth::Resnet34] {
+            let cfg = PolicyConfig::new(depth, [8, 16, 24, 32])
+                .with_input_height(64)
+                .with_input_width(112)
+                .with_scales(vec![0.5, 0.75, 1.0]);
+            let net = perturbed(&cfg, &device);
+            let fused = FusedPolicy::from_net(&net);
+            for (branch, &r) in cfg.scales.iter().enumerate() {
+                let [h, w] = cfg.input_size(r);
+                let rgb = image(h, w, branch as u8);
+                let want = burn_logits(&net, &rgb, h, w, branch);
+                let got = fused.forward_rgb8(&rgb, h, w, branch, 1);
+                assert_close(&got, &want, &format!("{depth:?} branch {branch}"));
+            }
+            // Branches really differ: the same image through two branches.
+            let [h, w] = cfg.input_size(1.0);
+            let rgb = image(h, w, 7);
+            assert_ne!(
+                fused.forward_rgb8(&rgb, h, w, 0, 1),
+                fused.forward_rgb8(&rgb, h, w, 2, 1)
+            );
+        }
+    }
+
+    #[test]
+    fn unfactorised_head_and_odd_sizes_match_burn() {
+        let device = Device::flex();
+        device.seed(42);
+        let mut cfg = PolicyConfig::new(Depth::Resnet18, [4, 8, 8, 16])
+            .with_input_height(37)
+            .with_input_width(53)
+            .with_scales(vec![1.0]);
+        cfg.factorised_actions = false;
+        let net = perturbed(&cfg, &device);
+        let rgb = image(37, 53, 3);
+        let fused = FusedPolicy::from_net(&net);
+        assert_close(
+            &fused.forward_rgb8(&rgb, 37, 53, 0, 1),
+            &burn_logits(&net, &rgb, 37, 53, 0),
+            "unfactorised",
+        );
+    }
+
+    #[test]
+    fn thread_count_does_not_change_a_bit() {
+        // Wide enough that the products take the multi-threaded path.
+        let device = Device::flex();
+        device.seed(43);
+        let cfg = PolicyConfig::new(Depth::Resnet18, [32, 64, 128, 256])
+            .with_input_height(96)
+            .with_input_width(240);
+        let fused = FusedPolicy::from_net(&perturbed(&cfg, &device));
+        let rgb = image(96, 240, 1);
+        let pool = |n| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .unwrap()
+        };
+        let one = pool(1).install(|| fused.forward_rgb8(&rgb, 96, 240, 1, 1));
+        let two = pool(2).install(|| fused.forward_rgb8(&rgb, 96, 240, 1, 2));
+        let again = pool(2).install(|| fused.forward_rgb8(&rgb, 96, 240, 1, 2));
+        assert_eq!(two, again);
+        assert_eq!(one, two);
+    }
+
+    #[test]
+    fn maxpool_ignores_padding_and_picks_the_window_maximum() {
+        // A 3x4 single-channel map of negatives: padding must not turn into zeros.
+        let x = Fmap {
+            h: 3,
+            w: 4,
+            c: 1,
+            data: (0..12).map(|v| -(v as f32) - 1.0).collect(),
+        };
+        let y = maxpool3x3s2(&x);
+        assert_eq!((y.h, y.w), (2, 2));
+        // Windows: rows {0,1} x cols {0,1} -> -1; rows {0,1} x cols {1,2,3} -> -2;
+        // rows {1,2} x cols {0,1} -> -5; rows {1,2} x cols {1,2,3} -> -6.
+        assert_eq!(y.data, vec![-1.0, -2.0, -5.0, -6.0]);
+    }
+}

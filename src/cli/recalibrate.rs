@@ -1,0 +1,233 @@
+//! `mrdrive policy recalibrate`: BN recalibration (PROTOCOL §6) on frames
+//! rendered along scenarios.
+//!
+//! The expert drives each scenario (with its traffic); every `--every-s`
+//! seconds of simulated time the moment (ego pose, actors, light states) is
+//! kept. Each branch of every BN bank then has its running statistics reset
+//! and re-estimated as the mean of the batch statistics over `--batches`
+//! batches of those moments, each rendered at that branch's scale, exactly as
+//! the policy sees them in the loop (drawn at the scale, not resized).
+
+use anyhow::{Context, Result, ensure};
+use clap::Args;
+use policy::burn::prelude::*;
+use policy::checkpoint::{self, ModelCard};
+use policy::train::recalibrate::recalibrate_with;
+use sim::driver::RgbImage;
+use sim::render::EgoPose;
+use sim::runner::{self, RunInputs};
+use sim::scenario::{DriverKind, Scenario};
+use std::path::{Path, PathBuf};
+use world::{ActorSnapshot, LightState};
+
+use super::policy::{DeviceKind, device};
+use super::run;
+
+/// `mrdrive policy recalibrate WEIGHTS --scenario S... --out OUT`
+#[derive(Debug, Args)]
+pub struct RecalibrateArgs {
+    /// The checkpoint to recalibrate (NAME.safetensors with NAME.json beside it).
+    pub weights: PathBuf,
+    /// Where to write the recalibrated checkpoint.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Scenario files to collect frames along (driven by the expert; never the evaluation routes).
+    #[arg(long = "scenario", required = true, num_args = 1..)]
+    pub scenarios: Vec<PathBuf>,
+    /// Batches per branch (PROTOCOL §6: 200).
+    #[arg(long, default_value_t = 200)]
+    pub batches: usize,
+    /// Frames per batch.
+    #[arg(long, default_value_t = 8)]
+    pub batch: usize,
+    /// Simulated seconds between kept frames.
+    #[arg(long, default_value_t = 0.1)]
+    pub every_s: f64,
+    /// Device for the forward passes: cpu, wgpu or cuda.
+    #[arg(long, default_value = "cpu")]
+    pub device: DeviceKind,
+    #[command(flatten)]
+    pub traffic: run::TrafficFlags,
+}
+
+/// One kept moment of a run.
+struct Moment {
+    actors: Vec<ActorSnapshot>,
+    lights: Vec<LightState>,
+}
+
+/// Drives `path` with the expert and keeps a moment every `every_ticks` ticks.
+fn collect(
+    path: &Path,
+    traffic: &run::TrafficFlags,
+    every_ticks: u64,
+    into: &mut Vec<(usize, Moment)>,
+    scenario_idx: usize,
+) -> Result<()> {
+    let scenario = traffic.overrides(None).apply(&Scenario::from_file(path)?);
+    let mut expert = scenario.clone();
+    expert.driver.kind = DriverKind::Expert;
+    let prepared =
+        runner::prepare(&expert).with_context(|| format!("scenario {}", path.display()))?;
+    let mut driver = run::driver_for(&expert, &prepared)?;
+    let mut selector = run::selector_for(&expert, None)?;
+    let mut kept = 0;
+    let mut keep = |tick: u64, actors: &[ActorSnapshot], lights: &[LightState]| {
+        if tick % every_ticks == 0 && !actors.is_empty() {
+            into.push((
+                scenario_idx,
+                Moment {
+                    actors: actors.to_vec(),
+                    lights: lights.to_vec(),
+                },
+            ));
+            kept += 1;
+        }
+    };
+    let record = runner::run(
+        &expert,
+        path,
+        RunInputs {
+            prepared: &prepared,
+            driver: driver.as_mut(),
+            selector: selector.as_mut(),
+            camera: None,
+            recorder: None,
+            progress: &mut |_| {},
+            max_ticks: None,
+            observer: Some(&mut keep),
+            render_every_frame: false,
+        },
+    )?;
+    println!(
+        "{}: {kept} frames over {:.1} s ({})",
+        path.display(),
+        record.result.sim_time_s,
+        record
+            .result
+            .termination
+            .map_or("route completed", |t| t.name())
+    );
+    Ok(())
+}
+
+/// Runs `mrdrive policy recalibrate`.
+pub fn recalibrate(a: &RecalibrateArgs) -> Result<()> {
+    ensure!(
+        a.batches > 0 && a.batch > 0,
+        "--batches {} --batch {}: both must be at least 1 (PROTOCOL §6 uses 200 batches)",
+        a.batches,
+        a.batch
+    );
+    ensure!(
+        a.every_s.is_finite() && a.every_s > 0.0,
+        "--every-s {}: give a positive spacing in seconds, e.g. --every-s 0.1",
+        a.every_s
+    );
+    let (config, card) = checkpoint::read_manifest(&a.weights)?;
+    let want = a.batches * a.batch;
+    let mut moments = Vec::new();
+    for (i, path) in a.scenarios.iter().enumerate() {
+        let tick_s = Scenario::from_file(path)?.timing.tick_s;
+        let every_ticks = ((a.every_s / tick_s).round() as u64).max(1);
+        collect(path, &a.traffic, every_ticks, &mut moments, i)?;
+    }
+    // More than needed: keep `want`, evenly spread over everything driven.
+    if moments.len() > want {
+        let n = moments.len();
+        let mut all: Vec<Option<(usize, Moment)>> = moments.into_iter().map(Some).collect();
+        moments = (0..want)
+            .map(|i| all[i * n / want].take().expect("distinct indices"))
+            .collect();
+    }
+    let n_batches = moments.len() / a.batch;
+    ensure!(
+        n_batches > 0,
+        "only {} frames along {} scenario(s), fewer than one batch of {}: add scenarios or lower --every-s",
+        moments.len(),
+        a.scenarios.len(),
+        a.batch
+    );
+    if n_batches < a.batches {
+        println!(
+            "note: {} frames make {n_batches} batches of {}, not the {} asked for (add scenarios or lower --every-s for more)",
+            moments.len(),
+            a.batch,
+            a.batches
+        );
+    }
+    // One renderer per scenario (each has its own town), built on the checkpoint's rig.
+    let mut cameras = Vec::new();
+    for path in &a.scenarios {
+        let mut s = Scenario::from_file(path)?;
+        s.driver.kind = DriverKind::Policy;
+        s.driver.checkpoint = Some(std::fs::canonicalize(&a.weights).with_context(|| {
+            format!(
+                "{}: cannot resolve the checkpoint path",
+                a.weights.display()
+            )
+        })?);
+        let prepared = runner::prepare(&s)?;
+        cameras.push(run::camera_for(&s, &prepared)?);
+    }
+    let dev = device(a.device)?;
+    let (net, _) = checkpoint::load(&a.weights, &dev)?;
+    let autodiff = dev.autodiff();
+    let mut rendered = 0usize;
+    let mut failure = None;
+    let t0 = std::time::Instant::now();
+    let net = recalibrate_with(net, n_batches, &autodiff, |branch, k| {
+        let scale = config.scales[branch];
+        let [h, w] = config.input_size(scale);
+        let mut data = Vec::with_capacity(a.batch * 3 * h * w);
+        // Batch k takes frames k, k + n, k + 2n, ...: spread along the routes, not consecutive.
+        for j in 0..a.batch {
+            let (scn, m) = &moments[k + j * n_batches];
+            let ego = EgoPose::from(&m.actors[0]);
+            let img: RgbImage = match cameras[*scn].render_rig(&ego, &m.actors, &m.lights, scale) {
+                Ok((rgb, _)) => rgb.clone(),
+                Err(e) => {
+                    failure.get_or_insert(e.to_string());
+                    RgbImage {
+                        width: w as u32,
+                        height: h as u32,
+                        data: vec![0; 3 * h * w],
+                    }
+                }
+            };
+            data.extend(config.normalize_rgb8(&img.data, h, w));
+            rendered += 1;
+        }
+        Tensor::<4>::from_data(TensorData::new(data, [a.batch, 3, h, w]), &autodiff)
+    });
+    if let Some(e) = failure {
+        anyhow::bail!("rendering a recalibration frame failed: {e}");
+    }
+    let names: Vec<String> = a
+        .scenarios
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect();
+    let out_card = ModelCard {
+        trained: card.trained,
+        description: format!(
+            "{} BN running statistics recalibrated on {} frames per scale ({n_batches} batches of {}, expert-driven, every {} s) along {}.",
+            card.description.trim_end_matches('.').to_string() + ";",
+            n_batches * a.batch,
+            a.batch,
+            a.every_s,
+            names.join(", ")
+        ),
+        source: a.weights.display().to_string(),
+    };
+    checkpoint::save(&net, &out_card, &a.out)?;
+    println!(
+        "recalibrated {} branches ({:?}) on {n_batches} batches of {} ({rendered} renders, {:.1} s); wrote {}",
+        config.scales.len(),
+        config.scales,
+        a.batch,
+        t0.elapsed().as_secs_f64(),
+        a.out.display()
+    );
+    Ok(())
+}
