@@ -82,10 +82,9 @@ pub fn inference_latency(
 }
 
 /// Batch-1 latency of the fused CPU path ([`crate::fused::FusedPolicy`]) of `config` at each
-/// scale, from an RGB8 image (normalisation included) to the action logits, on `threads` threads.
+/// scale, from an RGB8 image (normalisation included) to the action logits, on rayon's pool.
 pub fn fused_latency(
     config: &PolicyConfig,
-    threads: usize,
     warmup: usize,
     repeats: usize,
 ) -> Vec<(f32, [usize; 2], Latency)> {
@@ -105,7 +104,7 @@ pub fn fused_latency(
         for (branch, rgb) in images.iter().enumerate() {
             let [h, w] = config.input_size(config.scales[branch]);
             let t0 = Instant::now();
-            let z = fused.forward_rgb8(rgb, h, w, branch, threads);
+            let z = fused.forward_rgb8(rgb, h, w, branch);
             std::hint::black_box(z);
             if round >= warmup {
                 times[branch].push(t0.elapsed().as_secs_f64() * 1e3);

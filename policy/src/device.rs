@@ -205,7 +205,7 @@ mod tests {
             .with_input_width(96);
         let net = cfg.init(&cpu).valid();
         let x = Tensor::<4>::random([1, 3, 48, 96], Distribution::Normal(0.0, 1.0), &cpu);
-        let on_gpu = net.fork(&gpu);
+        let on_gpu = net.clone().fork(&gpu);
         for branch in 0..cfg.scales.len() {
             let x = crate::train::resize::resize_to_scale(x.clone(), cfg.scales[branch]);
             let a = net.forward(x.clone(), branch, false).action_logits;

@@ -60,10 +60,16 @@ impl PolicyDriver {
                 fix: "train the policy with 4 speed bins (the default)".into(),
             });
         }
+        // The name goes into result records: say where inference ran.
+        let engine = if device == Device::flex() {
+            "cpu, fused".to_string()
+        } else {
+            format!("burn, {device:?}")
+        };
         Ok(Self::new(
             net,
             card,
-            format!("policy:{}", weights.display()),
+            format!("policy:{} ({engine})", weights.display()),
             device,
         ))
     }
@@ -110,7 +116,7 @@ impl PolicyDriver {
         let per_command = NUM_SPEED_BINS * NUM_ACTIONS;
         let z = match &self.fused {
             Some(f) => {
-                let all = f.forward_rgb8(&image.data, h, w, branch, rayon::current_num_threads());
+                let all = f.forward_rgb8(&image.data, h, w, branch);
                 all[command * per_command..(command + 1) * per_command].to_vec()
             }
             None => {

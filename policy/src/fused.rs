@@ -16,7 +16,8 @@
 //! Only the driving path is here: backbone, global average pool, action head.
 //! Training and the segmentation decoder stay in burn. [`FusedPolicy::from_net`]
 //! is checked against [`PolicyNet::forward`] in the tests (same logits to 1e-4).
-//! Results are deterministic for a fixed thread count.
+//! Convolutions run in fixed-size tiles of output pixels on rayon's pool, so
+//! the logits are bit-identical for any thread count (tested).
 
 use crate::action::{NUM_ACTIONS, NUM_STEERS, NUM_THROTTLES};
 use crate::backbone::BasicBlock;
@@ -25,6 +26,7 @@ use crate::model::{PolicyConfig, PolicyNet};
 use burn::nn::conv::Conv2d;
 use burn::nn::{Linear, PaddingConfig2d};
 use burn::prelude::*;
+use rayon::prelude::*;
 
 /// A feature map of one image, channels last: `data[(y * w + x) * c + ch]`.
 #[derive(Debug, Clone, PartialEq)]
@@ -132,59 +134,79 @@ impl Conv {
         (n + 2 * self.pad - self.k) / self.stride + 1
     }
 
-    /// The raw products `[Ho * Wo, cout]` (before the epilogue) and the output size.
-    fn apply(&self, x: &Fmap, col: &mut Vec<f32>, threads: usize) -> (usize, usize, Vec<f32>) {
+    /// `epilogue(conv(x))`: the output `[Ho * Wo, cout]` and its size.
+    ///
+    /// The output rows (pixels) are cut into tiles of [`TILE_ROWS`]; each tile is one im2col
+    /// copy, one single-threaded product and the epilogue (called with the tile's first row
+    /// and its `rows x cout` values), and tiles run in parallel on rayon's pool. The tile
+    /// size is fixed, so every value is computed the same way whatever the thread count.
+    fn apply(
+        &self,
+        x: &Fmap,
+        epilogue: impl Fn(usize, &mut [f32]) + Sync,
+    ) -> (usize, usize, Vec<f32>) {
         debug_assert_eq!(x.c, self.cin);
         let (ho, wo) = (self.out_len(x.h), self.out_len(x.w));
         let kdim = self.k * self.k * self.cin;
-        let lhs: &[f32] = if self.k == 1 && self.stride == 1 {
-            &x.data
-        } else {
-            im2col(x, self, ho, wo, col);
-            col
-        };
+        let direct = self.k == 1 && self.stride == 1;
         let mut out = vec![0.0; ho * wo * self.cout];
-        matmul(lhs, &self.w, &mut out, ho * wo, kdim, self.cout, threads);
+        out.par_chunks_mut(TILE_ROWS * self.cout)
+            .enumerate()
+            .for_each(|(t, tile)| {
+                let first = t * TILE_ROWS;
+                let rows = tile.len() / self.cout;
+                if direct {
+                    let lhs = &x.data[first * kdim..(first + rows) * kdim];
+                    matmul(lhs, &self.w, tile, rows, kdim, self.cout);
+                } else {
+                    COL.with_borrow_mut(|col| {
+                        im2col(x, self, wo, first..first + rows, col);
+                        matmul(col, &self.w, tile, rows, kdim, self.cout);
+                    });
+                }
+                epilogue(first, tile);
+            });
         (ho, wo, out)
     }
 }
 
-/// Writes the im2col matrix `[Ho * Wo, k * k * cin]` of `x` into `col` (zeros where padded).
-fn im2col(x: &Fmap, conv: &Conv, ho: usize, wo: usize, col: &mut Vec<f32>) {
+/// Output pixels per tile of a convolution (see [`Conv::apply`]).
+const TILE_ROWS: usize = 128;
+
+thread_local! {
+    /// Each worker thread's im2col buffer, reused from tile to tile.
+    static COL: std::cell::RefCell<Vec<f32>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// Writes the im2col rows `rows` (output pixels, row-major over `[Ho, wo]`) of `x` into
+/// `col`, `k * k * cin` values a row (zeros where the window is in the padding).
+fn im2col(x: &Fmap, conv: &Conv, wo: usize, rows: std::ops::Range<usize>, col: &mut Vec<f32>) {
     let (k, s, p, c) = (conv.k, conv.stride, conv.pad, x.c);
     let row_len = k * k * c;
-    col.clear();
-    col.resize(ho * wo * row_len, 0.0);
-    for oy in 0..ho {
-        for ox in 0..wo {
-            let row = &mut col[(oy * wo + ox) * row_len..][..row_len];
-            for ky in 0..k {
-                let iy = (oy * s + ky) as isize - p as isize;
-                if iy < 0 || iy >= x.h as isize {
-                    continue; // Already zero.
-                }
-                for kx in 0..k {
-                    let ix = (ox * s + kx) as isize - p as isize;
-                    if ix < 0 || ix >= x.w as isize {
-                        continue;
-                    }
+    // Every value is written below (a copy or a padding zero): no need to clear first.
+    col.resize(rows.len() * row_len, 0.0);
+    for (r, pixel) in rows.enumerate() {
+        let (oy, ox) = (pixel / wo, pixel % wo);
+        let row = &mut col[r * row_len..][..row_len];
+        for ky in 0..k {
+            let iy = (oy * s + ky) as isize - p as isize;
+            for kx in 0..k {
+                let ix = (ox * s + kx) as isize - p as isize;
+                let tap = &mut row[(ky * k + kx) * c..][..c];
+                if iy < 0 || iy >= x.h as isize || ix < 0 || ix >= x.w as isize {
+                    tap.fill(0.0);
+                } else {
                     let src = (iy as usize * x.w + ix as usize) * c;
-                    row[(ky * k + kx) * c..][..c].copy_from_slice(&x.data[src..src + c]);
+                    tap.copy_from_slice(&x.data[src..src + c]);
                 }
             }
         }
     }
 }
 
-/// `out [m, n] = lhs [m, k] x rhs [k, n]`, all row-major, overwriting `out`.
-fn matmul(lhs: &[f32], rhs: &[f32], out: &mut [f32], m: usize, k: usize, n: usize, threads: usize) {
+/// `out [m, n] = lhs [m, k] x rhs [k, n]`, all row-major, overwriting `out`, on this thread.
+fn matmul(lhs: &[f32], rhs: &[f32], out: &mut [f32], m: usize, k: usize, n: usize) {
     assert!(lhs.len() >= m * k && rhs.len() >= k * n && out.len() >= m * n);
-    // Small products are not worth waking a second thread for.
-    let parallelism = if threads > 1 && m * n * k >= 1 << 20 {
-        gemm::Parallelism::Rayon(threads)
-    } else {
-        gemm::Parallelism::None
-    };
     // SAFETY: the slices hold at least m*k, k*n and m*n elements (asserted above) and the
     // strides below describe row-major matrices of exactly those shapes; `out` does not
     // alias the inputs (it is a distinct `&mut`).
@@ -208,7 +230,7 @@ fn matmul(lhs: &[f32], rhs: &[f32], out: &mut [f32], m: usize, k: usize, n: usiz
             false,
             false,
             false,
-            parallelism,
+            gemm::Parallelism::None,
         );
     }
 }
@@ -244,28 +266,21 @@ impl ConvBn {
     }
 
     /// `relu?(bn(conv(x)) + residual?)` with BN branch `branch`.
-    fn apply(
-        &self,
-        x: &Fmap,
-        branch: usize,
-        residual: Option<&Fmap>,
-        relu: bool,
-        col: &mut Vec<f32>,
-        threads: usize,
-    ) -> Fmap {
-        let (h, w, mut data) = self.conv.apply(x, col, threads);
+    fn apply(&self, x: &Fmap, branch: usize, residual: Option<&Fmap>, relu: bool) -> Fmap {
         let Affine { scale, shift } = &self.bn[branch];
         let c = self.conv.cout;
-        for (i, px) in data.chunks_exact_mut(c).enumerate() {
-            let res = residual.map(|r| &r.data[i * c..(i + 1) * c]);
-            for ch in 0..c {
-                let mut v = px[ch] * scale[ch] + shift[ch];
-                if let Some(r) = res {
-                    v += r[ch];
+        let (h, w, data) = self.conv.apply(x, |first, tile| {
+            for (i, px) in tile.chunks_exact_mut(c).enumerate() {
+                let res = residual.map(|r| &r.data[(first + i) * c..][..c]);
+                for ch in 0..c {
+                    let mut v = px[ch] * scale[ch] + shift[ch];
+                    if let Some(r) = res {
+                        v += r[ch];
+                    }
+                    px[ch] = if relu { v.max(0.0) } else { v };
                 }
-                px[ch] = if relu { v.max(0.0) } else { v };
             }
-        }
+        });
         Fmap { h, w, c, data }
     }
 }
@@ -282,15 +297,14 @@ impl Block {
         }
     }
 
-    fn apply(&self, x: &Fmap, branch: usize, col: &mut Vec<f32>, threads: usize) -> Fmap {
+    fn apply(&self, x: &Fmap, branch: usize) -> Fmap {
         let projected = self
             .downsample
             .as_ref()
-            .map(|d| d.apply(x, branch, None, false, col, threads));
+            .map(|d| d.apply(x, branch, None, false));
         let shortcut = projected.as_ref().unwrap_or(x);
-        let y = self.conv1.apply(x, branch, None, true, col, threads);
-        self.conv2
-            .apply(&y, branch, Some(shortcut), true, col, threads)
+        let y = self.conv1.apply(x, branch, None, true);
+        self.conv2.apply(&y, branch, Some(shortcut), true)
     }
 }
 
@@ -400,12 +414,11 @@ impl FusedPolicy {
     }
 
     /// The globally pooled backbone feature `[D]` of a normalised image, BN branch `branch`.
-    pub fn features(&self, x: &Fmap, branch: usize, threads: usize) -> Vec<f32> {
-        let mut col = Vec::new();
-        let y = self.stem.apply(x, branch, None, true, &mut col, threads);
+    pub fn features(&self, x: &Fmap, branch: usize) -> Vec<f32> {
+        let y = self.stem.apply(x, branch, None, true);
         let mut y = maxpool3x3s2(&y);
         for block in &self.blocks {
-            y = block.apply(&y, branch, &mut col, threads);
+            y = block.apply(&y, branch);
         }
         let n = (y.h * y.w) as f32;
         let mut f = vec![0.0f32; y.c];
@@ -443,17 +456,10 @@ impl FusedPolicy {
             .collect()
     }
 
-    /// Action logits of an RGB8 image through BN branch `branch`, using up to `threads` threads.
-    pub fn forward_rgb8(
-        &self,
-        rgb: &[u8],
-        height: usize,
-        width: usize,
-        branch: usize,
-        threads: usize,
-    ) -> Vec<f32> {
+    /// Action logits of an RGB8 image through BN branch `branch` (on rayon's current pool).
+    pub fn forward_rgb8(&self, rgb: &[u8], height: usize, width: usize, branch: usize) -> Vec<f32> {
         let x = self.normalize(rgb, height, width);
-        self.action_logits(&self.features(&x, branch, threads))
+        self.action_logits(&self.features(&x, branch))
     }
 }
 
@@ -525,15 +531,15 @@ mod tests {
                 let [h, w] = cfg.input_size(r);
                 let rgb = image(h, w, branch as u8);
                 let want = burn_logits(&net, &rgb, h, w, branch);
-                let got = fused.forward_rgb8(&rgb, h, w, branch, 1);
+                let got = fused.forward_rgb8(&rgb, h, w, branch);
                 assert_close(&got, &want, &format!("{depth:?} branch {branch}"));
             }
             // Branches really differ: the same image through two branches.
             let [h, w] = cfg.input_size(1.0);
             let rgb = image(h, w, 7);
             assert_ne!(
-                fused.forward_rgb8(&rgb, h, w, 0, 1),
-                fused.forward_rgb8(&rgb, h, w, 2, 1)
+                fused.forward_rgb8(&rgb, h, w, 0),
+                fused.forward_rgb8(&rgb, h, w, 2)
             );
         }
     }
@@ -551,7 +557,7 @@ mod tests {
         let rgb = image(37, 53, 3);
         let fused = FusedPolicy::from_net(&net);
         assert_close(
-            &fused.forward_rgb8(&rgb, 37, 53, 0, 1),
+            &fused.forward_rgb8(&rgb, 37, 53, 0),
             &burn_logits(&net, &rgb, 37, 53, 0),
             "unfactorised",
         );
@@ -573,9 +579,9 @@ mod tests {
                 .build()
                 .unwrap()
         };
-        let one = pool(1).install(|| fused.forward_rgb8(&rgb, 96, 240, 1, 1));
-        let two = pool(2).install(|| fused.forward_rgb8(&rgb, 96, 240, 1, 2));
-        let again = pool(2).install(|| fused.forward_rgb8(&rgb, 96, 240, 1, 2));
+        let one = pool(1).install(|| fused.forward_rgb8(&rgb, 96, 240, 1));
+        let two = pool(2).install(|| fused.forward_rgb8(&rgb, 96, 240, 1));
+        let again = pool(2).install(|| fused.forward_rgb8(&rgb, 96, 240, 1));
         assert_eq!(two, again);
         assert_eq!(one, two);
     }

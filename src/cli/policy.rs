@@ -359,7 +359,7 @@ pub fn run_bench_command(command: BenchCommand) -> Result<()> {
     for (name, cfg) in &nets {
         let mut engines = vec![("burn", bench::inference_latency(cfg, &dev, 3, repeats))];
         if kind == DeviceKind::Cpu {
-            engines.push(("fused", bench::fused_latency(cfg, threads, 3, repeats)));
+            engines.push(("fused", bench::fused_latency(cfg, 3, repeats)));
         }
         for (e, (engine, rows)) in engines.iter().enumerate() {
             let t = |s: f32| rows.iter().find(|r| r.0 == s).map(|r| r.2.median_ms);

@@ -73,7 +73,7 @@ fn collect(
     let mut selector = run::selector_for(&expert, None)?;
     let mut kept = 0;
     let mut keep = |tick: u64, actors: &[ActorSnapshot], lights: &[LightState]| {
-        if tick % every_ticks == 0 && !actors.is_empty() {
+        if tick.is_multiple_of(every_ticks) && !actors.is_empty() {
             into.push((
                 scenario_idx,
                 Moment {
