@@ -39,9 +39,6 @@ impl Latency {
 
 /// Batch-1 inference latency of `config` at each scale of its R on `device`
 /// (forward of the backbone and the action head, result read back).
-///
-/// Scales are interleaved (one run of each per round) so that load from other
-/// processes falls on all of them alike.
 pub fn inference_latency(
     config: &PolicyConfig,
     device: &Device,
@@ -62,23 +59,12 @@ pub fn inference_latency(
             )
         })
         .collect();
-    let mut times = vec![Vec::with_capacity(repeats); inputs.len()];
-    for round in 0..warmup + repeats {
-        for (branch, x) in inputs.iter().enumerate() {
-            let t0 = Instant::now();
-            let z = net.forward(x.clone(), branch, false).action_logits;
-            let _ = z.into_data();
-            if round >= warmup {
-                times[branch].push(t0.elapsed().as_secs_f64() * 1e3);
-            }
-        }
-    }
-    config
-        .scales
-        .iter()
-        .zip(times)
-        .map(|(&r, t)| (r, config.input_size(r), Latency::of(t)))
-        .collect()
+    per_scale(config, warmup, repeats, |branch| {
+        let z = net
+            .forward(inputs[branch].clone(), branch, false)
+            .action_logits;
+        let _ = z.into_data();
+    })
 }
 
 /// Batch-1 latency of the fused CPU path ([`crate::fused::FusedPolicy`]) of `config` at each
@@ -99,15 +85,29 @@ pub fn fused_latency(
             (0..h * w * 3).map(|i| (i * 131 % 251) as u8).collect()
         })
         .collect();
-    let mut times = vec![Vec::with_capacity(repeats); images.len()];
+    per_scale(config, warmup, repeats, |branch| {
+        let [h, w] = config.input_size(config.scales[branch]);
+        std::hint::black_box(fused.forward_rgb8(&images[branch], h, w, branch));
+    })
+}
+
+/// Times `run(branch)` for every branch of `config`, `warmup` untimed then `repeats` timed
+/// rounds; scales are interleaved (one run of each per round) so that load from other
+/// processes falls on all of them alike.
+fn per_scale(
+    config: &PolicyConfig,
+    warmup: usize,
+    repeats: usize,
+    mut run: impl FnMut(usize),
+) -> Vec<(f32, [usize; 2], Latency)> {
+    let n = config.scales.len();
+    let mut times = vec![Vec::with_capacity(repeats); n];
     for round in 0..warmup + repeats {
-        for (branch, rgb) in images.iter().enumerate() {
-            let [h, w] = config.input_size(config.scales[branch]);
+        for (branch, t) in times.iter_mut().enumerate() {
             let t0 = Instant::now();
-            let z = fused.forward_rgb8(rgb, h, w, branch);
-            std::hint::black_box(z);
+            run(branch);
             if round >= warmup {
-                times[branch].push(t0.elapsed().as_secs_f64() * 1e3);
+                t.push(t0.elapsed().as_secs_f64() * 1e3);
             }
         }
     }
