@@ -60,18 +60,15 @@ impl PolicyDriver {
                 fix: "train the policy with 4 speed bins (the default)".into(),
             });
         }
+        let mut driver = Self::new(net, card, String::new(), device);
         // The name goes into result records: say where inference ran.
-        let engine = if device == Device::flex() {
+        let engine = if driver.is_fused() {
             "cpu, fused".to_string()
         } else {
-            format!("burn, {device:?}")
+            format!("burn, {:?}", driver.device)
         };
-        Ok(Self::new(
-            net,
-            card,
-            format!("policy:{} ({engine})", weights.display()),
-            device,
-        ))
+        driver.name = format!("policy:{} ({engine})", weights.display());
+        Ok(driver)
     }
 
     /// Runs inference through burn's forward even on the CPU (for comparisons with the fused path).

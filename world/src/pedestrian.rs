@@ -440,6 +440,35 @@ impl Pedestrian {
 }
 
 impl Pedestrian {
+    /// A walker standing still at node `from` of `g`, with no route yet.
+    pub fn new(
+        id: u32,
+        g: &WalkGraph,
+        from: u32,
+        speed_mps: f32,
+        jaywalker: bool,
+        rng: ChaCha8Rng,
+    ) -> Self {
+        let node = &g.nodes[from as usize];
+        Pedestrian {
+            id,
+            position: node.position,
+            z: node.z,
+            yaw: 0.0,
+            speed_mps,
+            current_speed_mps: 0.0,
+            jaywalker,
+            from,
+            route: Vec::new(),
+            wait_ticks: 0,
+            blocked_ticks: 0,
+            held_by_vehicle: false,
+            crosswalk_legs: 0,
+            jaywalk_legs: 0,
+            rng,
+        }
+    }
+
     /// Counts a blocked step; after `patience` blocked ticks in a row it turns back to the node it came from.
     pub fn note_blocked(&mut self, g: &WalkGraph, blocked: bool, patience: u32) {
         if !blocked {
@@ -517,21 +546,8 @@ mod tests {
 
     fn walker_at(g: &WalkGraph, from: u32, route: Vec<u32>) -> Pedestrian {
         Pedestrian {
-            id: 1,
-            position: g.nodes[from as usize].position,
-            z: g.nodes[from as usize].z,
-            yaw: 0.0,
-            speed_mps: 1.5,
-            current_speed_mps: 0.0,
-            jaywalker: false,
-            from,
             route,
-            wait_ticks: 0,
-            blocked_ticks: 0,
-            held_by_vehicle: false,
-            crosswalk_legs: 0,
-            jaywalk_legs: 0,
-            rng: ChaCha8Rng::seed_from_u64(5),
+            ..Pedestrian::new(1, g, from, 1.5, false, ChaCha8Rng::seed_from_u64(5))
         }
     }
 
@@ -608,21 +624,8 @@ mod tests {
             assert_ne!(e.2, EdgeKind::Jaywalk);
         }
         let mut ped = Pedestrian {
-            id: 1,
-            position: g.nodes[0].position,
-            z: g.nodes[0].z,
-            yaw: 0.0,
-            speed_mps: 1.5,
-            current_speed_mps: 0.0,
-            jaywalker: false,
-            from: 0,
             route,
-            wait_ticks: 0,
-            blocked_ticks: 0,
-            held_by_vehicle: false,
-            crosswalk_legs: 0,
-            jaywalk_legs: 0,
-            rng,
+            ..Pedestrian::new(1, &g, 0, 1.5, false, rng)
         };
         let pp = PedestrianParams { regoal_p: 0.0, ..p };
         let mut total = 0.0;

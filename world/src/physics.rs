@@ -729,18 +729,11 @@ impl Physics {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::town::{Building, Mesh, Town};
+    use crate::town::{Building, Town};
 
     fn walled_town() -> Town {
         // A single building whose west wall is the plane x = 20.
         Town {
-            name: "wall".into(),
-            lanes: Vec::new(),
-            markings: Vec::new(),
-            sidewalks: Vec::new(),
-            crosswalks: Vec::new(),
-            junctions: Vec::new(),
-            lights: Vec::new(),
             buildings: vec![Building {
                 footprint: vec![
                     Vec2::new(20.0, -20.0),
@@ -750,8 +743,8 @@ mod tests {
                 ],
                 height_m: 10.0,
             }],
-            road_surface: Mesh::default(),
             bounds: (Vec2::splat(-50.0), Vec2::splat(50.0)),
+            ..Town::empty("wall")
         }
     }
 

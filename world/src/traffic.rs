@@ -246,23 +246,8 @@ impl Traffic {
             let speed = rng.random_range(p.min_speed_mps..=p.max_speed_mps);
             let jaywalker = rng.random::<f32>() < p.cross_factor;
             self.physics.add_pedestrian(id, n.position, n.z);
-            self.pedestrians.push(Pedestrian {
-                id,
-                position: n.position,
-                z: n.z,
-                yaw: 0.0,
-                speed_mps: speed,
-                current_speed_mps: 0.0,
-                jaywalker,
-                from: node,
-                route: Vec::new(),
-                wait_ticks: 0,
-                blocked_ticks: 0,
-                held_by_vehicle: false,
-                crosswalk_legs: 0,
-                jaywalk_legs: 0,
-                rng,
-            });
+            self.pedestrians
+                .push(Pedestrian::new(id, &self.walk, node, speed, jaywalker, rng));
         }
     }
 
