@@ -13,8 +13,7 @@ use clap::Args;
 use policy::burn::prelude::*;
 use policy::checkpoint::{self, ModelCard};
 use policy::train::recalibrate::recalibrate_with;
-use sim::driver::RgbImage;
-use sim::render::EgoPose;
+use sim::render::{EgoPose, Renderer};
 use sim::runner::{self, RunInputs};
 use sim::scenario::{DriverKind, Scenario};
 use std::path::{Path, PathBuf};
@@ -56,32 +55,30 @@ struct Moment {
     lights: Vec<LightState>,
 }
 
-/// Drives `path` with the expert and keeps a moment every `every_ticks` ticks.
+/// Drives `path` (with the traffic overrides) by the expert, keeps a moment every
+/// `every_s` seconds of simulated time, and returns them with a renderer for that
+/// scenario's town on the rig of the checkpoint `weights` (an absolute path).
 fn collect(
     path: &Path,
+    weights: &Path,
     traffic: &run::TrafficFlags,
-    every_ticks: u64,
-    into: &mut Vec<(usize, Moment)>,
-    scenario_idx: usize,
-) -> Result<()> {
+    every_s: f64,
+) -> Result<(Renderer, Vec<Moment>)> {
     let scenario = traffic.overrides(None).apply(&Scenario::from_file(path)?);
+    let every_ticks = ((every_s / scenario.timing.tick_s).round() as u64).max(1);
     let mut expert = scenario.clone();
     expert.driver.kind = DriverKind::Expert;
     let prepared =
         runner::prepare(&expert).with_context(|| format!("scenario {}", path.display()))?;
     let mut driver = run::driver_for(&expert, &prepared)?;
     let mut selector = run::selector_for(&expert, None)?;
-    let mut kept = 0;
+    let mut moments = Vec::new();
     let mut keep = |tick: u64, actors: &[ActorSnapshot], lights: &[LightState]| {
         if tick.is_multiple_of(every_ticks) && !actors.is_empty() {
-            into.push((
-                scenario_idx,
-                Moment {
-                    actors: actors.to_vec(),
-                    lights: lights.to_vec(),
-                },
-            ));
-            kept += 1;
+            moments.push(Moment {
+                actors: actors.to_vec(),
+                lights: lights.to_vec(),
+            });
         }
     };
     let record = runner::run(
@@ -100,15 +97,21 @@ fn collect(
         },
     )?;
     println!(
-        "{}: {kept} frames over {:.1} s ({})",
+        "{}: {} frames over {:.1} s ({})",
         path.display(),
+        moments.len(),
         record.result.sim_time_s,
         record
             .result
             .termination
             .map_or("route completed", |t| t.name())
     );
-    Ok(())
+    // The camera the policy would have: the checkpoint's S0 sets the rig.
+    let mut as_policy = scenario;
+    as_policy.driver.kind = DriverKind::Policy;
+    as_policy.driver.checkpoint = Some(weights.to_path_buf());
+    let camera = run::camera_for(&as_policy, &prepared)?;
+    Ok((camera, moments))
 }
 
 /// Runs `mrdrive policy recalibrate`.
@@ -125,12 +128,20 @@ pub fn recalibrate(a: &RecalibrateArgs) -> Result<()> {
         a.every_s
     );
     let (config, card) = checkpoint::read_manifest(&a.weights)?;
+    let weights = std::fs::canonicalize(&a.weights).with_context(|| {
+        format!(
+            "{}: cannot resolve the checkpoint path",
+            a.weights.display()
+        )
+    })?;
     let want = a.batches * a.batch;
+    // (scenario index, moment) pairs and one renderer per scenario (each has its own town).
     let mut moments = Vec::new();
+    let mut cameras = Vec::new();
     for (i, path) in a.scenarios.iter().enumerate() {
-        let tick_s = Scenario::from_file(path)?.timing.tick_s;
-        let every_ticks = ((a.every_s / tick_s).round() as u64).max(1);
-        collect(path, &a.traffic, every_ticks, &mut moments, i)?;
+        let (camera, kept) = collect(path, &weights, &a.traffic, a.every_s)?;
+        moments.extend(kept.into_iter().map(|m| (i, m)));
+        cameras.push(camera);
     }
     // More than needed: keep `want`, evenly spread over everything driven.
     if moments.len() > want {
@@ -156,20 +167,6 @@ pub fn recalibrate(a: &RecalibrateArgs) -> Result<()> {
             a.batches
         );
     }
-    // One renderer per scenario (each has its own town), built on the checkpoint's rig.
-    let mut cameras = Vec::new();
-    for path in &a.scenarios {
-        let mut s = Scenario::from_file(path)?;
-        s.driver.kind = DriverKind::Policy;
-        s.driver.checkpoint = Some(std::fs::canonicalize(&a.weights).with_context(|| {
-            format!(
-                "{}: cannot resolve the checkpoint path",
-                a.weights.display()
-            )
-        })?);
-        let prepared = runner::prepare(&s)?;
-        cameras.push(run::camera_for(&s, &prepared)?);
-    }
     let dev = device(a.device)?;
     let (net, _) = checkpoint::load(&a.weights, &dev)?;
     let autodiff = dev.autodiff();
@@ -184,18 +181,14 @@ pub fn recalibrate(a: &RecalibrateArgs) -> Result<()> {
         for j in 0..a.batch {
             let (scn, m) = &moments[k + j * n_batches];
             let ego = EgoPose::from(&m.actors[0]);
-            let img: RgbImage = match cameras[*scn].render_rig(&ego, &m.actors, &m.lights, scale) {
-                Ok((rgb, _)) => rgb.clone(),
+            match cameras[*scn].render_rig(&ego, &m.actors, &m.lights, scale) {
+                Ok((rgb, _)) => data.extend(config.normalize_rgb8(&rgb.data, h, w)),
                 Err(e) => {
+                    // Reported after the pass (the closure cannot return an error).
                     failure.get_or_insert(e.to_string());
-                    RgbImage {
-                        width: w as u32,
-                        height: h as u32,
-                        data: vec![0; 3 * h * w],
-                    }
+                    data.resize(data.len() + 3 * h * w, 0.0);
                 }
-            };
-            data.extend(config.normalize_rgb8(&img.data, h, w));
+            }
             rendered += 1;
         }
         Tensor::<4>::from_data(TensorData::new(data, [a.batch, 3, h, w]), &autodiff)
