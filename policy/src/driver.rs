@@ -276,6 +276,25 @@ mod tests {
     }
 
     #[test]
+    fn a_checkpoint_with_other_speed_bins_is_refused_by_name() {
+        let device = Device::flex();
+        let cfg = PolicyConfig::new(Depth::Resnet18, [4, 8, 8, 16])
+            .with_input_height(64)
+            .with_input_width(96)
+            .with_num_speed_bins(3);
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("bins3.safetensors");
+        checkpoint::save(&cfg.init(&device), &ModelCard::random_init(0), &path).unwrap();
+        let e = PolicyDriver::from_checkpoint(&path, device)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("bins3.json") && e.contains("num_speed_bins = 3"),
+            "{e}"
+        );
+    }
+
+    #[test]
     fn no_image_means_brake() {
         let device = Device::flex();
         let cfg = PolicyConfig::new(Depth::Resnet18, [4, 8, 8, 16])
