@@ -13,7 +13,7 @@
 //! the speed bins at `linspace(0, 8, 4)` while its labeller uses the centres of
 //! `linspace(0, 8, 5)`: we follow the labeller (the bins the targets were made on).
 
-use crate::action::{BRAKE, NUM_ACTIONS, NUM_SPEED_BINS, NUM_STEERS, STEERS, THROTTLES};
+use dataset::action::{BRAKE, NUM_ACTIONS, NUM_SPEED_BINS, NUM_STEERS, STEERS, THROTTLES};
 use sim::driver::{Command, Control};
 
 /// Centres of the speed bins (metres per second): centres of `linspace(0, 8, 5)`.
@@ -117,7 +117,7 @@ pub fn decode(logits: &[f32; NUM_ACTIONS], speed_mps: f32, command: Command) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::action::index;
+    use dataset::action::index;
 
     fn one_hot(j: usize, hot: f32) -> [f32; NUM_ACTIONS] {
         let mut l = [0.0; NUM_ACTIONS];

@@ -3,9 +3,8 @@
 //! selectors, checkpoints, the training step, and the `Driver` the loop calls.
 //!
 //! Read in this order: [`bn_bank`], [`backbone`], [`heads`], [`model`],
-//! [`action`], [`decode`], [`device`], [`checkpoint`], [`selector`], [`fused`], [`driver`], [`train`], [`bench`].
+//! `dataset::action` (the 28 actions, shared with the labels), [`decode`], [`device`], [`checkpoint`], [`selector`], [`fused`], [`driver`], [`train`], [`bench`].
 
-pub mod action;
 pub mod backbone;
 pub mod bench;
 pub mod bn_bank;

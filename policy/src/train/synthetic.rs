@@ -2,9 +2,9 @@
 //! from a seeded ChaCha8 generator.
 
 use super::multires::Batch;
-use crate::action::NUM_ACTIONS;
 use crate::model::PolicyConfig;
 use burn::prelude::*;
+use dataset::action::NUM_ACTIONS;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
