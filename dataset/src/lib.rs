@@ -8,6 +8,7 @@
 //! action]` from the recorded future -> label files -> the policy's loader.
 
 pub mod action;
+pub mod collect;
 pub mod format;
 pub mod labels;
 pub mod noise;

@@ -14,6 +14,7 @@
 
 pub mod bellman;
 pub mod dynamics;
+pub mod episode;
 pub mod grid;
 pub mod maps;
 
@@ -163,24 +164,27 @@ fn world_crossing_offset(vehicle: &VehicleParams) -> f32 {
 /// What lies in the ego's way at t = 0, measured along its route.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Hazards {
-    /// Distance from the ego's crossing point to the next stop line on the
-    /// route whose light says stop (metres), if any.
+    /// Distance from the ego's front bumper to the next stop line on the
+    /// route that it has not crossed (by the rule book's crossing point),
+    /// when that light says stop (metres; negative with the nose over the line).
     pub red_line_m: Option<f32>,
-    /// Distance from the ego's front bumper to the nearest actor ahead on the
-    /// route (metres), if any.
-    pub actor_gap_m: Option<f32>,
+    /// The nearest actor ahead on the route: the gap from the ego's front
+    /// bumper to its footprint (metres) and its speed along the route (m/s).
+    pub actor_ahead: Option<(f32, f32)>,
 }
 
 impl Hazards {
-    /// Whether the hazard is in the way of an ego at `speed_mps`.
+    /// Whether a hazard is in the way of an ego at `speed_mps`: a red line
+    /// within stopping distance (plus a margin), or an actor ahead that the
+    /// ego closes on within stopping distance of the closing speed plus the
+    /// gap to keep.
     pub fn in_way(&self, prm: &LabelParams, speed_mps: f32) -> bool {
-        let stop = prm.stopping_m(speed_mps);
         let red = self
             .red_line_m
-            .is_some_and(|d| d >= 0.0 && d <= stop + prm.red_margin_m);
-        let actor = self
-            .actor_gap_m
-            .is_some_and(|g| g <= stop + prm.actor_gap_m);
+            .is_some_and(|d| d <= prm.stopping_m(speed_mps) + prm.red_margin_m);
+        let actor = self.actor_ahead.is_some_and(|(gap, along)| {
+            gap <= prm.stopping_m((speed_mps - along).max(0.0)) + prm.actor_gap_m
+        });
         red || actor
     }
 }

@@ -91,12 +91,12 @@ fn an_empty_straight_lane_is_driven_straight_towards_the_target_speed() {
 fn a_red_light_within_braking_distance_makes_brake_best() {
     let s = Situation::new(RED);
     let stop_x = BLOCK_M - JUNCTION_HALF_M - STOP_LINE_BACK_M;
-    // 5 m before the line: within braking distance from 3 m/s up.
-    let ego = east_at(stop_x - 5.0);
-    let crossing = ego.x + s.labeller.params.crossing_offset_m;
+    // The nose 3 m before the line: within braking distance from 3 m/s up.
+    let ego = east_at(stop_x - 3.0 - 2.395);
+    let front = ego.x + s.labeller.params.ego_half_extents.x;
     let hazards = Hazards {
-        red_line_m: Some(stop_x - crossing),
-        actor_gap_m: None,
+        red_line_m: Some(stop_x - front),
+        actor_ahead: None,
     };
     let q = s.label(ego, hazards);
     for b in 1..NUM_SPEED_BINS {
@@ -136,7 +136,7 @@ fn a_car_stopped_ahead_makes_brake_best() {
         ego,
         Hazards {
             red_line_m: None,
-            actor_gap_m: Some(gap),
+            actor_ahead: Some((gap, 0.0)),
         },
     );
     for b in 1..NUM_SPEED_BINS {
