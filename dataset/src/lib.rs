@@ -9,6 +9,8 @@
 
 pub mod action;
 pub mod collect;
+pub mod decode;
 pub mod format;
+pub mod label_driver;
 pub mod labels;
 pub mod noise;

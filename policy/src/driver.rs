@@ -1,11 +1,11 @@
 //! The policy as a `Driver`: the image at the selector's scale in, a control out.
 
 use crate::checkpoint::{self, CheckpointError, ModelCard};
-use crate::decode::{Decoded, decode, interpolate_speed};
 use crate::fused::FusedPolicy;
 use crate::model::PolicyNet;
 use burn::prelude::*;
 use dataset::action::{NUM_ACTIONS, NUM_SPEED_BINS};
+use dataset::decode::{Decoded, decode, interpolate_speed};
 use sim::driver::{Control, Driver, DriverNeeds, Observation};
 use std::path::Path;
 

@@ -3,13 +3,13 @@
 //! selectors, checkpoints, the training step, and the `Driver` the loop calls.
 //!
 //! Read in this order: [`bn_bank`], [`backbone`], [`heads`], [`model`],
-//! `dataset::action` (the 28 actions, shared with the labels), [`decode`], [`device`], [`checkpoint`], [`selector`], [`fused`], [`driver`], [`train`], [`bench`].
+//! `dataset::action` and `dataset::decode` (the 28 actions and WoR's decoding, shared with the labels), [`device`], [`checkpoint`], [`selector`], [`fused`], [`driver`], [`train`], [`bench`].
 
 pub mod backbone;
 pub mod bench;
 pub mod bn_bank;
 pub mod checkpoint;
-pub mod decode;
+
 pub mod device;
 pub mod driver;
 pub mod fused;

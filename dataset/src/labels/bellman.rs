@@ -27,6 +27,89 @@ pub struct Transition {
     pub speed: (usize, f32),
 }
 
+/// The nodes a backup computes: x nodes `i`, y nodes `j`, yaw nodes `k`
+/// (half-open ranges). Nodes outside keep the value 0.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Region {
+    /// x nodes.
+    pub i: (usize, usize),
+    /// y nodes.
+    pub j: (usize, usize),
+    /// Yaw nodes.
+    pub k: (usize, usize),
+}
+
+impl Region {
+    /// Every node of the grid.
+    pub fn all(grid: &Grid) -> Region {
+        Region {
+            i: (0, grid.nx),
+            j: (0, grid.ny),
+            k: (0, grid.spec.yaws_rad.len()),
+        }
+    }
+}
+
+/// The regions the ego can reach after 1, 2, ..., `steps` steps from the
+/// start states (the origin, yaws within `start_yaws`, speeds of `first`),
+/// moving by `first` once and by `later` after that; each grown by one node
+/// so interpolated reads stay inside. Only there are values ever read, so
+/// only there does the recursion compute them (most of the grid lies out of
+/// reach in the early steps).
+pub fn reach(
+    grid: &Grid,
+    start_yaws: (f32, f32),
+    first: &[[Move; NUM_ACTIONS]],
+    later: &[[Move; NUM_ACTIONS]],
+    steps: usize,
+) -> Vec<Region> {
+    let (mut lo, mut hi) = (Vec2::ZERO, Vec2::ZERO);
+    let (mut ylo, mut yhi) = start_yaws;
+    let yaws = &grid.spec.yaws_rad;
+    let mut out = Vec::with_capacity(steps);
+    for t in 0..steps {
+        let moves = if t == 0 { first } else { later };
+        let mut headings: Vec<f32> = yaws
+            .iter()
+            .copied()
+            .filter(|&y| y > ylo && y < yhi)
+            .collect();
+        headings.extend([ylo, yhi]);
+        let (mut dlo, mut dhi) = (Vec2::splat(f32::MAX), Vec2::splat(f32::MIN));
+        let (mut alo, mut ahi) = (f32::MAX, f32::MIN);
+        for &h in &headings {
+            for m in moves.iter().flatten() {
+                let d = Vec2::from_angle(h).rotate(m.delta);
+                dlo = dlo.min(d);
+                dhi = dhi.max(d);
+                alo = alo.min(m.dyaw);
+                ahi = ahi.max(m.dyaw);
+            }
+        }
+        lo += dlo;
+        hi += dhi;
+        ylo += alo;
+        yhi += ahi;
+        let a = grid.to_node(lo);
+        let b = grid.to_node(hi);
+        let clamp = |v: f32, n: usize| (v.max(0.0) as usize).min(n);
+        let (k0, _) = locate(yaws, ylo);
+        let (k1, _) = locate(yaws, yhi);
+        out.push(Region {
+            i: (
+                clamp(a.x.floor() - 1.0, grid.nx),
+                clamp(b.x.ceil() + 2.0, grid.nx),
+            ),
+            j: (
+                clamp(a.y.floor() - 1.0, grid.ny),
+                clamp(b.y.ceil() + 2.0, grid.ny),
+            ),
+            k: (k0.saturating_sub(1), (k1 + 3).min(yaws.len())),
+        });
+    }
+    out
+}
+
 /// Transitions `[yaw][speed][action]` for every node triple of `grid`.
 pub fn transitions(grid: &Grid, moves: &[[Move; NUM_ACTIONS]]) -> Vec<Transition> {
     let spec = &grid.spec;
@@ -54,8 +137,9 @@ pub fn transition(grid: &Grid, yaw: f32, m: &Move) -> Transition {
 }
 
 /// Blends the four (yaw, speed) planes of `w` a transition lands between
-/// into `out`, over the padded rows and columns the shifted read touches.
-fn blend(grid: &Grid, w: &[Vec<f32>], t: &Transition, out: &mut [f32]) {
+/// into `out`, over the padded rows and columns the shifted read of
+/// `region` touches.
+fn blend(grid: &Grid, w: &[Vec<f32>], t: &Transition, region: &Region, out: &mut [f32]) {
     let speeds = grid.spec.speeds_mps.len();
     let (k, tk) = t.yaw;
     let (l, tl) = t.speed;
@@ -65,41 +149,67 @@ fn blend(grid: &Grid, w: &[Vec<f32>], t: &Transition, out: &mut [f32]) {
         (tk * (1.0 - tl), (k + 1) * speeds + l),
         (tk * tl, (k + 1) * speeds + l + 1),
     ];
+    let parts: Vec<(f32, &[f32])> = parts
+        .iter()
+        .filter(|p| p.0 != 0.0)
+        .map(|&(wgt, p)| (wgt, w[p].as_slice()))
+        .collect();
     let stride = grid.stride();
     let row0 = (grid.pad as isize + t.shift.1) as usize;
     let col0 = (grid.pad as isize + t.shift.0) as usize;
-    let cols = grid.nx + 1;
-    for r in row0..row0 + grid.ny + 1 {
-        let span = r * stride + col0..r * stride + col0 + cols;
+    let (i0, i1) = region.i;
+    let (j0, j1) = region.j;
+    for r in row0 + j0..row0 + j1 + 1 {
+        let span = r * stride + col0 + i0..r * stride + col0 + i1 + 1;
         let dst = &mut out[span.clone()];
-        dst.fill(0.0);
-        for &(wgt, plane) in &parts {
-            if wgt == 0.0 {
-                continue;
+        match parts.as_slice() {
+            [(a, pa)] => {
+                for (d, x) in dst.iter_mut().zip(&pa[span]) {
+                    *d = a * x;
+                }
             }
-            for (d, s) in dst.iter_mut().zip(&w[plane][span.clone()]) {
-                *d += wgt * s;
+            [(a, pa), (b, pb)] => {
+                for ((d, x), y) in dst.iter_mut().zip(&pa[span.clone()]).zip(&pb[span]) {
+                    *d = a * x + b * y;
+                }
+            }
+            _ => {
+                dst.fill(0.0);
+                for &(wgt, plane) in &parts {
+                    for (d, s) in dst.iter_mut().zip(&plane[span.clone()]) {
+                        *d += wgt * s;
+                    }
+                }
             }
         }
     }
 }
 
 /// One backup: `v[yaw * speeds + speed]` (unpadded) = max over actions of
-/// the padded planes `w` read at each node's next state.
+/// the padded planes `w` read at each node's next state, for the nodes of
+/// `region` (0 elsewhere).
 pub fn backup(
     grid: &Grid,
     trans: &[Transition],
     w: &[Vec<f32>],
     v: &mut [Vec<f32>],
+    region: &Region,
     scratch: &mut Vec<f32>,
 ) {
     scratch.resize(grid.padded_len(), 0.0);
     let stride = grid.stride();
-    let (nx, ny) = (grid.nx, grid.ny);
+    let nx = grid.nx;
+    let speeds = grid.spec.speeds_mps.len();
+    let (i0, i1) = region.i;
+    let (j0, j1) = region.j;
     for (node, out) in v.iter_mut().enumerate() {
         out.fill(0.0);
+        let k = node / speeds;
+        if k < region.k.0 || k >= region.k.1 {
+            continue;
+        }
         for t in &trans[node * NUM_ACTIONS..(node + 1) * NUM_ACTIONS] {
-            blend(grid, w, t, scratch);
+            blend(grid, w, t, region, scratch);
             let (fx, fy) = t.frac;
             let (w00, w10, w01, w11) = (
                 (1.0 - fx) * (1.0 - fy),
@@ -109,12 +219,13 @@ pub fn backup(
             );
             let row0 = (grid.pad as isize + t.shift.1) as usize;
             let col0 = (grid.pad as isize + t.shift.0) as usize;
-            for j in 0..ny {
-                let a = (row0 + j) * stride + col0;
-                let top = &scratch[a..a + nx + 1];
-                let bottom = &scratch[a + stride..a + stride + nx + 1];
-                let dst = &mut out[j * nx..(j + 1) * nx];
-                for i in 0..nx {
+            for j in j0..j1 {
+                let a = (row0 + j) * stride + col0 + i0;
+                let n = i1 - i0;
+                let top = &scratch[a..a + n + 1];
+                let bottom = &scratch[a + stride..a + stride + n + 1];
+                let dst = &mut out[j * nx + i0..j * nx + i1];
+                for i in 0..n {
                     let q = w00 * top[i] + w10 * top[i + 1] + w01 * bottom[i] + w11 * bottom[i + 1];
                     if q > dst[i] {
                         dst[i] = q;
@@ -184,7 +295,14 @@ mod tests {
             })
             .collect();
         let mut v = vec![vec![0.0; grid.cells()]; planes];
-        backup(&grid, &trans, &w, &mut v, &mut Vec::new());
+        backup(
+            &grid,
+            &trans,
+            &w,
+            &mut v,
+            &Region::all(&grid),
+            &mut Vec::new(),
+        );
         for (k, &yaw) in grid.spec.yaws_rad.iter().enumerate() {
             for (l, row) in moves.iter().enumerate() {
                 for j in 0..grid.ny {

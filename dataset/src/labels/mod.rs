@@ -23,8 +23,9 @@ use world::Command;
 use world::vehicle::VehicleParams;
 
 use crate::action::{BRAKE, NUM_ACTIONS, NUM_COMMANDS, NUM_SPEED_BINS};
+use crate::decode::SPEED_BIN_CENTRES_MPS;
 use crate::format::{ActorRow, EgoRow};
-use bellman::{Transition, backup, sample, transitions};
+use bellman::{Region, Transition, backup, reach, sample, transitions};
 use dynamics::{Move, move_table};
 use grid::{EgoFrame, Grid, GridSpec, hat_weights};
 use maps::{StaticMaps, StepMaps, TownLanes, static_maps, step_maps};
@@ -36,10 +37,6 @@ pub const LABEL_VERSION: u32 = 1;
 /// How far along the lane graph a junction's connecting lanes count as the
 /// ego's (metres): beyond the grid's reach.
 const AHEAD_REACH_M: f32 = 40.0;
-
-/// Centres of the policy's four speed bins (metres per second): the centres of
-/// `linspace(0, 8, 5)`'s intervals, as in WoR.
-pub const SPEED_BINS_MPS: [f32; NUM_SPEED_BINS] = [1.0, 3.0, 5.0, 7.0];
 
 /// Values of one label: `[command][speed bin][action]`.
 pub type Q = [[[f32; NUM_ACTIONS]; NUM_SPEED_BINS]; NUM_COMMANDS];
@@ -213,9 +210,13 @@ pub struct Labeller {
     pub params: LabelParams,
     /// Future steps (WoR: 5).
     pub steps: usize,
+    /// Compute values only where the ego can reach (the default; `false`
+    /// computes the whole grid, for checking that both agree).
+    pub reach_only: bool,
     grid: Grid,
     lanes: TownLanes,
     trans: Vec<Transition>,
+    grid_moves: Vec<[Move; NUM_ACTIONS]>,
     bin_moves: Vec<[Move; NUM_ACTIONS]>,
 }
 
@@ -231,7 +232,7 @@ impl Labeller {
         tick_s: f32,
     ) -> Labeller {
         let grid_moves = move_table(vehicle, &spec.speeds_mps, step_s, tick_s);
-        let bin_moves = move_table(vehicle, &SPEED_BINS_MPS, step_s, tick_s);
+        let bin_moves = move_table(vehicle, &SPEED_BIN_CENTRES_MPS, step_s, tick_s);
         let max_move = grid_moves
             .iter()
             .chain(&bin_moves)
@@ -243,9 +244,11 @@ impl Labeller {
         Labeller {
             params: LabelParams::for_vehicle(vehicle),
             steps,
+            reach_only: true,
             grid,
             lanes: TownLanes::new(town),
             trans,
+            grid_moves,
             bin_moves,
         }
     }
@@ -267,6 +270,18 @@ impl Labeller {
         town: &world::Town,
         input: &FrameInput<'_>,
         view_yaws_rad: &[f32],
+    ) -> Vec<Q> {
+        self.label_commands(town, input, view_yaws_rad, &[true; NUM_COMMANDS])
+    }
+
+    /// Like [`Labeller::label`], for the commands marked in `wanted` only
+    /// (the others stay 0): what a driver that knows its command needs.
+    pub fn label_commands(
+        &self,
+        town: &world::Town,
+        input: &FrameInput<'_>,
+        view_yaws_rad: &[f32],
+        wanted: &[bool; NUM_COMMANDS],
     ) -> Vec<Q> {
         assert_eq!(
             input.actors.len(),
@@ -314,10 +329,19 @@ impl Labeller {
             .collect();
         let mut out =
             vec![[[[0.0f32; NUM_ACTIONS]; NUM_SPEED_BINS]; NUM_COMMANDS]; view_yaws_rad.len()];
+        let lo = view_yaws_rad.iter().copied().fold(0.0f32, f32::min);
+        let hi = view_yaws_rad.iter().copied().fold(0.0f32, f32::max);
+        let regions = reach(
+            &self.grid,
+            (lo, hi),
+            &self.bin_moves,
+            &self.grid_moves,
+            self.steps,
+        );
         // Commands with the same lane map and target speed share their values.
         let mut done: Vec<(usize, Vec<Vec<f32>>)> = Vec::new();
-        for cmd in 0..NUM_COMMANDS {
-            let same = (0..cmd).find(|&c| {
+        for cmd in (0..NUM_COMMANDS).filter(|&c| wanted[c]) {
+            let same = done.iter().map(|(c, _)| *c).find(|&c| {
                 prm.target_mps(c) == prm.target_mps(cmd) && statics.lane[c] == statics.lane[cmd]
             });
             let w1 = match same {
@@ -326,10 +350,10 @@ impl Labeller {
                     .find(|(d, _)| *d == c)
                     .map(|(_, w)| w.clone())
                     .expect("computed before"),
-                None => self.first_step_values(&statics, &steps, cmd),
+                None => self.first_step_values(&statics, &steps, &regions, cmd),
             };
             for (view, &yaw) in view_yaws_rad.iter().enumerate() {
-                for (b, &v) in SPEED_BINS_MPS.iter().enumerate() {
+                for (b, &v) in SPEED_BIN_CENTRES_MPS.iter().enumerate() {
                     let bonus = input.hazards.in_way(prm, v);
                     for a in 0..NUM_ACTIONS {
                         let m = &self.bin_moves[b][a];
@@ -352,6 +376,7 @@ impl Labeller {
         &self,
         statics: &StaticMaps,
         steps: &[StepMaps],
+        regions: &[Region],
         cmd: usize,
     ) -> Vec<Vec<f32>> {
         let grid = &self.grid;
@@ -364,36 +389,36 @@ impl Labeller {
         let mut v = vec![vec![0.0f32; grid.cells()]; planes];
         let mut scratch = Vec::new();
         let lane = &statics.lane[cmd];
-        if lane.iter().all(|p| p.iter().all(|&x| x == 0.0))
-            && steps
-                .iter()
-                .all(|s| s.stop.iter().all(|p| p.iter().all(|&x| x == 0.0)))
-        {
+        let nothing = |p: &Vec<Vec<f32>>| p.iter().all(|q| q.iter().all(|&x| x == 0.0));
+        if nothing(lane) && steps.iter().all(|s| nothing(&s.stop)) {
             return w;
         }
         for t in (0..steps.len()).rev() {
-            // W_{t+1} = free * (R + V), with V = 0 at the horizon.
+            // W_{t+1} = free * (R + V_{t+1}) where it is read (V = 0 at the horizon).
             let step = &steps[t];
-            for k in 0..yaws {
+            let region = &regions[t];
+            for (k, lane_k) in lane.iter().enumerate() {
                 for (l, &sw) in speed_w.iter().enumerate() {
                     let plane = &mut w[k * speeds + l];
+                    plane.fill(0.0);
+                    if k < region.k.0 || k >= region.k.1 {
+                        continue;
+                    }
                     let vals = &v[k * speeds + l];
-                    for j in 0..grid.ny {
-                        for i in 0..grid.nx {
+                    for j in region.j.0..region.j.1 {
+                        for i in region.i.0..region.i.1 {
                             let c = j * grid.nx + i;
-                            let mut r = lane[k][c] * sw;
+                            let mut r = lane_k[c] * sw;
                             if l == 0 {
                                 r += step.stop[k][c];
                             }
-                            let horizon = t + 1 == steps.len();
-                            plane[grid.padded_at(i, j)] =
-                                step.free[c] * (r + if horizon { 0.0 } else { vals[c] });
+                            plane[grid.padded_at(i, j)] = step.free[c] * (r + vals[c]);
                         }
                     }
                 }
             }
             if t > 0 {
-                backup(grid, &self.trans, &w, &mut v, &mut scratch);
+                backup(grid, &self.trans, &w, &mut v, &regions[t - 1], &mut scratch);
             }
         }
         w

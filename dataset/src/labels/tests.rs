@@ -214,3 +214,35 @@ fn labels_are_deterministic_and_views_differ() {
     let yawed_right = best(&a[2][3][2]);
     assert!(steer_bin(yawed_right) < 4, "{:?}", a[2][3][2]);
 }
+
+#[test]
+fn computing_only_the_reachable_region_changes_nothing() {
+    let mut s = Situation::new(RED);
+    s.actors.push(ActorRow {
+        kind: ActorRow::PEDESTRIAN,
+        id: 3,
+        x: 48.0,
+        y: -1.0,
+        yaw: 1.0,
+        length: 0.5,
+        width: 0.5,
+        speed: 1.0,
+    });
+    let steps = s.labeller.steps + 1;
+    let actors: Vec<&[ActorRow]> = vec![&s.actors; steps];
+    let lights: Vec<&[u8]> = vec![&s.lights; steps];
+    let views = [0.0, 30f32.to_radians(), -30f32.to_radians()];
+    for x in [40.0, BLOCK_M - JUNCTION_HALF_M - 2.0] {
+        let input = FrameInput {
+            ego: east_at(x),
+            actors: &actors,
+            lights: &lights,
+            hazards: Hazards::default(),
+            lane: None,
+        };
+        let fast = s.labeller.label(&s.town, &input, &views);
+        let mut full = s.labeller.clone();
+        full.reach_only = false;
+        assert_eq!(fast, full.label(&s.town, &input, &views), "at x = {x}");
+    }
+}

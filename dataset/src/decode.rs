@@ -13,7 +13,7 @@
 //! the speed bins at `linspace(0, 8, 4)` while its labeller uses the centres of
 //! `linspace(0, 8, 5)`: we follow the labeller (the bins the targets were made on).
 
-use dataset::action::{BRAKE, NUM_ACTIONS, NUM_SPEED_BINS, NUM_STEERS, STEERS, THROTTLES};
+use crate::action::{BRAKE, NUM_ACTIONS, NUM_SPEED_BINS, NUM_STEERS, STEERS, THROTTLES};
 use sim::driver::{Command, Control};
 
 /// Centres of the speed bins (metres per second): centres of `linspace(0, 8, 5)`.
