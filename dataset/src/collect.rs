@@ -277,17 +277,18 @@ impl TownCache {
 
 /// The town and the planned route of an episode, and its route as stored.
 pub fn prepare(spec: &EpisodeSpec, towns: &mut TownCache) -> Result<(Prepared, RouteSpec), String> {
+    if let RouteChoice::File { file, id } = &spec.route
+        && file.file_name().is_some_and(|f| f == "routes_town01.xml")
+        && EVALUATION_ROUTES.contains(&id.as_str())
+    {
+        return Err(format!(
+            "{} route {id} is an evaluation route: never collect on it",
+            file.display()
+        ));
+    }
     let town = towns.get(&spec.map, spec.generate_lights)?;
     let (route, route_file) = match &spec.route {
         RouteChoice::File { file, id } => {
-            if file.file_name().is_some_and(|f| f == "routes_town01.xml")
-                && EVALUATION_ROUTES.contains(&id.as_str())
-            {
-                return Err(format!(
-                    "{} route {id} is an evaluation route: never collect on it",
-                    file.display()
-                ));
-            }
             let routes = RouteFile::load(file).map_err(|e| e.to_string())?;
             (
                 routes.route(id).map_err(|e| e.to_string())?.clone(),
@@ -648,5 +649,89 @@ impl RouteTracker {
             route_s: q.route_s + (p - q.position.truncate()).dot(Vec2::from_angle(q.heading)),
             command: route.command_ahead(self.index, 0.0),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn no_plan_drives_an_evaluation_route_or_town02_and_the_sets_are_disjoint() {
+        let (carla, repo) = (Path::new("/carla"), Path::new("/repo"));
+        let original = plan(Preset::Original, 500, carla, repo);
+        let retarget = plan(Preset::Retarget, 500, carla, repo);
+        for spec in original.iter().chain(&retarget) {
+            assert!(!spec.map.to_string_lossy().contains("Town02"), "{spec:?}");
+            if let RouteChoice::File { file, id } = &spec.route {
+                let town01 = file.ends_with("routes_town01.xml");
+                assert!(
+                    !(town01 && EVALUATION_ROUTES.contains(&id.as_str())),
+                    "{spec:?}"
+                );
+            }
+        }
+        // The retargeting set shares no route with the original set.
+        let routes = |p: &[EpisodeSpec]| {
+            p.iter()
+                .map(|s| format!("{:?}", s.route))
+                .collect::<std::collections::HashSet<_>>()
+        };
+        assert!(routes(&original).is_disjoint(&routes(&retarget)));
+        // Every training route of Town01 (2-9) at every density is in the original set.
+        for id in 2..=9 {
+            for &(v, p) in &DENSITIES {
+                assert!(original.iter().any(|s| s.route
+                    == RouteChoice::File {
+                        file: carla.join("routes_town01.xml"),
+                        id: id.to_string()
+                    }
+                    && (s.vehicles, s.pedestrians) == (v, p)));
+            }
+        }
+    }
+
+    #[test]
+    fn an_evaluation_route_is_refused_by_name() {
+        let spec = EpisodeSpec {
+            id: 0,
+            map: PathBuf::from("Town01.xodr"),
+            generate_lights: false,
+            route: RouteChoice::File {
+                file: PathBuf::from("../shared/carla/routes_town01.xml"),
+                id: "1".into(),
+            },
+            seed: 0,
+            vehicles: 0,
+            pedestrians: 0,
+        };
+        let err = match prepare(&spec, &mut TownCache::default()) {
+            Err(e) => e,
+            Ok(_) => panic!("an evaluation route was prepared"),
+        };
+        assert!(err.contains("evaluation route"), "{err}");
+    }
+
+    #[test]
+    fn random_routes_are_deterministic_and_long_enough() {
+        let town = world::testtown::grid(4, 4, 100.0);
+        let (a, da) = random_route(&town, 7).unwrap();
+        let (b, _) = random_route(&town, 7).unwrap();
+        assert_eq!(format!("{a:?}"), format!("{b:?}"));
+        assert!((300.0..900.0).contains(&da.length_m));
+        let replanned = replan(
+            &town,
+            &RouteSpec {
+                file: None,
+                id: a.id.clone(),
+                waypoints: a
+                    .waypoints
+                    .iter()
+                    .map(|w| [w.position.x, w.position.y, w.yaw_rad.unwrap().to_degrees()])
+                    .collect(),
+            },
+        )
+        .unwrap();
+        assert_eq!(replanned.length_m, da.length_m);
     }
 }

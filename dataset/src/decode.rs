@@ -117,7 +117,7 @@ pub fn decode(logits: &[f32; NUM_ACTIONS], speed_mps: f32, command: Command) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use dataset::action::index;
+    use crate::action::index;
 
     fn one_hot(j: usize, hot: f32) -> [f32; NUM_ACTIONS] {
         let mut l = [0.0; NUM_ACTIONS];
