@@ -174,7 +174,7 @@ pub fn plan_route(
     }
     let mut snapped = Vec::new();
     for (i, w) in route.waypoints.iter().enumerate() {
-        let lp = town.nearest_lane(w.position.truncate(), w.yaw_rad);
+        let lp = crate::rules::nearest_lane(town, w.position.truncate(), w.yaw_rad);
         match lp {
             Some(lp) if lp.distance_m <= cfg.max_snap_m => snapped.push((lp.lane, lp.s)),
             other => {
