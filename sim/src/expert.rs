@@ -203,10 +203,9 @@ mod tests {
     use super::*;
     use crate::runner::{AHEAD_CORRIDOR_M, AHEAD_RANGE_M};
     use world::ahead::{ActorView, nearest_ahead};
-    use world::planner::{DenseRoute, PlannerConfig, plan_route};
-    use world::route::{Route, RouteWaypoint};
+    use world::planner::DenseRoute;
     use world::rules::{RouteStops, StopLines};
-    use world::testtown::grid;
+    use world::testtown::{grid, planned_route};
     use world::vehicle::{VehicleParams, VehicleState};
     use world::{ActorKind, ActorSnapshot, LightState, Town, Vec2, Vec3};
 
@@ -236,19 +235,7 @@ mod tests {
         /// through `waypoints` (x, y, heading).
         fn new(waypoints: &[(f32, f32, f32)], light: LightState) -> Scene {
             let town = grid(3, 3, 60.0);
-            let route = Route {
-                id: "expert".into(),
-                town: None,
-                waypoints: waypoints
-                    .iter()
-                    .map(|&(x, y, h)| RouteWaypoint {
-                        position: Vec3::new(x, y, 0.0),
-                        yaw_rad: Some(h),
-                    })
-                    .collect(),
-                source: "expert-test".into(),
-            };
-            let route = plan_route(&town, &route, &PlannerConfig::default()).unwrap();
+            let route = planned_route(&town, waypoints).unwrap();
             let stops = StopLines::new(&town).on_route(&route);
             let lights = vec![light; town.lights.len()];
             Scene {

@@ -163,21 +163,10 @@ mod tests {
     use crate::town::*;
 
     fn lane(pts: &[(f32, f32)], succ: &[u32]) -> DriveLane {
-        let centerline: Vec<Vec3> = pts.iter().map(|&(x, y)| Vec3::new(x, y, 0.0)).collect();
-        let s = crate::geometry::arc_lengths(&centerline);
-        let n = centerline.len();
+        let pts: Vec<Vec2> = pts.iter().map(|&(x, y)| Vec2::new(x, y)).collect();
         DriveLane {
-            road_id: "r".into(),
-            od_lane: -1,
-            centerline,
-            s,
-            width: vec![3.5; n],
-            speed_limit_mps: 10.0,
-            junction: None,
             successors: succ.iter().map(|&i| LaneIdx(i)).collect(),
-            predecessors: vec![],
-            left: None,
-            right: None,
+            ..crate::testtown::lane_through(&pts)
         }
     }
 

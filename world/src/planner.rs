@@ -579,20 +579,10 @@ mod tests {
     use std::path::PathBuf;
 
     fn lane(pts: Vec<Vec3>, junction: Option<u32>) -> DriveLane {
-        let s = crate::geometry::arc_lengths(&pts);
-        let n = pts.len();
+        let pts: Vec<Vec2> = pts.iter().map(|p| p.truncate()).collect();
         DriveLane {
-            road_id: "r".into(),
-            od_lane: -1,
-            centerline: pts,
-            s,
-            width: vec![3.5; n],
-            speed_limit_mps: 10.0,
             junction: junction.map(JunctionIdx),
-            successors: vec![],
-            predecessors: vec![],
-            left: None,
-            right: None,
+            ..crate::testtown::lane_through(&pts)
         }
     }
 

@@ -251,6 +251,34 @@ pub fn grid(nx: usize, ny: usize, block_m: f32) -> Town {
     }
 }
 
+/// A plain lane along the polyline `points` (ground plane, metres), for
+/// hand-made towns in tests: 3.5 m wide, the fixture's speed limit, no
+/// junction, no neighbours; set other fields with struct update syntax.
+pub fn lane_through(points: &[Vec2]) -> DriveLane {
+    make_lane(points, None, "hand".to_string(), -1)
+}
+
+/// The route a planner gives through `waypoints` (x, y in metres, heading
+/// in radians) on `town`, for tests and scripted scenes.
+pub fn planned_route(
+    town: &Town,
+    waypoints: &[(f32, f32, f32)],
+) -> Result<DenseRoute, crate::error::RouteError> {
+    let route = crate::route::Route {
+        id: "planned".into(),
+        town: None,
+        waypoints: waypoints
+            .iter()
+            .map(|&(x, y, yaw)| crate::route::RouteWaypoint {
+                position: Vec3::new(x, y, 0.0),
+                yaw_rad: Some(yaw),
+            })
+            .collect(),
+        source: "testtown::planned_route".into(),
+    };
+    crate::planner::plan_route(town, &route, &crate::planner::PlannerConfig::default())
+}
+
 /// A dense route along the polyline `points` (ground plane, metres), for
 /// tests and scripted scenes that need no lanes: headings along the
 /// segments, every point on lane 0 with `s` = `route_s` = the distance along

@@ -208,27 +208,16 @@ impl LaneGrid {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testtown::grid;
+    use crate::testtown::{grid, lane_through};
     use crate::town::{JunctionIdx, Town};
-    use glam::Vec3;
     use std::f32::consts::PI;
 
     fn lane(pts: &[(f32, f32)], width: f32, junction: Option<JunctionIdx>) -> DriveLane {
-        let centerline: Vec<Vec3> = pts.iter().map(|&(x, y)| Vec3::new(x, y, 0.0)).collect();
-        let s = crate::geometry::arc_lengths(&centerline);
-        let n = centerline.len();
+        let pts: Vec<Vec2> = pts.iter().map(|&(x, y)| Vec2::new(x, y)).collect();
         DriveLane {
-            road_id: "r".into(),
-            od_lane: -1,
-            centerline,
-            s,
-            width: vec![width; n],
-            speed_limit_mps: 10.0,
+            width: vec![width; pts.len()],
             junction,
-            successors: vec![],
-            predecessors: vec![],
-            left: None,
-            right: None,
+            ..lane_through(&pts)
         }
     }
 

@@ -14,7 +14,9 @@
 //!
 //! Each rule is a plain function or table built from a [`Town`] (and a
 //! [`crate::DenseRoute`]): none needs a running [`crate::traffic::Traffic`].
-//! [`RuleBook`] holds a town's tables, built once; a run shares one.
+//! [`RuleBook`] holds a town's tables, built once; a run shares one
+//! ([`crate::traffic::Traffic::rules`]). The vehicle model every vehicle
+//! moves by is [`crate::vehicle::VehicleState::step`].
 
 pub mod conflicts;
 pub mod crossing;
@@ -30,7 +32,7 @@ pub use lanes::{LaneGrid, heading_agrees, nearest_lane, project_on_lane};
 pub use lights::{YELLOW_SLACK_M, light_state, must_stop};
 pub use pursuit::pursuit_lookahead_m;
 pub use route::{nearest_route_point, route_ahead, route_point_at, route_s_at};
-pub use stop_lines::{RouteStop, RouteStops, StopLineRef, StopLines};
+pub use stop_lines::{RouteStop, RouteStops, StopLineEntry, StopLines};
 
 use crate::town::Town;
 

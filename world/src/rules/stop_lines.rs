@@ -13,9 +13,9 @@ use glam::Vec2;
 use crate::planner::DenseRoute;
 use crate::town::{LaneIdx, LightIdx, Town};
 
-/// One stop line of a town.
+/// One stop line of a town, as the table lists it.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StopLineRef {
+pub struct StopLineEntry {
     /// The light that governs it.
     pub light: LightIdx,
     /// The lane it is on (the approach lane).
@@ -34,7 +34,7 @@ pub struct StopLineRef {
 /// Every stop line of a town, and for each lane its stop lines by arc length.
 #[derive(Debug, Clone, Default)]
 pub struct StopLines {
-    lines: Vec<StopLineRef>,
+    lines: Vec<StopLineEntry>,
     /// For each lane, indices into `lines`, sorted by arc length (then light).
     by_lane: Vec<Vec<usize>>,
 }
@@ -59,7 +59,7 @@ impl StopLines {
                 if let Some(v) = by_lane.get_mut(sl.lane.0 as usize) {
                     v.push(lines.len());
                 }
-                lines.push(StopLineRef {
+                lines.push(StopLineEntry {
                     light: LightIdx(li as u32),
                     lane: sl.lane,
                     s: sl.s,
@@ -81,12 +81,12 @@ impl StopLines {
     }
 
     /// Every stop line, in light order.
-    pub fn all(&self) -> &[StopLineRef] {
+    pub fn all(&self) -> &[StopLineEntry] {
         &self.lines
     }
 
     /// The stop lines on a lane, by arc length (none for a lane not in the town).
-    pub fn on_lane(&self, lane: LaneIdx) -> impl Iterator<Item = &StopLineRef> + '_ {
+    pub fn on_lane(&self, lane: LaneIdx) -> impl Iterator<Item = &StopLineEntry> + '_ {
         self.by_lane
             .get(lane.0 as usize)
             .map_or(&[][..], |v| &v[..])
@@ -130,7 +130,7 @@ pub struct RouteStop {
     /// The light.
     pub light: LightIdx,
     /// The stop line.
-    pub line: StopLineRef,
+    pub line: StopLineEntry,
 }
 
 /// The stop lines a route crosses, sorted by distance along the route.
@@ -159,18 +159,10 @@ impl RouteStops {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::planner::{PlannerConfig, plan_route};
-    use crate::route::{Route, RouteWaypoint};
-    use crate::testtown::{JUNCTION_HALF_M, STOP_LINE_BACK_M, grid};
+    use crate::testtown::{JUNCTION_HALF_M, STOP_LINE_BACK_M, grid, planned_route};
     use crate::town::{StopLine, TrafficLight};
     use glam::Vec3;
-
-    fn waypoint(x: f32, y: f32, yaw: f32) -> RouteWaypoint {
-        RouteWaypoint {
-            position: Vec3::new(x, y, 0.0),
-            yaw_rad: Some(yaw),
-        }
-    }
+    use std::f32::consts::PI;
 
     #[test]
     fn the_table_indexes_every_line_by_lane_with_its_pose() {
@@ -206,13 +198,7 @@ mod tests {
     fn a_route_through_a_lit_junction_meets_its_stop_line_once_at_its_route_distance() {
         let t = grid(3, 3, 60.0);
         // From x = 15 on lane 0 straight through the junction at (60, 0) to x = 100.
-        let route = Route {
-            id: "0".into(),
-            town: None,
-            source: "test".into(),
-            waypoints: vec![waypoint(15.0, -1.75, 0.0), waypoint(100.0, -1.75, 0.0)],
-        };
-        let dense = plan_route(&t, &route, &PlannerConfig::default()).unwrap();
+        let dense = planned_route(&t, &[(15.0, -1.75, 0.0), (100.0, -1.75, 0.0)]).unwrap();
         let stops = StopLines::new(&t).on_route(&dense);
         assert_eq!(stops.all().len(), 1, "{:?}", stops.all());
         let st = stops.all()[0];
@@ -228,25 +214,10 @@ mod tests {
     #[test]
     fn a_route_that_starts_past_the_line_or_on_the_other_lane_meets_none() {
         let t = grid(3, 3, 60.0);
-        let past = Route {
-            id: "0".into(),
-            town: None,
-            source: "test".into(),
-            waypoints: vec![waypoint(47.0, -1.75, 0.0), waypoint(100.0, -1.75, 0.0)],
-        };
-        let dense = plan_route(&t, &past, &PlannerConfig::default()).unwrap();
+        let dense = planned_route(&t, &[(47.0, -1.75, 0.0), (100.0, -1.75, 0.0)]).unwrap();
         assert!(StopLines::new(&t).on_route(&dense).all().is_empty());
         // Westbound through the junction at (60, 0): its east approach is lit.
-        let west = Route {
-            id: "1".into(),
-            town: None,
-            source: "test".into(),
-            waypoints: vec![
-                waypoint(100.0, 1.75, std::f32::consts::PI),
-                waypoint(20.0, 1.75, std::f32::consts::PI),
-            ],
-        };
-        let dense = plan_route(&t, &west, &PlannerConfig::default()).unwrap();
+        let dense = planned_route(&t, &[(100.0, 1.75, PI), (20.0, 1.75, PI)]).unwrap();
         let stops = StopLines::new(&t).on_route(&dense);
         assert_eq!(stops.all().len(), 1);
         // The east approach ends at x = 70; its line is at x = 74: 26 m from x = 100.
