@@ -29,7 +29,9 @@ use world::route::{Route, RouteFile, RouteWaypoint};
 use world::xodr_map::{LoadOptions, UnsignalledJunctions, load_xodr_file};
 use world::{ActorKind, ActorSnapshot, LightState, Town, Vec2, Vec3};
 
-use crate::format::{ActorRow, DataError, EgoRow, Episode, Index, RouteSpec, Shard, write_atomic};
+use crate::format::{
+    ActorRow, DataError, EgoRow, Episode, Index, RouteSpec, Shard, light_code, write_atomic,
+};
 use crate::noise::{NoiseParams, NoisyDriver};
 
 /// Where an episode's route comes from.
@@ -435,15 +437,6 @@ impl EpisodeRecorder {
     }
 }
 
-/// A light state as the shard stores it: 0 red, 1 yellow, 2 green.
-pub fn light_code(s: LightState) -> u8 {
-    match s {
-        LightState::Red => 0,
-        LightState::Yellow => 1,
-        LightState::Green => 2,
-    }
-}
-
 /// The shard's file name of episode `id`.
 pub fn shard_name(id: u32) -> String {
     format!("episode-{id:05}.safetensors")
@@ -491,7 +484,7 @@ pub fn drive(
     let (prepared, stored) = prepare(spec, towns)?;
     let scenario = scenario_of(spec, &prepared);
     let town = prepared.town.clone();
-    let expert = Expert::new(&town, &prepared.route, ExpertParams::default());
+    let expert = Expert::new(ExpertParams::default());
     let mut driver = NoisyDriver::new(expert, cfg.noise, spec.seed ^ 0x6e6f_6973_65);
     let mut selector = Fixed { scale: 1.0 };
     let mut recorder = EpisodeRecorder::new(&town, cfg, spec.seed)?;
@@ -621,8 +614,8 @@ pub fn collect(
     Ok(index)
 }
 
-/// Follows the ego along the route: the nearest route point in a window
-/// ahead of the last one (the route monitor's rule).
+/// Follows the ego along the route with the rule book's route rules (the
+/// route monitor's window search and route distance).
 struct RouteTracker {
     index: usize,
 }
@@ -633,20 +626,12 @@ impl RouteTracker {
     }
 
     fn update(&mut self, route: &DenseRoute, p: Vec2) -> RouteState {
-        let pts = &route.points;
-        let end = (self.index + 40).min(pts.len());
-        if let Some((i, _)) = pts[self.index.min(end)..end]
-            .iter()
-            .enumerate()
-            .map(|(k, q)| (self.index + k, q.position.truncate().distance_squared(p)))
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-        {
+        if let Some((i, _)) = world::rules::nearest_route_point(route, p, self.index, 40) {
             self.index = i;
         }
-        let q = &pts[self.index.min(pts.len() - 1)];
         RouteState {
             index: self.index,
-            route_s: q.route_s + (p - q.position.truncate()).dot(Vec2::from_angle(q.heading)),
+            route_s: world::rules::route_s_at(route, self.index, p),
             command: route.command_ahead(self.index, 0.0),
         }
     }

@@ -241,6 +241,24 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), DataError> {
     std::fs::rename(&tmp, path).map_err(|e| DataError::io(path, e))
 }
 
+/// A light state as a shard stores it: 0 red, 1 yellow, 2 green.
+pub fn light_code(s: world::LightState) -> u8 {
+    match s {
+        world::LightState::Red => 0,
+        world::LightState::Yellow => 1,
+        world::LightState::Green => 2,
+    }
+}
+
+/// The light state of a shard's code (anything but 0 and 1 reads as green).
+pub fn light_of_code(code: u8) -> world::LightState {
+    match code {
+        0 => world::LightState::Red,
+        1 => world::LightState::Yellow,
+        _ => world::LightState::Green,
+    }
+}
+
 /// One actor in a frame.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ActorRow {

@@ -7,8 +7,7 @@
 //! trained on them: if this driver cannot follow a route and stop at its
 //! lights, no policy that imitates the labels can.
 
-use sim::driver::{Control, Driver, DriverNeeds, Observation};
-use world::ahead::Ahead;
+use sim::driver::{Driver, DriverNeeds, Observation, VehicleControl};
 
 use crate::action::{NUM_ACTIONS, NUM_COMMANDS, NUM_SPEED_BINS};
 use crate::decode::{decode, interpolate_speed};
@@ -21,19 +20,13 @@ pub const TEMPERATURE: f32 = 0.01;
 /// Drives by the labels of the moment.
 pub struct LabelDriver {
     labeller: Labeller,
-    stops: Vec<sim::expert::RouteStop>,
 }
 
 impl LabelDriver {
-    /// A driver for this town and route.
-    pub fn new(
-        town: &world::Town,
-        route: &world::planner::DenseRoute,
-        vehicle: &world::vehicle::VehicleParams,
-    ) -> LabelDriver {
+    /// A driver for this town.
+    pub fn new(town: &world::Town, vehicle: &world::vehicle::VehicleParams) -> LabelDriver {
         LabelDriver {
             labeller: Labeller::wor(town, vehicle),
-            stops: sim::expert::stops_on_route(town, route),
         }
     }
 }
@@ -50,9 +43,9 @@ impl Driver for LabelDriver {
         }
     }
 
-    fn act(&mut self, obs: &Observation<'_>) -> Control {
+    fn act(&mut self, obs: &Observation<'_>) -> VehicleControl {
         let Some(p) = obs.privileged else {
-            return Control::default();
+            return VehicleControl::default();
         };
         let prm = &self.labeller.params;
         let ego = EgoRow {
@@ -62,35 +55,13 @@ impl Driver for LabelDriver {
             speed: p.ego.speed_mps,
         };
         let point = p.route.points.get(p.route_index);
-        let ego_s = point.map_or(0.0, |q| {
-            q.route_s
-                + (p.ego.position.truncate() - q.position.truncate())
-                    .dot(world::Vec2::from_angle(q.heading))
-        });
-        let tail_s = ego_s - prm.crossing_offset_m;
-        let red_line_m = self
-            .stops
-            .iter()
-            .find(|s| s.route_s > tail_s)
-            .and_then(|s| {
-                let state = p
-                    .lights
-                    .get(s.light)
-                    .copied()
-                    .unwrap_or(world::LightState::Green);
-                (state != world::LightState::Green)
-                    .then_some(s.route_s - ego_s - prm.ego_half_extents.x)
-            });
-        let hazards = Hazards {
-            red_line_m,
-            actor_ahead: p
-                .ahead
-                .map(|a: Ahead| (a.distance_m - prm.ego_half_extents.x, a.speed_along_mps)),
-        };
+        let ego_s = world::rules::route_s_at(p.route, p.route_index, p.ego.position.truncate());
+        let light = |l: world::LightIdx| world::rules::light_state(p.lights, l);
+        let hazards = Hazards::measure(prm, p.stops, ego_s, light, p.ahead);
         let lights: Vec<u8> = p
             .lights
             .iter()
-            .map(|&s| crate::collect::light_code(s))
+            .map(|&s| crate::format::light_code(s))
             .collect();
         let steps = self.labeller.steps + 1;
         let actors: Vec<&[ActorRow]> = vec![&[]; steps];

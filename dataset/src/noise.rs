@@ -16,7 +16,7 @@
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use sim::driver::{Control, Driver, DriverNeeds, Observation};
+use sim::driver::{Driver, DriverNeeds, Observation, VehicleControl as Control};
 
 /// The noise model's settings.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -17,7 +17,7 @@ fn the_label_driver_completes_the_default_route_without_running_a_red_light() {
     // Labels every 100 ms instead of 50 ms: half the labelling, same answer.
     scenario.timing.control_period_ms = 100.0;
     let prepared = runner::prepare(&scenario).unwrap();
-    let mut driver = LabelDriver::new(&prepared.town, &prepared.route, &VehicleParams::default());
+    let mut driver = LabelDriver::new(&prepared.town, &VehicleParams::default());
     let mut selector = Fixed { scale: 1.0 };
     let started = std::time::Instant::now();
     let record = runner::run(

@@ -6,7 +6,7 @@ use crate::model::PolicyNet;
 use burn::prelude::*;
 use dataset::action::{NUM_ACTIONS, NUM_SPEED_BINS};
 use dataset::decode::{Decoded, decode, interpolate_speed};
-use sim::driver::{Control, Driver, DriverNeeds, Observation};
+use sim::driver::{Driver, DriverNeeds, Observation, VehicleControl};
 use std::path::Path;
 
 /// A multi-resolution CNN policy driving the ego.
@@ -154,13 +154,13 @@ impl Driver for PolicyDriver {
         }
     }
 
-    fn act(&mut self, obs: &Observation<'_>) -> Control {
+    fn act(&mut self, obs: &Observation<'_>) -> VehicleControl {
         let Some(image) = obs.image else {
             if !self.warned {
                 tracing::warn!("{}: observation without an image; braking", self.name);
                 self.warned = true;
             }
-            return Control {
+            return VehicleControl {
                 steer: 0.0,
                 throttle: 0.0,
                 brake: 1.0,

@@ -70,7 +70,7 @@ fn collect(
     expert.driver.kind = DriverKind::Expert;
     let prepared =
         runner::prepare(&expert).with_context(|| format!("scenario {}", path.display()))?;
-    let mut driver = run::driver_for(&expert, &prepared)?;
+    let mut driver = run::driver_for(&expert)?;
     let mut selector = run::selector_for(&expert, None)?;
     let mut moments = Vec::new();
     let mut keep = |tick: u64, actors: &[ActorSnapshot], lights: &[LightState]| {

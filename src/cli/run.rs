@@ -148,13 +148,9 @@ pub fn selector_for(
 }
 
 /// The driver a scenario asks for.
-pub fn driver_for(scenario: &Scenario, prepared: &Prepared) -> anyhow::Result<Box<dyn Driver>> {
+pub fn driver_for(scenario: &Scenario) -> anyhow::Result<Box<dyn Driver>> {
     match scenario.driver.kind {
-        DriverKind::Expert => Ok(Box::new(Expert::new(
-            &prepared.town,
-            &prepared.route,
-            ExpertParams::default(),
-        ))),
+        DriverKind::Expert => Ok(Box::new(Expert::new(ExpertParams::default()))),
         DriverKind::Policy => {
             let path = scenario
                 .driver
@@ -238,7 +234,7 @@ pub fn run_one(
     let scenario = overrides.apply(&scenario);
     let prepared =
         runner::prepare(&scenario).with_context(|| format!("scenario {}", path.display()))?;
-    let mut driver = driver_for(&scenario, &prepared)?;
+    let mut driver = driver_for(&scenario)?;
     let mut selector = selector_for(&scenario, scale)?;
     let record_path = record.map(|(p, o)| (p.to_path_buf(), o)).or_else(|| {
         scenario.outputs.record.clone().map(|p| {

@@ -7,70 +7,53 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
+use sim::runner::{AHEAD_CORRIDOR_M, AHEAD_RANGE_M};
 use world::ahead::{ActorView, nearest_ahead};
 use world::planner::DenseRoute;
+use world::rules::{RouteStops, StopLines, route_ahead};
 use world::vehicle::VehicleParams;
 use world::{ActorKind, Town, Vec2};
 
 use super::{FrameInput, Hazards, LABEL_VERSION, Labeller, Q};
 use crate::action::NUM_ACTIONS;
 use crate::collect::{TownCache, replan};
-use crate::format::{ActorRow, DataError, Episode, Index, Labels, Q_PER_VIEW, Shard, write_atomic};
-
-/// How far ahead along the route actors are looked for (metres).
-const AHEAD_RANGE_M: f32 = 30.0;
-/// Half-width of the corridor around the route for "ahead" (metres): the expert's.
-const AHEAD_CORRIDOR_M: f32 = 1.4;
+use crate::format::{
+    ActorRow, DataError, Episode, Index, Labels, Q_PER_VIEW, Shard, light_of_code, write_atomic,
+};
 
 /// The label file's name of an episode's shard.
 pub fn labels_name(episode: &Episode) -> String {
     format!("labels-{:05}.safetensors", episode.id)
 }
 
-/// The stop lines the route crosses: (route distance, light) in route order.
-fn route_stops(town: &Town, route: &DenseRoute) -> Vec<(f32, usize)> {
-    sim::expert::stops_on_route(town, route)
-        .into_iter()
-        .map(|s| (s.route_s, s.light))
-        .collect()
-}
-
-/// What is in the ego's way in frame `i` (see [`Hazards`]).
+/// What is in the ego's way in frame `i` (see [`Hazards::measure`]): the
+/// actor ahead found as the loop finds it for the expert.
 pub fn hazards(
     shard: &Shard,
     i: usize,
     route: &DenseRoute,
-    stops: &[(f32, usize)],
+    stops: &RouteStops,
     labeller: &Labeller,
 ) -> Hazards {
-    let prm = &labeller.params;
     let ego = shard.ego[i];
     let [index, ego_s] = shard.route[i];
-    let half = prm.ego_half_extents.x;
-    let tail_s = ego_s - prm.crossing_offset_m;
-    let red_line_m = stops
-        .iter()
-        .find(|(s, _)| *s > tail_s)
-        .and_then(|&(s, light)| {
-            let state = shard.lights[i].get(light).copied().unwrap_or(2);
-            super::maps::light_stops(state).then_some(s - (ego_s + half))
-        });
-    let start = index as usize;
-    let start_s = route.points.get(start).map_or(0.0, |p| p.route_s);
-    let mut path = vec![Vec2::new(ego.x, ego.y)];
-    path.extend(
-        route.points[start.min(route.points.len())..]
-            .iter()
-            .take_while(|p| p.route_s - start_s <= AHEAD_RANGE_M)
-            .map(|p| p.position.truncate()),
+    let mut path = Vec::new();
+    route_ahead(
+        route,
+        index as usize,
+        Vec2::new(ego.x, ego.y),
+        AHEAD_RANGE_M,
+        &mut path,
     );
     let views: Vec<ActorView> = shard.actors[i].iter().map(view_of).collect();
-    let actor_ahead = nearest_ahead(&path, &views, None, AHEAD_CORRIDOR_M, AHEAD_RANGE_M)
-        .map(|a| (a.distance_m - half, a.speed_along_mps));
-    Hazards {
-        red_line_m,
-        actor_ahead,
-    }
+    let ahead = nearest_ahead(&path, &views, None, AHEAD_CORRIDOR_M, AHEAD_RANGE_M);
+    let light = |l: world::LightIdx| {
+        shard.lights[i]
+            .get(l.0 as usize)
+            .copied()
+            .map_or(world::LightState::Green, light_of_code)
+    };
+    Hazards::measure(&labeller.params, stops, ego_s, light, ahead)
 }
 
 fn view_of(a: &ActorRow) -> ActorView {
@@ -101,7 +84,7 @@ pub fn label_episode(
     let steps = labeller.steps;
     let n = shard.len();
     let views: Vec<f32> = view_yaws_deg.iter().map(|d| d.to_radians()).collect();
-    let stops = route_stops(town, route);
+    let stops = StopLines::new(town).on_route(route);
     let per_frame: Vec<Option<Vec<Q>>> = (0..n)
         .into_par_iter()
         .map(|i| {

@@ -8,7 +8,8 @@
 
 use glam::Vec2;
 use world::planner::{PlannerConfig, turn_decision};
-use world::{Command, Town};
+use world::rules::StopLines;
+use world::{Command, LightState, Town};
 
 use super::LabelParams;
 use super::grid::{EgoFrame, Grid, wrap};
@@ -18,26 +19,13 @@ use crate::format::ActorRow;
 pub const COMMANDS: usize = 6;
 
 /// Which commands' lane maps each lane of a town belongs to (bit `c` for
-/// command `c`), and the stop lines with their geometry.
+/// command `c`), and the town's stop lines (the rule book's table).
 #[derive(Debug, Clone)]
 pub struct TownLanes {
     /// Bit mask per lane (index like `Town::lanes`).
     pub commands: Vec<u8>,
-    /// Every stop line: light index, centre, driving heading, half width.
-    pub stops: Vec<StopGeometry>,
-}
-
-/// A stop line as the labeller draws it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StopGeometry {
-    /// The light (index into `Town::lights`).
-    pub light: usize,
-    /// The line's centre (metres).
-    pub center: Vec2,
-    /// The approach lane's driving heading at the line (radians).
-    pub heading: f32,
-    /// Half the line's length (metres).
-    pub half_width_m: f32,
+    /// Every stop line.
+    pub stops: StopLines,
 }
 
 impl TownLanes {
@@ -77,22 +65,7 @@ impl TownLanes {
                 m
             })
             .collect();
-        let stops = town
-            .lights
-            .iter()
-            .enumerate()
-            .flat_map(|(li, light)| {
-                light.stop_lines.iter().map(move |sl| {
-                    let (a, b) = (sl.ends[0].truncate(), sl.ends[1].truncate());
-                    StopGeometry {
-                        light: li,
-                        center: (a + b) * 0.5,
-                        heading: town.lane(sl.lane).heading_at(sl.s),
-                        half_width_m: a.distance(b) * 0.5,
-                    }
-                })
-            })
-            .collect();
+        let stops = StopLines::new(town);
         TownLanes { commands, stops }
     }
 }
@@ -239,10 +212,11 @@ pub fn yaw_weights(yaws: &[f32], heading: f32, profile: &super::Plateau, out: &m
     }
 }
 
-/// Whether a light state counts as "stop" for the labels: red, and yellow as
-/// red (WoR), encoded as in the shard (0 red, 1 yellow, 2 green).
-pub fn light_stops(state: u8) -> bool {
-    state != 2
+/// Whether a light says stop on the labels' future maps: red, and yellow
+/// as red (WoR; the decision at t = 0 uses the rule book's yellow rule, see
+/// [`super::Hazards`]).
+pub fn light_stops(state: LightState) -> bool {
+    state != LightState::Green
 }
 
 /// Draws one future step: actors and lights at that time.
@@ -327,17 +301,22 @@ pub fn step_maps(
     // lane's heading; the strip just past the point where a crossing counts
     // (the rule book's crossing point) is not free.
     let cross_u = prm.crossing_offset_m;
-    for s in &lanes.stops {
-        if !lights.get(s.light).copied().is_some_and(light_stops) {
+    for s in lanes.stops.all() {
+        let state = lights
+            .get(s.light.0 as usize)
+            .copied()
+            .map(crate::format::light_of_code);
+        if !state.is_some_and(light_stops) {
             continue;
         }
-        let centre = frame.to_local(s.center);
+        let half_width_m = s.ends[0].distance(s.ends[1]) * 0.5;
+        let centre = frame.to_local(s.position);
         if centre.length() > grid.spec.x_max_m + grid.spec.y_half_m + 10.0 {
             continue;
         }
         let heading = wrap(s.heading - frame.yaw);
         let (fwd, left) = (Vec2::from_angle(heading), Vec2::from_angle(heading).perp());
-        let r = prm.red_zone_before_m.max(cross_u + prm.red_block_m) + s.half_width_m;
+        let r = prm.red_zone_before_m.max(cross_u + prm.red_block_m) + half_width_m;
         let Some((i0, i1, j0, j1)) =
             node_range(grid, centre - Vec2::splat(r), centre + Vec2::splat(r))
         else {
@@ -348,7 +327,7 @@ pub fn step_maps(
             for i in i0..=i1 {
                 let d = grid.node(i, j) - centre;
                 let (u, w) = (d.dot(fwd), d.dot(left));
-                if w.abs() > s.half_width_m {
+                if w.abs() > half_width_m {
                     continue;
                 }
                 let c = j * grid.nx + i;

@@ -102,7 +102,7 @@ impl LabelParams {
             vehicle_side_m: 1.2,
             red_zone_before_m: 8.0,
             red_block_m: 3.0,
-            crossing_offset_m: world_crossing_offset(vehicle),
+            crossing_offset_m: world::rules::crossing_offset_m(vehicle.length_m),
             ego_half_extents: half,
             hazard_decel_mps2: 3.0,
             hazard_reaction_s: 0.25,
@@ -153,32 +153,51 @@ impl Plateau {
     }
 }
 
-/// The crossing point's offset ahead of the centre (metres): 0.8 half-lengths.
-fn world_crossing_offset(vehicle: &VehicleParams) -> f32 {
-    0.8 * vehicle.length_m / 2.0
-}
-
 /// What lies in the ego's way at t = 0, measured along its route.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Hazards {
-    /// Distance from the ego's front bumper to the next stop line on the
-    /// route that it has not crossed (by the rule book's crossing point),
-    /// when that light says stop (metres; negative with the nose over the line).
-    pub red_line_m: Option<f32>,
+    /// The next stop line on the route that the ego has not crossed (by the
+    /// rule book's crossing point): the distance from the ego's front bumper
+    /// to it (metres; negative with the nose over the line) and its light.
+    pub stop_line: Option<(f32, world::LightState)>,
     /// The nearest actor ahead on the route: the gap from the ego's front
     /// bumper to its footprint (metres) and its speed along the route (m/s).
     pub actor_ahead: Option<(f32, f32)>,
 }
 
 impl Hazards {
-    /// Whether a hazard is in the way of an ego at `speed_mps`: a red line
-    /// within stopping distance (plus a margin), or an actor ahead that the
-    /// ego closes on within stopping distance of the closing speed plus the
-    /// gap to keep.
+    /// What is in the way of an ego whose centre is `ego_s` metres along its
+    /// route: the next stop line its crossing point has not passed, with its
+    /// light's state from `light`, and the nearest actor ahead (`ahead`: the
+    /// loop's "ahead" query along the route).
+    pub fn measure(
+        prm: &LabelParams,
+        stops: &world::rules::RouteStops,
+        ego_s: f32,
+        light: impl Fn(world::LightIdx) -> world::LightState,
+        ahead: Option<world::ahead::Ahead>,
+    ) -> Hazards {
+        let front_s = ego_s + prm.ego_half_extents.x;
+        let stop_line = stops
+            .next_after(ego_s - prm.crossing_offset_m)
+            .map(|s| (s.route_s - front_s, light(s.light)));
+        let actor_ahead = ahead.map(|a| (a.distance_m - prm.ego_half_extents.x, a.speed_along_mps));
+        Hazards {
+            stop_line,
+            actor_ahead,
+        }
+    }
+
+    /// Whether a hazard is in the way of an ego at `speed_mps`: a stop line
+    /// within stopping distance (plus a margin) whose light says stop by the
+    /// rule book's rule (red; yellow if the ego can still stop), or an actor
+    /// ahead that the ego closes on within stopping distance of the closing
+    /// speed plus the gap to keep.
     pub fn in_way(&self, prm: &LabelParams, speed_mps: f32) -> bool {
-        let red = self
-            .red_line_m
-            .is_some_and(|d| d <= prm.stopping_m(speed_mps) + prm.red_margin_m);
+        let red = self.stop_line.is_some_and(|(d, state)| {
+            world::rules::must_stop(state, d, speed_mps, prm.hazard_decel_mps2)
+                && d <= prm.stopping_m(speed_mps) + prm.red_margin_m
+        });
         let actor = self.actor_ahead.is_some_and(|(gap, along)| {
             gap <= prm.stopping_m((speed_mps - along).max(0.0)) + prm.actor_gap_m
         });
@@ -301,7 +320,7 @@ impl Labeller {
         // Connecting lanes count from the approach lane, so every command's
         // turn out of this junction is on its map.
         let lane = input.lane.or_else(|| {
-            town.nearest_lane(frame.origin, Some(frame.yaw))
+            world::rules::nearest_lane(town, frame.origin, Some(frame.yaw))
                 .map(|lp| (lp.lane, lp.s))
         });
         let ahead = match lane {

@@ -95,7 +95,7 @@ fn a_red_light_within_braking_distance_makes_brake_best() {
     let ego = east_at(stop_x - 3.0 - 2.395);
     let front = ego.x + s.labeller.params.ego_half_extents.x;
     let hazards = Hazards {
-        red_line_m: Some(stop_x - front),
+        stop_line: Some((stop_x - front, world::LightState::Red)),
         actor_ahead: None,
     };
     let q = s.label(ego, hazards);
@@ -135,7 +135,7 @@ fn a_car_stopped_ahead_makes_brake_best() {
     let q = s.label(
         ego,
         Hazards {
-            red_line_m: None,
+            stop_line: None,
             actor_ahead: Some((gap, 0.0)),
         },
     );
