@@ -21,6 +21,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use world::ahead::Ahead;
+use world::pedestrian::PedestrianParams;
 use world::physics::Party;
 use world::planner::{DenseRoute, PlannerConfig, plan_route};
 use world::route::RouteFile;
@@ -331,11 +332,16 @@ pub fn run(
     let seed = scenario.traffic.seed;
 
     // The world.
+    let defaults = TrafficConfig::default();
     let cfg = TrafficConfig {
         vehicles: scenario.traffic.vehicles as usize,
         pedestrians: scenario.traffic.pedestrians as usize,
         seed,
-        ..TrafficConfig::default()
+        pedestrian: PedestrianParams {
+            cross_factor: scenario.traffic.cross_factor,
+            ..defaults.pedestrian
+        },
+        ..defaults
     };
     let vehicle = cfg.vehicle;
     let mut traffic = Traffic::new(town.clone(), cfg, Some(ego_start(route)?));
