@@ -23,4 +23,4 @@ pub mod scene;
 pub use classes::{ClassId, WorClass};
 pub use image::ClassImage;
 pub use renderer::{RenderError, Renderer};
-pub use rig::{Camera, EgoPose, RigConfig};
+pub use rig::{EgoPose, RigConfig, View};
