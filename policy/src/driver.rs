@@ -3,10 +3,14 @@
 use crate::action::{NUM_ACTIONS, NUM_SPEED_BINS};
 use crate::checkpoint::{self, CheckpointError, ModelCard};
 use crate::decode::{Decoded, decode, interpolate_speed};
+use crate::device::{DeviceError, DeviceKind};
 use crate::fused::FusedPolicy;
 use crate::model::PolicyNet;
 use burn::prelude::*;
+use sim::build::{DriverFactory, FactoryError};
 use sim::driver::{Control, Driver, DriverNeeds, Observation};
+use sim::runner::Prepared;
+use sim::scenario::Scenario;
 use std::path::Path;
 
 /// A multi-resolution CNN policy driving the ego.
@@ -129,6 +133,63 @@ impl PolicyDriver {
         let bins: [[f32; NUM_ACTIONS]; NUM_SPEED_BINS] =
             std::array::from_fn(|b| std::array::from_fn(|j| z[b * NUM_ACTIONS + j]));
         interpolate_speed(&bins, speed_mps)
+    }
+}
+
+/// Builds the [`PolicyDriver`] a scenario names (`driver.kind = "policy"`,
+/// `driver.checkpoint`, `driver.device`): register it with
+/// `sim::build::Drivers::with(DriverKind::Policy, PolicyFactory)`.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct PolicyFactory;
+
+/// A scenario's policy driver could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum PolicyDriverError {
+    /// No checkpoint is named.
+    #[error(
+        "driver.checkpoint is missing; fix: a policy driver needs `checkpoint = \"path/to/model.safetensors\"`"
+    )]
+    NoCheckpoint,
+    /// The device named cannot be opened.
+    #[error("driver.device")]
+    Device(#[source] DeviceError),
+    /// The checkpoint cannot be used.
+    #[error(transparent)]
+    Checkpoint(#[from] CheckpointError),
+}
+
+impl PolicyFactory {
+    fn checkpoint(scenario: &Scenario) -> Result<&Path, PolicyDriverError> {
+        scenario
+            .driver
+            .checkpoint
+            .as_deref()
+            .ok_or(PolicyDriverError::NoCheckpoint)
+    }
+}
+
+impl DriverFactory for PolicyFactory {
+    fn driver(
+        &self,
+        scenario: &Scenario,
+        _prepared: &Prepared,
+    ) -> Result<Box<dyn Driver>, FactoryError> {
+        let weights = Self::checkpoint(scenario)?;
+        let kind: DeviceKind = scenario
+            .driver
+            .device
+            .as_deref()
+            .unwrap_or("cpu")
+            .parse()
+            .map_err(PolicyDriverError::Device)?;
+        let device = crate::device::open(kind).map_err(PolicyDriverError::Device)?;
+        Ok(Box::new(PolicyDriver::from_checkpoint(weights, device)?))
+    }
+
+    fn input_size(&self, scenario: &Scenario) -> Result<Option<(u32, u32)>, FactoryError> {
+        let (config, _) = checkpoint::read_manifest(Self::checkpoint(scenario)?)?;
+        let [h, w] = config.input_size(1.0);
+        Ok(Some((h as u32, w as u32)))
     }
 }
 

@@ -7,10 +7,10 @@ use policy::backbone::Depth;
 use policy::burn::prelude::*;
 use policy::checkpoint::{self, ModelCard};
 use policy::model::PolicyConfig;
-use policy::selector::{
+use sim::driver::{Command, Driver, Observation, RgbImage};
+use sim::selector::{
     Fixed, LatencyBudget, LatencyTable, Lookahead, Oracle, ResolutionSelector, SelectorInput,
 };
-use sim::driver::{Command, Driver, Observation, RgbImage};
 
 /// A stand-in for the renderer: a deterministic image of the size the scale gives.
 fn render(cfg: &PolicyConfig, scale: f32, t: usize) -> RgbImage {

@@ -185,6 +185,16 @@ pub enum DriverKind {
     Policy,
 }
 
+impl DriverKind {
+    /// The name a scenario file uses (`driver.kind = "expert"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            DriverKind::Expert => "expert",
+            DriverKind::Policy => "policy",
+        }
+    }
+}
+
 /// The camera rig: WoR's three cameras at a base size S0.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]

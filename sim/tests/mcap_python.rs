@@ -104,7 +104,7 @@ fn python_mcap_reads_and_validates_a_log_of_the_real_loop() {
             prepared: &prepared,
             driver: &mut driver,
             selector: &mut selector,
-            camera: camera.as_mut().map(|c| c as &mut dyn runner::Camera),
+            camera: camera.as_mut().map(|c| c as &mut dyn sim::camera::Camera),
             recorder: Some(&mut rec),
             progress: &mut |_| {},
             max_ticks: None,

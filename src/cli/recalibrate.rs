@@ -12,14 +12,15 @@ use anyhow::{Context, Result, ensure};
 use clap::Args;
 use policy::burn::prelude::*;
 use policy::checkpoint::{self, ModelCard};
+use policy::device::{self, DeviceKind};
 use policy::train::recalibrate::recalibrate_with;
+use sim::build::{self, Drivers};
 use sim::render::{EgoPose, Renderer};
 use sim::runner::{self, RunInputs};
 use sim::scenario::{DriverKind, Scenario};
 use std::path::{Path, PathBuf};
 use world::{ActorSnapshot, LightState};
 
-use super::policy::{DeviceKind, device};
 use super::run;
 
 /// `mrdrive policy recalibrate WEIGHTS --scenario S... --out OUT`
@@ -63,6 +64,7 @@ fn collect(
     weights: &Path,
     traffic: &run::TrafficFlags,
     every_s: f64,
+    drivers: &Drivers,
 ) -> Result<(Renderer, Vec<Moment>)> {
     let scenario = traffic.overrides(None).apply(&Scenario::from_file(path)?);
     let every_ticks = ((every_s / scenario.timing.tick_s).round() as u64).max(1);
@@ -70,8 +72,8 @@ fn collect(
     expert.driver.kind = DriverKind::Expert;
     let prepared =
         runner::prepare(&expert).with_context(|| format!("scenario {}", path.display()))?;
-    let mut driver = run::driver_for(&expert, &prepared)?;
-    let mut selector = run::selector_for(&expert, None)?;
+    let mut driver = drivers.driver(&expert, &prepared)?;
+    let mut selector = build::selector_for(&expert, None)?;
     let mut moments = Vec::new();
     let mut keep = |tick: u64, actors: &[ActorSnapshot], lights: &[LightState]| {
         if tick.is_multiple_of(every_ticks) && !actors.is_empty() {
@@ -110,7 +112,7 @@ fn collect(
     let mut as_policy = scenario;
     as_policy.driver.kind = DriverKind::Policy;
     as_policy.driver.checkpoint = Some(weights.to_path_buf());
-    let camera = run::camera_for(&as_policy, &prepared)?;
+    let camera = build::camera_for(&as_policy, &prepared, drivers)?;
     Ok((camera, moments))
 }
 
@@ -138,8 +140,9 @@ pub fn recalibrate(a: &RecalibrateArgs) -> Result<()> {
     // (scenario index, moment) pairs and one renderer per scenario (each has its own town).
     let mut moments = Vec::new();
     let mut cameras = Vec::new();
+    let drivers = super::drivers();
     for (i, path) in a.scenarios.iter().enumerate() {
-        let (camera, kept) = collect(path, &weights, &a.traffic, a.every_s)?;
+        let (camera, kept) = collect(path, &weights, &a.traffic, a.every_s, &drivers)?;
         moments.extend(kept.into_iter().map(|m| (i, m)));
         cameras.push(camera);
     }
@@ -167,7 +170,7 @@ pub fn recalibrate(a: &RecalibrateArgs) -> Result<()> {
             a.batches
         );
     }
-    let dev = device(a.device)?;
+    let dev = device::open(a.device)?;
     let (net, _) = checkpoint::load(&a.weights, &dev)?;
     let autodiff = dev.autodiff();
     let mut rendered = 0usize;
