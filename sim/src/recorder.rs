@@ -664,16 +664,13 @@ mod tests {
 
     #[test]
     fn embedded_schemas_match_the_shared_copies() {
-        let shared = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/foxglove-schemas");
-        if !shared.exists() {
-            assert!(
-                std::env::var_os("MRDRIVE_REQUIRE_SHARED").is_none(),
-                "{} is missing",
-                shared.display()
-            );
-            eprintln!("SKIPPED: {} not found", shared.display());
+        let Some(shared) = world::testdata::shared_subdir(
+            "embedded_schemas_match_the_shared_copies",
+            "foxglove-schemas",
+            "CompressedImage.json",
+        ) else {
             return;
-        }
+        };
         for (name, ours) in [
             ("CompressedImage.json", COMPRESSED_IMAGE),
             ("FrameTransform.json", FRAME_TRANSFORM),
