@@ -5,6 +5,7 @@ use crate::model::{ParamCounts, PolicyConfig};
 use crate::train::synthetic::toy_batch;
 use crate::train::{MultiResTrainer, TrainConfig};
 use burn::prelude::*;
+use sim::render::image::test_pattern;
 use std::time::Instant;
 
 /// Latency statistics of repeated runs (milliseconds).
@@ -82,7 +83,7 @@ pub fn fused_latency(
         .iter()
         .map(|&r| {
             let [h, w] = config.input_size(r);
-            (0..h * w * 3).map(|i| (i * 131 % 251) as u8).collect()
+            test_pattern(w as u32, h as u32, 0).data
         })
         .collect();
     per_scale(config, warmup, repeats, |branch| {

@@ -256,18 +256,8 @@ mod tests {
     use super::*;
     use crate::backbone::Depth;
     use crate::model::PolicyConfig;
-    use sim::driver::{Command, RgbImage};
-
-    fn image(w: u32, h: u32, seed: u8) -> RgbImage {
-        let data = (0..w * h * 3)
-            .map(|i| (i as u8).wrapping_mul(31).wrapping_add(seed))
-            .collect();
-        RgbImage {
-            width: w,
-            height: h,
-            data,
-        }
-    }
+    use sim::driver::Command;
+    use sim::render::image::test_pattern;
 
     #[test]
     fn drives_at_each_scale_deterministically() {
@@ -282,7 +272,7 @@ mod tests {
         assert!(a.needs().camera);
         for scale in [0.75f32, 1.0] {
             let [h, w] = cfg.input_size(scale);
-            let img = image(w as u32, h as u32, 3);
+            let img = test_pattern(w as u32, h as u32, 3);
             let obs = Observation {
                 time_s: 0.0,
                 speed_mps: 2.0,
@@ -303,7 +293,7 @@ mod tests {
         bn.running_mean =
             burn::module::RunningState::new(bn.running_mean.value_sync().add_scalar(0.5));
         let c = PolicyDriver::new(net, ModelCard::random_init(9), "c", device);
-        let img = image(96, 64, 1);
+        let img = test_pattern(96, 64, 1);
         assert_ne!(c.logits(&img, 0.75, 3, 2.0), c.logits(&img, 1.0, 3, 2.0));
         assert_eq!(a.logits(&img, 0.75, 3, 2.0), a.logits(&img, 1.0, 3, 2.0));
     }
@@ -322,7 +312,7 @@ mod tests {
         assert!(fused.is_fused() && !plain.is_fused());
         for scale in [0.75f32, 1.0] {
             let [h, w] = cfg.input_size(scale);
-            let img = image(w as u32, h as u32, 5);
+            let img = test_pattern(w as u32, h as u32, 5);
             for command in 0..6 {
                 let a = fused.logits(&img, scale, command, 3.0);
                 let b = plain.logits(&img, scale, command, 3.0);

@@ -699,11 +699,7 @@ mod tests {
             &town,
         )
         .unwrap();
-        let image = RgbImage {
-            width: 4,
-            height: 2,
-            data: (0..24).collect(),
-        };
+        let image = crate::render::image::test_pattern(4, 2, 0);
         for tick in 0..40u64 {
             let t = tick_ns(tick, 0.025);
             let ego = ActorSnapshot {
