@@ -74,21 +74,7 @@ pub fn run_policy(args: PolicyArgs) -> Result<()> {
                 "{:<34} {:>6} {:>12} {:>12} {:>10} {:>9} {:>14}",
                 "network", "scales", "single", "banked", "extra", "extra %", "extra buffers"
             );
-            let rows = [
-                (
-                    "resnet34 (paper, 64-512)",
-                    Preset::Paper.config(&[0.75, 1.0]),
-                ),
-                (
-                    "resnet34 (paper), 5 scales",
-                    Preset::Paper.config(&[0.5, 0.625, 0.75, 0.875, 1.0]),
-                ),
-                ("resnet18 (64-512)", Preset::Resnet18.config(&[0.75, 1.0])),
-                (
-                    "default: resnet18 half (32-256)",
-                    Preset::Cpu.config(&[0.75, 1.0]),
-                ),
-            ];
+            let rows = bench::overhead_networks();
             for (name, cfg) in rows {
                 let o = bench::overhead(name, &cfg);
                 println!(
@@ -274,41 +260,7 @@ pub fn run_bench_command(command: BenchCommand) -> Result<()> {
         "policy benchmark: device {kind} (burn; cpu = flex with {threads} rayon threads, RAYON_NUM_THREADS), batch 1 inference, median of {repeats} (scales interleaved)"
     );
     println!("load average before: {}", load.trim());
-    let mut nets = vec![(
-        "default: resnet18 half 32-256",
-        Preset::Cpu.config(&[0.75, 1.0]),
-    )];
-    if !quick {
-        nets.push((
-            "resnet18 64-512 @ 240x96",
-            Preset::Resnet18
-                .config(&[0.75, 1.0])
-                .with_input_height(96)
-                .with_input_width(240),
-        ));
-        nets.push((
-            "resnet18 64-512 @ 480x192",
-            Preset::Resnet18.config(&[0.75, 1.0]),
-        ));
-        nets.push((
-            "resnet34 64-512 @ 240x96",
-            Preset::Paper
-                .config(&[0.75, 1.0])
-                .with_input_height(96)
-                .with_input_width(240),
-        ));
-        nets.push((
-            "resnet34 64-512 @ 480x192 (paper)",
-            Preset::Paper.config(&[0.75, 1.0]),
-        ));
-        nets.push((
-            "resnet18 half 32-256 @ 480x192",
-            Preset::Cpu
-                .config(&[0.75, 1.0])
-                .with_input_height(192)
-                .with_input_width(480),
-        ));
-    }
+    let nets = bench::latency_networks(quick);
     println!(
         "{:<36} {:<6} {:>6} {:>10} {:>10} {:>9} {:>9} {:>12}",
         "network", "engine", "scale", "input WxH", "median ms", "min ms", "max ms", "t(.75)/t(1)"

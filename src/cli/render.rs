@@ -297,42 +297,17 @@ fn bench_scenario(
         supersample,
         ..build::rig_for(&scenario, &super::drivers())?
     };
-    let mut r = sim::render::Renderer::new(&prepared.town, rig, scenario.traffic.seed)?;
-    let mut poses = Vec::new();
-    let mut next_s = 0.0;
-    for p in &prepared.route.points {
-        if p.route_s >= next_s {
-            poses.push(EgoPose {
-                position: p.position,
-                heading: p.heading,
-            });
-            next_s = p.route_s + 1.0;
-        }
-    }
-    let states = vec![LightState::Red; prepared.town.lights.len()];
-    println!(
-        "backend: {}\ntown {}: {} static triangles in {} cells; route {} ({} poses, 1 m apart); \
-         no actors, all lights red; supersampling {}x; {} frames x {} repeats",
-        r.backend(),
-        prepared.town.name,
-        r.scene().triangle_count(),
-        r.scene().cells.len(),
-        prepared.route.id,
-        poses.len(),
-        r.rig().supersample,
-        frames,
-        repeats
+    print!(
+        "{}",
+        measure::route_report(
+            &prepared.town,
+            &prepared.route,
+            rig,
+            scenario.traffic.seed,
+            frames,
+            repeats
+        )?
     );
-    for m in measure::bench_poses(
-        &mut r,
-        &poses,
-        (&[], &states),
-        &[1.0, 0.75],
-        frames,
-        repeats,
-    )? {
-        println!("{}", measure::speed_line("scenario", &m));
-    }
     Ok(())
 }
 
