@@ -346,6 +346,53 @@ mod tests {
     }
 
     #[test]
+    fn the_factory_builds_a_scenario_policy_and_gives_the_rig_its_s0() {
+        use sim::build::{Drivers, error_chain, rig_for};
+        use sim::scenario::DriverKind;
+        let device = Device::flex();
+        let cfg = PolicyConfig::new(Depth::Resnet18, [4, 8, 8, 16])
+            .with_input_height(64)
+            .with_input_width(96);
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("tiny.safetensors");
+        checkpoint::save(&cfg.init(&device), &ModelCard::random_init(0), &path).unwrap();
+        let mut scenario = Scenario::from_toml_str(
+            "[map]\nfile = \"t.xodr\"\n[route]\nfile = \"r.toml\"\nid = 0\n\
+             [driver]\nkind = \"policy\"\ncheckpoint = \"m.safetensors\"\n",
+            Path::new("s.toml"),
+        )
+        .unwrap();
+        scenario.driver.checkpoint = Some(path.clone());
+        let drivers = Drivers::new().with(DriverKind::Policy, PolicyFactory);
+        assert_eq!(drivers.input_size(&scenario).unwrap(), Some((64, 96)));
+        assert_eq!(rig_for(&scenario, &drivers).unwrap().base_size(), (96, 64));
+        let prepared = Prepared {
+            town: std::sync::Arc::new(world::Town::empty("t")),
+            route: world::planner::DenseRoute {
+                id: "0".into(),
+                points: vec![],
+                length_m: 0.0,
+                waypoint_points: vec![],
+            },
+            route_file: "r.toml".into(),
+        };
+        let driver = drivers.driver(&scenario, &prepared).unwrap();
+        assert!(
+            driver.name().contains("tiny.safetensors"),
+            "{}",
+            driver.name()
+        );
+        assert!(driver.needs().camera);
+        scenario.driver.device = Some("tpu".into());
+        let e = error_chain(&drivers.driver(&scenario, &prepared).err().unwrap());
+        assert!(e.contains("driver.device") && e.contains("tpu"), "{e}");
+        scenario.driver.device = None;
+        scenario.driver.checkpoint = Some(tmp.path().join("missing.safetensors"));
+        let e = error_chain(&drivers.input_size(&scenario).err().unwrap());
+        assert!(e.contains("missing.json"), "{e}");
+    }
+
+    #[test]
     fn no_image_means_brake() {
         let device = Device::flex();
         let cfg = PolicyConfig::new(Depth::Resnet18, [4, 8, 8, 16])

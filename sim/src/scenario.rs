@@ -562,6 +562,17 @@ mod tests {
     }
 
     #[test]
+    fn driver_kinds_are_named_as_the_file_writes_them() {
+        for kind in [DriverKind::Expert, DriverKind::Policy] {
+            let text = format!(
+                "{MINIMAL}[driver]\nkind = \"{}\"\ncheckpoint = \"m.safetensors\"\n",
+                kind.name()
+            );
+            assert_eq!(parse(&text).unwrap().driver.kind, kind);
+        }
+    }
+
+    #[test]
     fn missing_route_is_an_error() {
         let err = parse("[map]\nfile = \"town.xodr\"\n")
             .unwrap_err()
