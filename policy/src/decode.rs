@@ -14,7 +14,7 @@
 //! `linspace(0, 8, 5)`: we follow the labeller (the bins the targets were made on).
 
 use crate::action::{BRAKE, NUM_ACTIONS, NUM_SPEED_BINS, NUM_STEERS, STEERS, THROTTLES};
-use sim::driver::{Command, Control};
+use sim::driver::{Command, VehicleControl};
 
 /// Centres of the speed bins (metres per second): centres of `linspace(0, 8, 5)`.
 pub const SPEED_BIN_CENTRES_MPS: [f32; NUM_SPEED_BINS] = [1.0, 3.0, 5.0, 7.0];
@@ -31,7 +31,7 @@ pub const SPEED_LIMIT_MPS: f32 = 20.0 / 3.6;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Decoded {
     /// The control to apply.
-    pub control: Control,
+    pub control: VehicleControl,
     /// Probability of the brake action.
     pub brake_prob: f32,
     /// Expected steer given no brake (before post-processing).
@@ -85,7 +85,7 @@ pub fn decode(logits: &[f32; NUM_ACTIONS], speed_mps: f32, command: Command) -> 
     }
     let (expected_steer, expected_throttle) = (steer, throttle);
     let control = if brake_prob > BRAKE_THRESHOLD {
-        Control {
+        VehicleControl {
             steer: 0.0,
             throttle: 0.0,
             brake: 1.0,
@@ -100,7 +100,7 @@ pub fn decode(logits: &[f32; NUM_ACTIONS], speed_mps: f32, command: Command) -> 
         } else {
             throttle.max(MIN_THROTTLE)
         };
-        Control {
+        VehicleControl {
             steer,
             throttle,
             brake: 0.0,
@@ -130,7 +130,7 @@ mod tests {
         let d = decode(&one_hot(BRAKE, 20.0), 3.0, Command::LaneFollow);
         assert_eq!(
             d.control,
-            Control {
+            VehicleControl {
                 steer: 0.0,
                 throttle: 0.0,
                 brake: 1.0

@@ -8,7 +8,7 @@ use crate::fused::FusedPolicy;
 use crate::model::PolicyNet;
 use burn::prelude::*;
 use sim::build::{DriverFactory, FactoryError};
-use sim::driver::{Control, Driver, DriverNeeds, Observation};
+use sim::driver::{Driver, DriverNeeds, Observation, VehicleControl};
 use sim::runner::Prepared;
 use sim::scenario::Scenario;
 use std::path::Path;
@@ -215,13 +215,13 @@ impl Driver for PolicyDriver {
         }
     }
 
-    fn act(&mut self, obs: &Observation<'_>) -> Control {
+    fn act(&mut self, obs: &Observation<'_>) -> VehicleControl {
         let Some(image) = obs.image else {
             if !self.warned {
                 tracing::warn!("{}: observation without an image; braking", self.name);
                 self.warned = true;
             }
-            return Control {
+            return VehicleControl {
                 steer: 0.0,
                 throttle: 0.0,
                 brake: 1.0,

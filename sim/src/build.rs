@@ -53,13 +53,9 @@ impl DriverFactory for ExpertFactory {
     fn driver(
         &self,
         _scenario: &Scenario,
-        prepared: &Prepared,
+        _prepared: &Prepared,
     ) -> Result<Box<dyn Driver>, FactoryError> {
-        Ok(Box::new(Expert::new(
-            &prepared.town,
-            &prepared.route,
-            ExpertParams::default(),
-        )))
+        Ok(Box::new(Expert::new(ExpertParams::default())))
     }
 }
 

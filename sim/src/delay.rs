@@ -22,7 +22,7 @@
 //! ([`DelayLine::set_timing`]): the new latency applies to the control computed
 //! at that boundary, the new period to the distance to the next boundary.
 
-use crate::driver::Control;
+use crate::driver::VehicleControl;
 
 /// When controls are computed and how late they land, in simulation ticks.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -78,9 +78,9 @@ pub struct DelayLine {
     /// Controls computed but not yet landed: (landing tick, control), in
     /// order of computation. At most a few entries: no allocation after the
     /// first ticks.
-    in_flight: Vec<(u64, Control)>,
+    in_flight: Vec<(u64, VehicleControl)>,
     /// The control in force now (the last one that landed).
-    applied: Control,
+    applied: VehicleControl,
 }
 
 impl DelayLine {
@@ -90,7 +90,7 @@ impl DelayLine {
             timing,
             next_boundary: 0,
             in_flight: Vec::with_capacity(4),
-            applied: Control::default(),
+            applied: VehicleControl::default(),
         }
     }
 
@@ -113,7 +113,7 @@ impl DelayLine {
     }
 
     /// Hands in the control computed at boundary `tick`.
-    pub fn submit(&mut self, tick: u64, control: Control) {
+    pub fn submit(&mut self, tick: u64, control: VehicleControl) {
         let period = u64::from(self.timing.period_ticks.max(1));
         self.in_flight
             .push((tick + u64::from(self.timing.latency_ticks), control));
@@ -122,7 +122,7 @@ impl DelayLine {
 
     /// The control in force during the step `tick -> tick + 1`. Call once per
     /// tick, after any [`DelayLine::submit`] for this tick.
-    pub fn control_for_step(&mut self, tick: u64) -> Control {
+    pub fn control_for_step(&mut self, tick: u64) -> VehicleControl {
         // The newest computed control that has landed wins; older ones still
         // in flight can no longer matter.
         if let Some(newest_landed) = self.in_flight.iter().rposition(|(land, _)| *land <= tick) {
@@ -140,8 +140,8 @@ mod tests {
     const DT: f64 = 0.025;
 
     /// A control that records the tick it was computed at (in `throttle`).
-    fn stamped(tick: u64) -> Control {
-        Control {
+    fn stamped(tick: u64) -> VehicleControl {
+        VehicleControl {
             steer: 0.0,
             throttle: tick as f32,
             brake: 0.0,
@@ -166,7 +166,7 @@ mod tests {
                     }
                     line.submit(
                         t,
-                        Control {
+                        VehicleControl {
                             brake: 1.0,
                             ..stamped(t)
                         },

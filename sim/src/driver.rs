@@ -1,17 +1,8 @@
 //! The interface between the loop and whatever drives the ego.
 
 pub use world::Command;
-
-/// A control command for the ego vehicle, as CARLA's `VehicleControl`.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Control {
-    /// Steering in [-1, 1]; positive steers right, as in CARLA.
-    pub steer: f32,
-    /// Throttle in [0, 1].
-    pub throttle: f32,
-    /// Brake in [0, 1].
-    pub brake: f32,
-}
+/// What a driver emits: the vehicle model's control (steer, throttle, brake).
+pub use world::vehicle::VehicleControl;
 
 /// An RGB image in row-major order, 3 bytes a pixel, no row padding.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -55,6 +46,8 @@ pub struct Privileged<'a> {
     pub ego: world::ActorSnapshot,
     /// Every light's state, by `LightIdx`.
     pub lights: &'a [world::LightState],
+    /// The stop lines on the route, in route order (the rule book's).
+    pub stops: &'a world::rules::RouteStops,
     /// The nearest actor ahead along the route, if any within range.
     pub ahead: Option<world::ahead::Ahead>,
     /// The ego's vehicle model.
@@ -78,5 +71,5 @@ pub trait Driver {
     /// What the loop must provide.
     fn needs(&self) -> DriverNeeds;
     /// Computes the control for this observation.
-    fn act(&mut self, obs: &Observation<'_>) -> Control;
+    fn act(&mut self, obs: &Observation<'_>) -> VehicleControl;
 }

@@ -5,12 +5,15 @@
 //! route:
 //!
 //! - **Lateral**: pure pursuit on the route from the rear axle, looking
-//!   `2 + 0.5 v` metres ahead (3.5-10 m), converted to a steer value through
+//!   [`rules::pursuit_lookahead_m`] ahead, converted to a steer value through
 //!   the vehicle model's inverse (`VehicleParams::steer_for_curvature`).
 //! - **Speed**: 6 m/s on turns (a LEFT/RIGHT command within 10 m), 6.5 m/s
 //!   otherwise, never above the lane's limit (PROTOCOL §5's target speeds).
-//! - **Stops**: for a red light, and for a yellow one it can still stop for
-//!   comfortably, it brakes to stand 1 m before the stop line; for the nearest
+//! - **Stops**: for a light it must stop for ([`rules::must_stop`]: red, or
+//!   yellow when it can still stop at `stop_decel_mps2`), at a stop line of
+//!   the route ([`rules::RouteStops`], given in the privileged view) that its
+//!   crossing point has not passed ([`rules::crossing`]), it brakes to stand
+//!   1 m before the line; for the nearest
 //!   vehicle or pedestrian ahead on its route (the same "ahead" query the
 //!   NPCs use: a corridor around the route) it keeps a gap of 4 m: it stops
 //!   behind a standing one and follows a moving one with a braking profile
@@ -20,9 +23,10 @@
 //!   at a stop it holds the brake. It drives on by itself once the light turns
 //!   green or the way is free.
 
-use world::{Command, LightState};
+use world::Command;
+use world::rules;
 
-use crate::driver::{Control, Driver, DriverNeeds, Observation, Privileged};
+use crate::driver::{Driver, DriverNeeds, Observation, Privileged, VehicleControl};
 
 /// The expert's tuning.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -60,93 +64,18 @@ impl Default for ExpertParams {
     }
 }
 
-/// A stop line on the route: where it is along the route and whose it is.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RouteStop {
-    /// Distance along the route (metres).
-    pub route_s: f32,
-    /// The light (index into `Town::lights`).
-    pub light: usize,
-}
-
-/// The stop lines the route crosses, in route order: a stop line is on the
-/// route where a route point's lane is the stop line's lane and the route
-/// passes its arc length.
-pub fn stops_on_route(town: &world::Town, route: &world::planner::DenseRoute) -> Vec<RouteStop> {
-    let mut stops = Vec::new();
-    for w in route.points.windows(2) {
-        let (a, b) = (w[0], w[1]);
-        for (li, light) in town.lights.iter().enumerate() {
-            for stop in &light.stop_lines {
-                let on_a =
-                    stop.lane == a.lane && a.s <= stop.s && (b.lane != a.lane || stop.s < b.s);
-                if on_a {
-                    let route_s = a.route_s + (stop.s - a.s);
-                    if stops.last().is_none_or(|last: &RouteStop| {
-                        (last.route_s - route_s).abs() > 0.5 || last.light != li
-                    }) {
-                        stops.push(RouteStop { route_s, light: li });
-                    }
-                }
-            }
-        }
-    }
-    stops.sort_by(|a, b| a.route_s.total_cmp(&b.route_s));
-    stops
-}
-
 /// The privileged autopilot.
 #[derive(Debug, Clone)]
 pub struct Expert {
     /// Its tuning.
     pub params: ExpertParams,
-    stops: Vec<RouteStop>,
 }
 
 impl Expert {
-    /// An expert for this route.
-    pub fn new(
-        town: &world::Town,
-        route: &world::planner::DenseRoute,
-        params: ExpertParams,
-    ) -> Self {
-        Self {
-            params,
-            stops: stops_on_route(town, route),
-        }
-    }
-
-    /// The stop lines on its route.
-    pub fn stops(&self) -> &[RouteStop] {
-        &self.stops
-    }
-
-    /// The route distance of the ego's centre: the reached point's distance
-    /// plus the ego's offset along the route there.
-    fn ego_route_s(p: &Privileged<'_>) -> f32 {
-        let pts = &p.route.points;
-        let Some(pt) = pts.get(p.route_index) else {
-            return p.route.length_m;
-        };
-        let forward = world::Vec2::from_angle(pt.heading);
-        pt.route_s + (p.ego.position.truncate() - pt.position.truncate()).dot(forward)
-    }
-
-    /// The route point at distance `s` along the route (clamped), from `from`.
-    fn point_at(p: &Privileged<'_>, from: usize, s: f32) -> world::Vec2 {
-        let pts = &p.route.points;
-        let mut i = from.min(pts.len().saturating_sub(1));
-        while i + 1 < pts.len() && pts[i + 1].route_s < s {
-            i += 1;
-        }
-        if i + 1 >= pts.len() {
-            return pts
-                .last()
-                .map_or(p.ego.position.truncate(), |q| q.position.truncate());
-        }
-        let (a, b) = (pts[i], pts[i + 1]);
-        let t = ((s - a.route_s) / (b.route_s - a.route_s).max(1e-3)).clamp(0.0, 1.0);
-        a.position.truncate().lerp(b.position.truncate(), t)
+    /// An expert with this tuning; it reads its route and the stop lines on
+    /// it from the privileged view.
+    pub fn new(params: ExpertParams) -> Self {
+        Self { params }
     }
 
     /// The speed it wants now (metres per second), and the distance from its
@@ -170,25 +99,16 @@ impl Expert {
         let mut stop_at: Option<f32> = None;
         let half_length = p.ego.extent.x / 2.0;
         let front_s = ego_s + half_length;
-        // Lights: the first stop line the car has not yet passed. "Passed"
-        // is the red-light monitor's definition (the point 0.8 half-lengths
-        // behind the centre crossed it), so a car whose nose overshot a stop
-        // line on red waits there instead of driving on.
-        let tail_s = ego_s - 0.8 * half_length;
-        if let Some(stop) = self.stops.iter().find(|st| st.route_s > tail_s) {
-            let state = p
-                .lights
-                .get(stop.light)
-                .copied()
-                .unwrap_or(LightState::Green);
-            let d = stop.route_s - front_s - prm.stop_margin_m;
-            let comfortable = d >= v * v / (2.0 * prm.stop_decel_mps2);
-            let must_stop = match state {
-                LightState::Red => true,
-                LightState::Yellow => comfortable,
-                LightState::Green => false,
-            };
-            if must_stop && d < 40.0 {
+        // Lights: the first stop line the car has not yet passed: its
+        // crossing point (the red-light monitor's) is not over the line, so a
+        // car whose nose overshot a stop line on red waits there instead of
+        // driving on.
+        let tail_s = ego_s - rules::crossing_offset_m(p.ego.extent.x);
+        if let Some(stop) = p.stops.next_after(tail_s) {
+            let to_line = stop.route_s - front_s;
+            let state = rules::light_state(p.lights, stop.light);
+            let d = to_line - prm.stop_margin_m;
+            if rules::must_stop(state, to_line, v, prm.stop_decel_mps2) && d < 40.0 {
                 stop_at = Some(d);
             }
         }
@@ -212,17 +132,18 @@ impl Expert {
     }
 
     /// The control for a privileged view.
-    pub fn control(&self, p: &Privileged<'_>) -> Control {
+    pub fn control(&self, p: &Privileged<'_>) -> VehicleControl {
         let prm = &self.params;
         let v = p.ego.speed_mps.max(0.0);
-        let ego_s = Self::ego_route_s(p);
+        let ego_s = rules::route_s_at(p.route, p.route_index, p.ego.position.truncate());
         // Lateral: pure pursuit from the rear axle, so the rear wheels follow
         // the lane through tight turns instead of cutting across the curb.
         let rear_wb = p.vehicle.rear_wb_m;
         let forward = world::Vec2::from_angle(p.ego.heading);
         let rear = p.ego.position.truncate() - forward * rear_wb;
-        let lookahead = (2.0 + 0.5 * v).clamp(3.5, 10.0);
-        let target = Self::point_at(p, p.route_index, ego_s - rear_wb + lookahead);
+        let lookahead = rules::pursuit_lookahead_m(v);
+        let target = rules::route_point_at(p.route, p.route_index, ego_s - rear_wb + lookahead)
+            .unwrap_or(p.ego.position.truncate());
         let rel = target - rear;
         let (dx, dy) = (rel.dot(forward), rel.dot(forward.perp()));
         let d2 = (dx * dx + dy * dy).max(1e-3);
@@ -231,10 +152,9 @@ impl Expert {
         // a stop is near (the deceleration that stands the car exactly there).
         let (want, stop_at) = self.desired_speed(p, ego_s);
         if want < 0.05 && v < 0.3 {
-            return Control {
+            return VehicleControl {
                 steer,
-                throttle: 0.0,
-                brake: 1.0,
+                ..VehicleControl::BRAKE
             };
         }
         let mut accel = (prm.speed_gain_per_s * (want - v))
@@ -246,7 +166,7 @@ impl Expert {
             }
         }
         let (throttle, brake) = p.vehicle.pedals_for_accel(accel, v);
-        Control {
+        VehicleControl {
             steer,
             throttle,
             brake,
@@ -266,16 +186,285 @@ impl Driver for Expert {
         }
     }
 
-    fn act(&mut self, obs: &Observation<'_>) -> Control {
+    fn act(&mut self, obs: &Observation<'_>) -> VehicleControl {
         match obs.privileged {
             Some(p) => self.control(p),
             // The loop gives privileged state to drivers that ask for it; if
             // it ever did not, standing still is the safe answer.
-            None => Control {
-                steer: 0.0,
-                throttle: 0.0,
-                brake: 1.0,
-            },
+            None => VehicleControl::BRAKE,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! Scripted situations on the grid test town, the ego driven by the
+    //! vehicle model from the expert's controls at every 40 Hz tick.
+    use super::*;
+    use crate::runner::{AHEAD_CORRIDOR_M, AHEAD_RANGE_M};
+    use world::ahead::{ActorView, nearest_ahead};
+    use world::planner::DenseRoute;
+    use world::rules::{RouteStops, StopLines};
+    use world::testtown::{grid, planned_route};
+    use world::vehicle::{VehicleParams, VehicleState};
+    use world::{ActorKind, ActorSnapshot, LightState, Town, Vec2, Vec3};
+
+    const DT: f32 = 0.025;
+
+    /// A situation: the grid town, a planned route, its stops, the lights
+    /// and the other actors (moved by `script` each tick).
+    struct Scene {
+        town: Town,
+        route: DenseRoute,
+        stops: RouteStops,
+        lights: Vec<LightState>,
+        actors: Vec<ActorView>,
+    }
+
+    /// What happened at one tick.
+    #[derive(Debug, Clone, Copy)]
+    struct Tick {
+        state: VehicleState,
+        control: VehicleControl,
+        ahead: Option<world::ahead::Ahead>,
+    }
+
+    impl Scene {
+        /// The 3 x 3 grid town (junctions 60 m apart; the one at (60, 0) is
+        /// lit, its west stop line at x = 46 on lane y = -1.75) and a route
+        /// through `waypoints` (x, y, heading).
+        fn new(waypoints: &[(f32, f32, f32)], light: LightState) -> Scene {
+            let town = grid(3, 3, 60.0);
+            let route = planned_route(&town, waypoints).unwrap();
+            let stops = StopLines::new(&town).on_route(&route);
+            let lights = vec![light; town.lights.len()];
+            Scene {
+                town,
+                route,
+                stops,
+                lights,
+                actors: Vec::new(),
+            }
+        }
+
+        /// Drives the ego from the route's start, at rest, for `seconds`;
+        /// `script(t, actors)` moves the other actors before each tick.
+        fn drive(
+            &mut self,
+            seconds: f32,
+            mut script: impl FnMut(f32, &mut Vec<ActorView>),
+        ) -> Vec<Tick> {
+            let vp = VehicleParams::default();
+            let expert = Expert::new(ExpertParams::default());
+            let start = self.route.points[0];
+            let mut state = VehicleState::at_rest(start.position.truncate(), start.heading);
+            let mut index = 0;
+            let mut path = Vec::new();
+            let mut out = Vec::new();
+            for k in 0..(seconds / DT).round() as usize {
+                script(k as f32 * DT, &mut self.actors);
+                index = rules::nearest_route_point(&self.route, state.position, index, 40)
+                    .map_or(index, |(i, _)| i);
+                rules::route_ahead(&self.route, index, state.position, AHEAD_RANGE_M, &mut path);
+                let ahead = nearest_ahead(
+                    &path,
+                    &self.actors,
+                    Some(0),
+                    AHEAD_CORRIDOR_M,
+                    AHEAD_RANGE_M,
+                );
+                let ego = ActorSnapshot {
+                    id: 0,
+                    kind: ActorKind::Ego,
+                    position: state.position.extend(0.0),
+                    heading: state.yaw,
+                    extent: Vec3::new(vp.length_m, vp.width_m, vp.height_m),
+                    speed_mps: state.speed_mps,
+                    color: 0,
+                };
+                let p = Privileged {
+                    town: &self.town,
+                    route: &self.route,
+                    route_index: index,
+                    ego,
+                    lights: &self.lights,
+                    stops: &self.stops,
+                    ahead,
+                    vehicle: &vp,
+                };
+                let control = expert.control(&p);
+                state.step(&vp, control, DT);
+                out.push(Tick {
+                    state,
+                    control,
+                    ahead,
+                });
+            }
+            out
+        }
+    }
+
+    fn front_x(t: &Tick) -> f32 {
+        t.state.position.x + VehicleParams::default().length_m / 2.0
+    }
+
+    /// East along y = -1.75 from x = 15 through the junction at (60, 0) to x = 100.
+    const EAST: [(f32, f32, f32); 2] = [(15.0, -1.75, 0.0), (100.0, -1.75, 0.0)];
+
+    #[test]
+    fn it_stops_before_a_red_light_and_goes_on_green() {
+        let mut scene = Scene::new(&EAST, LightState::Red);
+        assert_eq!(scene.stops.all().len(), 1);
+        let line_x = 46.0;
+        let ticks = scene.drive(20.0, |_, _| {});
+        let last = ticks.last().unwrap();
+        assert!(last.state.speed_mps < 0.05, "{:?}", last.state);
+        assert!(
+            last.control.brake > 0.5,
+            "holds the brake: {:?}",
+            last.control
+        );
+        // It reached cruising speed on the way, braked, and stands about
+        // `stop_margin_m` before the line, its front never over it.
+        let top = ticks.iter().map(|t| t.state.speed_mps).fold(0.0, f32::max);
+        assert!(top > 5.0, "top speed {top}");
+        let max_front = ticks.iter().map(front_x).fold(f32::MIN, f32::max);
+        assert!(max_front < line_x, "front reached x = {max_front}");
+        assert!(
+            front_x(last) > line_x - 2.0,
+            "stopped at {} m before the line",
+            line_x - front_x(last)
+        );
+        // Green: it drives through.
+        scene.lights.fill(LightState::Green);
+        let ticks = scene.drive(20.0, |_, _| {});
+        assert!(ticks.iter().any(|t| t.state.position.x > 80.0));
+    }
+
+    #[test]
+    fn it_stops_behind_a_standing_car_with_a_gap() {
+        let mut scene = Scene::new(&EAST, LightState::Green);
+        // A car standing on the lane at x = 40 (its rear at 37.6).
+        let vp = VehicleParams::default();
+        scene.actors.push(ActorView {
+            id: 1,
+            kind: ActorKind::Vehicle,
+            position: Vec2::new(40.0, -1.75),
+            yaw: 0.0,
+            speed_mps: 0.0,
+            half_length_m: vp.length_m / 2.0,
+            half_width_m: vp.width_m / 2.0,
+        });
+        let rear_x = 40.0 - vp.length_m / 2.0;
+        let ticks = scene.drive(15.0, |_, _| {});
+        let last = ticks.last().unwrap();
+        assert!(last.state.speed_mps < 0.05, "{:?}", last.state);
+        assert_eq!(last.ahead.map(|a| a.id), Some(1));
+        let gaps: Vec<f32> = ticks.iter().map(|t| rear_x - front_x(t)).collect();
+        let min_gap = gaps.iter().copied().fold(f32::MAX, f32::min);
+        assert!(min_gap > 3.0, "came within {min_gap} m");
+        let gap = rear_x - front_x(last);
+        assert!(
+            (3.0..5.0).contains(&gap),
+            "stands {gap} m behind (gap_m = 4)"
+        );
+    }
+
+    #[test]
+    fn it_brakes_for_a_pedestrian_stepping_out() {
+        // A walker on the sidewalk at x = 45 (y = -7) steps out at 2 s and
+        // walks north at 1.5 m/s to the lane's centre, where it stays: it
+        // enters the ego's corridor at about 4.4 s, when the ego, cruising,
+        // is some 10 m away.
+        let walker = |t: f32, actors: &mut Vec<ActorView>| {
+            let y = (-7.0 + 1.5 * (t - 2.0).max(0.0)).min(-1.75);
+            actors.clear();
+            actors.push(ActorView {
+                id: 7,
+                kind: ActorKind::Pedestrian,
+                position: Vec2::new(45.0, y),
+                yaw: std::f32::consts::FRAC_PI_2,
+                speed_mps: if t > 2.0 && y < -1.75 { 1.5 } else { 0.0 },
+                half_length_m: 0.3,
+                half_width_m: 0.3,
+            });
+        };
+        let mut free = Scene::new(&EAST, LightState::Green);
+        let alone = free.drive(9.0, |_, _| {});
+        // Without the walker it passes x = 45 at speed.
+        assert!(
+            alone
+                .iter()
+                .any(|t| t.state.position.x > 46.0 && t.state.speed_mps > 5.0)
+        );
+        let mut scene = Scene::new(&EAST, LightState::Green);
+        let ticks = scene.drive(12.0, walker);
+        let first_seen = ticks
+            .iter()
+            .position(|t| t.ahead.is_some_and(|a| a.id == 7))
+            .expect("the walker is seen ahead");
+        assert!(
+            ticks[first_seen].state.speed_mps > 4.0,
+            "it was cruising when the walker stepped out"
+        );
+        // It brakes within half a second of seeing the walker and stops at
+        // least 2 m short of it (the walker's near edge is at x = 44.7).
+        assert!(
+            ticks[first_seen..first_seen + 20]
+                .iter()
+                .any(|t| t.control.brake > 0.0),
+            "no brake after seeing the walker"
+        );
+        let last = ticks.last().unwrap();
+        assert!(last.state.speed_mps < 0.05, "{:?}", last.state);
+        let max_front = ticks.iter().map(front_x).fold(f32::MIN, f32::max);
+        assert!(
+            max_front < 45.0 - 0.3 - 2.0,
+            "front reached x = {max_front}"
+        );
+    }
+
+    #[test]
+    fn it_steers_left_through_a_left_turn() {
+        // East on y = -1.75, left at the junction (60, 0), north on x = 61.75.
+        let mut scene = Scene::new(
+            &[
+                (15.0, -1.75, 0.0),
+                (61.75, 40.0, std::f32::consts::FRAC_PI_2),
+            ],
+            LightState::Green,
+        );
+        assert!(
+            scene
+                .route
+                .points
+                .iter()
+                .any(|p| p.command == Command::Left)
+        );
+        let ticks = scene.drive(25.0, |_, _| {});
+        // In the junction it steers left: negative steer (positive turns right, as CARLA).
+        let in_junction: Vec<&Tick> = ticks
+            .iter()
+            .filter(|t| (52.0..68.0).contains(&t.state.position.x) && t.state.position.y > -1.0)
+            .collect();
+        assert!(!in_junction.is_empty());
+        let mean_steer =
+            in_junction.iter().map(|t| t.control.steer).sum::<f32>() / in_junction.len() as f32;
+        assert!(mean_steer < -0.1, "mean steer {mean_steer} in the turn");
+        // It comes out heading north on the exit lane.
+        let out = ticks
+            .iter()
+            .find(|t| t.state.position.y > 25.0)
+            .expect("it drove out of the junction northwards");
+        assert!(
+            (out.state.yaw - std::f32::consts::FRAC_PI_2).abs() < 0.1,
+            "yaw {}",
+            out.state.yaw
+        );
+        assert!(
+            (out.state.position.x - 61.75).abs() < 0.5,
+            "x {}",
+            out.state.position.x
+        );
     }
 }

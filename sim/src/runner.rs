@@ -25,16 +25,15 @@ use world::pedestrian::PedestrianParams;
 use world::physics::Party;
 use world::planner::{DenseRoute, PlannerConfig, plan_route};
 use world::route::RouteFile;
+use world::rules::{RouteStops, route_ahead, route_s_at};
 use world::traffic::{EgoStart, Traffic, TrafficConfig};
 use world::traffic_light::{LightController, LightTiming};
-use world::vehicle::VehicleControl;
 use world::xodr_map::{LoadOptions, UnsignalledJunctions, load_xodr_file};
 use world::{ActorKind, ActorSnapshot, LightIdx, LightState, Town, Vec2};
 
 use crate::camera::{Camera, CameraFrame};
 use crate::delay::{DelayLine, DelayTiming};
-use crate::driver::{Control, Driver, Observation, Privileged, RgbImage};
-use crate::expert::{RouteStop, stops_on_route};
+use crate::driver::{Driver, Observation, Privileged, RgbImage, VehicleControl};
 use crate::monitors::blocked::BlockedMonitor;
 use crate::monitors::collision::CollisionMonitor;
 use crate::monitors::lane_crossing::LaneCrossingMonitor;
@@ -55,9 +54,9 @@ use crate::selector::{ResolutionSelector, SelectorInput};
 const TIMEOUT_S_PER_M: f64 = 0.8;
 const TIMEOUT_EXTRA_S: f64 = 30.0;
 /// How far ahead along the route the expert looks for actors (metres).
-const AHEAD_RANGE_M: f32 = 40.0;
+pub(crate) const AHEAD_RANGE_M: f32 = 40.0;
 /// Half-width of the corridor around the route for "ahead" (metres).
-const AHEAD_CORRIDOR_M: f32 = 1.4;
+pub(crate) const AHEAD_CORRIDOR_M: f32 = 1.4;
 
 /// A run could not be set up or carried out.
 #[derive(Debug, thiserror::Error)]
@@ -239,22 +238,12 @@ fn selector_input(
     route: &DenseRoute,
     index: usize,
     ego: &ActorSnapshot,
-    stops: &[RouteStop],
+    stops: &RouteStops,
 ) -> SelectorInput {
-    let ego_s = route.points.get(index).map_or(0.0, |p| {
-        p.route_s
-            + (ego.position.truncate() - p.position.truncate()).dot(Vec2::from_angle(p.heading))
-    });
+    let ego_s = route_s_at(route, index, ego.position.truncate());
     SelectorInput {
-        light_ahead_m: stops
-            .iter()
-            .find(|s| s.route_s > ego_s)
-            .map(|s| s.route_s - ego_s),
-        light_behind_m: stops
-            .iter()
-            .rev()
-            .find(|s| s.route_s <= ego_s)
-            .map(|s| ego_s - s.route_s),
+        light_ahead_m: stops.next_after(ego_s).map(|s| s.route_s - ego_s),
+        light_behind_m: stops.last_up_to(ego_s).map(|s| ego_s - s.route_s),
         speed_mps: ego.speed_mps,
     }
 }
@@ -297,6 +286,7 @@ pub fn run(
         vehicles: scenario.traffic.vehicles as usize,
         pedestrians: scenario.traffic.pedestrians as usize,
         seed,
+        tick_s: tick_s as f32,
         pedestrian: PedestrianParams {
             cross_factor: scenario.traffic.cross_factor,
             ..defaults.pedestrian
@@ -315,12 +305,10 @@ pub fn run(
     fill_states(&lights, &mut light_states);
 
     // The monitors.
-    let route_points: Vec<Vec2> = route.points.iter().map(|p| p.position.truncate()).collect();
-    let mut route_monitor =
-        RouteMonitor::new(route_points, scenario.termination.deviation_m as f32);
+    let mut route_monitor = RouteMonitor::new(route, scenario.termination.deviation_m as f32);
     let mut collisions = CollisionMonitor::default();
     let mut lane_crossings = LaneCrossingMonitor::new(&town);
-    let mut red_lights = RedLightMonitor::new(&town);
+    let mut red_lights = RedLightMonitor::new(traffic.rules().clone());
     let mut outside_lane = OutsideLaneMonitor::default();
     let timeout_s = scenario
         .termination
@@ -331,7 +319,7 @@ pub fn run(
         scenario.termination.low_speed_s,
         timeout_s,
     );
-    let stops: Vec<RouteStop> = stops_on_route(&town, route);
+    let stops: RouteStops = traffic.rules().stop_lines.on_route(route);
     let mut infractions: Vec<Infraction> = Vec::new();
     let mut new_infractions: Vec<Infraction> = Vec::new();
 
@@ -389,15 +377,12 @@ pub fn run(
                 None
             };
             let ahead: Option<Ahead> = if needs.privileged {
-                ahead_path.clear();
-                ahead_path.push(ego.position.truncate());
-                let start = route_monitor.index();
-                let start_s = route.points.get(start).map_or(0.0, |p| p.route_s);
-                ahead_path.extend(
-                    route.points[start.min(route.points.len())..]
-                        .iter()
-                        .take_while(|p| p.route_s - start_s <= AHEAD_RANGE_M)
-                        .map(|p| p.position.truncate()),
+                route_ahead(
+                    route,
+                    route_monitor.index(),
+                    ego.position.truncate(),
+                    AHEAD_RANGE_M,
+                    &mut ahead_path,
                 );
                 traffic.nearest_ahead_of_ego(&ahead_path, AHEAD_CORRIDOR_M, AHEAD_RANGE_M)
             } else {
@@ -409,6 +394,7 @@ pub fn run(
                 route_index: route_monitor.index(),
                 ego,
                 lights: &light_states,
+                stops: &stops,
                 ahead,
                 vehicle: &vehicle,
             };
@@ -441,18 +427,11 @@ pub fn run(
         }
 
         // 2. Latch the control in force.
-        let control: Control = delay.control_for_step(tick);
-        traffic.set_ego_control(VehicleControl {
-            steer: control.steer,
-            throttle: control.throttle,
-            brake: control.brake,
-        });
+        let control: VehicleControl = delay.control_for_step(tick);
+        traffic.set_ego_control(control);
 
         // 3. Traffic and physics.
-        let prev = EgoPose {
-            position: ego.position.truncate(),
-            heading: ego.heading,
-        };
+        let prev = EgoPose::from(&ego);
         let started = Instant::now();
         let events = traffic.step(&light_states);
         contacts.clear();
@@ -467,7 +446,7 @@ pub fn run(
             .ego()
             .ok_or_else(|| RunError::Setup("the ego vanished".into()))?;
         let now = EgoPose {
-            position: e.state.position,
+            position: e.state.position.extend(e.z),
             heading: e.state.yaw,
         };
         let ego_tick = EgoTick {
@@ -578,7 +557,7 @@ pub fn run(
             progress(completion);
             last_progress = completion;
         }
-        if termination.is_some() || route_monitor.succeeded(now.position) {
+        if termination.is_some() || route_monitor.succeeded(now.ground()) {
             break;
         }
     }

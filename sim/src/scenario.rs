@@ -123,7 +123,10 @@ pub enum LatencyModel {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TimingSpec {
-    /// Physics tick (seconds).
+    /// Physics tick (seconds): the world (vehicle model, physics, walkers)
+    /// advances this much a tick. Rules that PROTOCOL gives per tick (an NPC
+    /// stopped 40 ticks is respawned, a walker picks a new goal with
+    /// p = 0.02 a tick) stay per tick.
     pub tick_s: f64,
     /// Camera rate (frames per second); must divide the tick rate.
     pub camera_hz: f64,

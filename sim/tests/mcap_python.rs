@@ -10,7 +10,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use sim::driver::{Control, RgbImage};
+use sim::driver::{RgbImage, VehicleControl};
 use sim::expert::{Expert, ExpertParams};
 use sim::monitors::{Infraction, InfractionKind};
 use sim::recorder::{RecordOptions, Recorder, tick_ns};
@@ -96,7 +96,7 @@ fn python_mcap_reads_and_validates_a_log_of_the_real_loop() {
         bev: true,
     };
     let mut rec = Recorder::create(&path, options, &prepared.town).unwrap();
-    let mut driver = Expert::new(&prepared.town, &prepared.route, ExpertParams::default());
+    let mut driver = Expert::new(ExpertParams::default());
     let mut selector = Fixed { scale: 1.0 };
     let record = runner::run(
         &scenario,
@@ -184,12 +184,12 @@ fn python_mcap_reads_and_validates_every_topic() {
         rec.bev(t, &image).unwrap();
         rec.control(
             t,
-            Some(Control {
+            Some(VehicleControl {
                 steer: 0.0,
                 throttle: 0.7,
                 brake: 0.0,
             }),
-            Control::default(),
+            VehicleControl::default(),
         )
         .unwrap();
         rec.ego_state(t, &ego, world::Command::LaneFollow, 1.0, 50.0)

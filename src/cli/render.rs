@@ -11,7 +11,7 @@ use sim::render::image::save_png;
 use sim::render::{EgoPose, RigConfig, demo, measure};
 use sim::runner::{self, RunInputs};
 use sim::scenario::Scenario;
-use world::{ActorSnapshot, LightState, Town, Vec2};
+use world::{ActorSnapshot, LightState, rules};
 
 /// `mrdrive render-demo`: a hand-made junction scene, rendered.
 #[derive(Debug, Args)]
@@ -257,29 +257,30 @@ fn render_at(a: &RenderAtArgs) -> Result<()> {
         ego.heading.to_degrees(),
         moment.actors.first().map_or(0.0, |e| e.speed_mps),
     );
-    match light_ahead(&prepared.town, &ego, &moment.lights) {
+    match light_ahead(&prepared, &ego, &moment.lights) {
         Some((d, state)) => println!("light ahead   {d:.1} m, {state:?}"),
-        None => println!("light ahead   none facing the ego within 60 m"),
+        None => println!("light ahead   no stop line on the route within 60 m"),
     }
     println!("camera        {}", camera.backend());
     Ok(())
 }
 
-/// The nearest traffic light within 60 m ahead of the ego (within 35 deg of
-/// its heading) that faces it: distance (metres) and state.
-fn light_ahead(town: &Town, ego: &EgoPose, states: &[LightState]) -> Option<(f32, LightState)> {
-    let fwd = Vec2::from_angle(ego.heading);
-    town.lights
-        .iter()
-        .enumerate()
-        .filter_map(|(i, l)| {
-            let to = (l.position - ego.position).truncate();
-            let d = to.length();
-            let ahead = to.dot(fwd) > d * 35f32.to_radians().cos();
-            let facing = Vec2::from_angle(l.heading).dot(fwd) < -0.7;
-            (d < 60.0 && ahead && facing).then(|| (d, states.get(i).copied().unwrap_or_default()))
-        })
-        .min_by(|a, b| a.0.total_cmp(&b.0))
+/// The next stop line of the route within 60 m ahead of the ego, as the
+/// rule book has it (the route's stop lines, the ego's distance along the
+/// route from its nearest route point): distance along the route from the
+/// ego's centre (metres) and the light's state.
+fn light_ahead(
+    prepared: &runner::Prepared,
+    ego: &EgoPose,
+    states: &[LightState],
+) -> Option<(f32, LightState)> {
+    let route = &prepared.route;
+    let (index, _) = rules::nearest_route_point(route, ego.ground(), 0, route.points.len())?;
+    let ego_s = rules::route_s_at(route, index, ego.ground());
+    let stops = rules::StopLines::new(&prepared.town).on_route(route);
+    let stop = stops.next_after(ego_s)?;
+    let d = stop.route_s - ego_s;
+    (d <= 60.0).then(|| (d, rules::light_state(states, stop.light)))
 }
 
 /// `bench render --scenario`: rig fps along a scenario's route, one pose

@@ -1,24 +1,11 @@
-//! Queries on the lane graph: lane geometry by arc length, the nearest lane
-//! to a point, and strong connectivity.
+//! Queries on the lane graph: lane geometry by arc length, projection onto a
+//! lane, and strong connectivity. The lane under a point is a rule:
+//! [`crate::rules::lanes`].
 
 use glam::{Vec2, Vec3};
 
-use crate::geometry::{project_to_polyline, wrap_angle};
+use crate::geometry::{PolylineProjection, project_to_polyline};
 use crate::town::{DriveLane, LaneIdx, Town};
-
-/// A place on a lane: the lane, the arc length along it and how far the query
-/// point was from its centreline.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LanePoint {
-    /// The lane.
-    pub lane: LaneIdx,
-    /// Arc length along the lane (metres).
-    pub s: f32,
-    /// Distance from the query point to the centreline (metres).
-    pub distance_m: f32,
-    /// Signed lateral offset from the centreline, positive to the left (metres).
-    pub offset_m: f32,
-}
 
 impl DriveLane {
     /// The lane's length along its centreline (metres).
@@ -36,7 +23,56 @@ impl DriveLane {
         crate::geometry::heading_at(&self.centerline, &self.s, s)
     }
 
-    /// Lane width at arc length `s` (metres).
+    /// The pose at arc length `s` (metres), clamped to the lane: the ground
+    /// point (metres), the driving heading (radians) and the height (metres).
+    pub fn pose_at(&self, s: f32) -> (Vec2, f32, f32) {
+        let p = self.point_at(s);
+        (p.truncate(), self.heading_at(s), p.z)
+    }
+
+    /// Where `p` (ground plane) projects onto the centreline; `None` for a
+    /// lane without points. Its `s` is the lane's arc length (interpolated in
+    /// [`DriveLane::s`], the measure [`DriveLane::point_at`] takes).
+    pub fn project(&self, p: Vec2) -> Option<PolylineProjection> {
+        self.project_slice(p, 0, self.centerline.len())
+    }
+
+    /// Arc length (metres) of the projection of `p` onto the centreline
+    /// points within `window_m` metres of arc length `around_s` (a vehicle
+    /// tracking its lane searches near where it was); `None` for a lane with
+    /// fewer than two points.
+    pub fn project_near(&self, p: Vec2, around_s: f32, window_m: f32) -> Option<f32> {
+        let n = self.centerline.len();
+        if n < 2 {
+            return None;
+        }
+        let lo = self
+            .s
+            .partition_point(|&x| x < around_s - window_m)
+            .saturating_sub(1)
+            .min(n - 2);
+        let hi = (self.s.partition_point(|&x| x <= around_s + window_m) + 1)
+            .max(lo + 2)
+            .min(n);
+        self.project_slice(p, lo, hi).map(|pr| pr.s)
+    }
+
+    /// [`project_to_polyline`] on the centreline points `lo..hi`, with the
+    /// segment index and `s` in the whole lane's terms.
+    fn project_slice(&self, p: Vec2, lo: usize, hi: usize) -> Option<PolylineProjection> {
+        let mut pr = project_to_polyline(&self.centerline[lo..hi], p)?;
+        pr.segment += lo;
+        let i = pr.segment;
+        pr.s = match (self.s.get(i), self.s.get(i + 1)) {
+            (Some(&a), Some(&b)) => a + pr.t * (b - a),
+            (Some(&a), None) => a,
+            _ => pr.s,
+        };
+        Some(pr)
+    }
+
+    /// Lane width at arc length `s` (metres): the width at the centreline
+    /// point at or before `s`. The one width lookup of every lane rule.
     pub fn width_at(&self, s: f32) -> f32 {
         let i = self
             .s
@@ -51,43 +87,6 @@ impl Town {
     /// The lane at `idx`.
     pub fn lane(&self, idx: LaneIdx) -> &DriveLane {
         &self.lanes[idx.0 as usize]
-    }
-
-    /// The driving lane nearest to `p` (ground plane). With `heading`
-    /// (radians), lanes whose driving direction differs by more than 90
-    /// degrees at the projection are passed over when any lane within 3 m
-    /// of `p` agrees. `None` only for a town without lanes.
-    pub fn nearest_lane(&self, p: Vec2, heading: Option<f32>) -> Option<LanePoint> {
-        let mut all: Vec<LanePoint> = Vec::new();
-        for (i, l) in self.lanes.iter().enumerate() {
-            if let Some(pr) = project_to_polyline(&l.centerline, p) {
-                all.push(LanePoint {
-                    lane: LaneIdx(i as u32),
-                    s: pr.s,
-                    distance_m: pr.distance,
-                    offset_m: pr.offset,
-                });
-            }
-        }
-        let best_any = all
-            .iter()
-            .copied()
-            .min_by(|a, b| a.distance_m.total_cmp(&b.distance_m))?;
-        if let Some(h) = heading {
-            let agree = all
-                .iter()
-                .copied()
-                .filter(|lp| lp.distance_m <= best_any.distance_m.max(0.0) + 3.0)
-                .filter(|lp| {
-                    wrap_angle(self.lane(lp.lane).heading_at(lp.s) - h).abs()
-                        < std::f32::consts::FRAC_PI_2
-                })
-                .min_by(|a, b| a.distance_m.total_cmp(&b.distance_m));
-            if let Some(a) = agree {
-                return Some(a);
-            }
-        }
-        Some(best_any)
     }
 
     /// Strongly connected components of the driving-lane graph (successor
@@ -164,21 +163,10 @@ mod tests {
     use crate::town::*;
 
     fn lane(pts: &[(f32, f32)], succ: &[u32]) -> DriveLane {
-        let centerline: Vec<Vec3> = pts.iter().map(|&(x, y)| Vec3::new(x, y, 0.0)).collect();
-        let s = crate::geometry::arc_lengths(&centerline);
-        let n = centerline.len();
+        let pts: Vec<Vec2> = pts.iter().map(|&(x, y)| Vec2::new(x, y)).collect();
         DriveLane {
-            road_id: "r".into(),
-            od_lane: -1,
-            centerline,
-            s,
-            width: vec![3.5; n],
-            speed_limit_mps: 10.0,
-            junction: None,
             successors: succ.iter().map(|&i| LaneIdx(i)).collect(),
-            predecessors: vec![],
-            left: None,
-            right: None,
+            ..crate::testtown::lane_through(&pts)
         }
     }
 
@@ -190,7 +178,7 @@ mod tests {
     }
 
     #[test]
-    fn components_and_nearest_lane() {
+    fn components_and_projection() {
         // 0 -> 1 -> 0 is a cycle; 2 is a dead end reached from 1.
         let t = town(vec![
             lane(&[(0.0, 0.0), (10.0, 0.0)], &[1]),
@@ -200,13 +188,20 @@ mod tests {
         let c = t.lane_components();
         assert_eq!(c, vec![vec![LaneIdx(0), LaneIdx(1)], vec![LaneIdx(2)]]);
         assert!(!t.is_strongly_connected());
-        // Near both 0 and 1; heading west prefers lane 1.
-        let west = t
-            .nearest_lane(Vec2::new(5.0, 0.1), Some(std::f32::consts::PI))
-            .unwrap();
-        assert_eq!(west.lane, LaneIdx(1));
-        let east = t.nearest_lane(Vec2::new(5.0, 0.1), Some(0.0)).unwrap();
-        assert_eq!(east.lane, LaneIdx(0));
-        assert!((east.s - 5.0).abs() < 1e-4);
+        let p = t.lane(LaneIdx(0)).project(Vec2::new(5.0, 0.1)).unwrap();
+        assert!((p.s - 5.0).abs() < 1e-4 && (p.offset - 0.1).abs() < 1e-5);
+    }
+
+    #[test]
+    fn projection_near_an_arc_length_searches_only_there() {
+        // Out along +x for 10 m and back 1 m to the side: near x = 2 the lane
+        // passes twice, at s = 2 and s = 19.
+        let mut pts: Vec<(f32, f32)> = (0..=10).map(|i| (i as f32, 0.0)).collect();
+        pts.extend((0..=10).rev().map(|i| (i as f32, 1.0)));
+        let l = &town(vec![lane(&pts, &[])]).lanes[0];
+        let q = Vec2::new(2.0, 0.4);
+        assert!((l.project_near(q, 2.5, 3.0).unwrap() - 2.0).abs() < 1e-4);
+        assert!((l.project_near(q, 18.0, 3.0).unwrap() - 19.0).abs() < 1e-4);
+        assert!((l.project(q).unwrap().s - 2.0).abs() < 1e-4);
     }
 }

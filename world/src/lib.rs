@@ -13,6 +13,10 @@
 //! [`physics`] (rapier3d) keeps every body out of every other. [`testtown`]
 //! builds a small grid town for tests.
 //!
+//! The rules of the road (stop lines, must-stop, the lane under a point, the
+//! route distance of a pose, ...) are written once in [`rules`]; the NPCs,
+//! the expert, the monitors and the labels all call them.
+//!
 //! Coordinates are OpenDRIVE's: right-handed, x east, y north, z up, metres;
 //! headings in radians counter-clockwise from +x. CARLA's left-handed route
 //! files are converted on reading (`y_xodr = -y`, `yaw_xodr = -yaw`).
@@ -31,6 +35,7 @@ pub mod pedestrian;
 pub mod physics;
 pub mod planner;
 pub mod route;
+pub mod rules;
 pub mod soak;
 pub mod testdata;
 pub mod testtown;
@@ -40,13 +45,14 @@ pub mod traffic_light;
 pub mod vehicle;
 pub mod xodr_map;
 
-pub use actor::{ActorKind, ActorSnapshot};
+pub use actor::{ActorKind, ActorSnapshot, EgoPose};
 pub use command::Command;
 pub use error::{MapError, RouteError};
 pub use glam::{Vec2, Vec3};
-pub use lane_graph::LanePoint;
 pub use planner::{DenseRoute, PlannerConfig, RoutePoint, plan_route};
 pub use route::{Route, RouteFile, RouteWaypoint};
+pub use rules::RuleBook;
+pub use rules::lanes::LanePoint;
 pub use town::*;
 pub use traffic_light::{LightController, LightTiming};
 pub use xodr_map::{LoadOptions, LoadReport, UnsignalledJunctions, load_xodr_file, load_xodr_str};

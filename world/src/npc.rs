@@ -9,20 +9,22 @@
 //!   (lowered on curves to keep lateral acceleration below 2.5 m/s^2), with
 //!   obstacles at (a) the nearest actor in its corridor ahead
 //!   ([`crate::ahead::nearest_ahead`]), minimum gap 3.0 m, (b) the stop line
-//!   of a red light, or of a yellow one it can still stop for comfortably,
+//!   of a light it must stop for ([`rules::must_stop`]: red, or a yellow
+//!   one it can still stop for at its comfortable deceleration),
 //!   (c) the entry of a junction it holds no reservation for;
-//! - lateral: pure pursuit on the path from the rear axle, lookahead
-//!   `clamp(2 m + 0.5 s * v, 3.5 m, 10 m)` ([`pursuit_steer`]).
+//! - lateral: pure pursuit on the path from the rear axle
+//!   ([`pursuit_steer`], lookahead [`rules::pursuit_lookahead_m`]).
 //!
-//! Junction yielding: connecting lanes of one junction conflict when their
-//! centrelines come within 3 m of each other. Before entering a junction an
+//! Junction yielding: connecting lanes of one junction conflict as
+//! [`rules::conflicts`] says. Before entering a junction an
 //! NPC requests its connecting lane; [`Reservations`] grants requests in
 //! order of waiting time (then id) when no other vehicle holds a conflicting
 //! lane and the exit lane has room for it ("don't block the box"). The
 //! reservation is released once the vehicle has left the junction.
 
 use crate::ahead::{ActorView, nearest_ahead};
-use crate::lane_path::{LanePath, lane_len};
+use crate::lane_path::LanePath;
+use crate::rules::{self, JunctionConflicts, RuleBook};
 use crate::town::{LaneIdx, LightIdx, LightState, Town};
 use crate::vehicle::{VehicleControl, VehicleParams, VehicleState};
 use glam::Vec2;
@@ -98,64 +100,6 @@ pub struct Npc {
     pub rng: ChaCha8Rng,
 }
 
-/// Static per-town data the NPC driver needs: stop lines per lane and junction conflicts.
-#[derive(Debug, Clone)]
-pub struct RoadRules {
-    /// For each lane, its stop lines: (arc length, light), sorted by arc length.
-    pub stop_lines: Vec<Vec<(f32, LightIdx)>>,
-    /// For each connecting lane, the connecting lanes of its junction it conflicts with.
-    pub conflicts: Vec<Vec<LaneIdx>>,
-}
-
-/// Distance between two centrelines below which connecting lanes conflict (metres).
-const CONFLICT_M: f32 = 3.0;
-
-impl RoadRules {
-    /// Builds the stop-line table and the junction conflict sets of a town.
-    pub fn new(town: &Town) -> RoadRules {
-        let mut stop_lines = vec![Vec::new(); town.lanes.len()];
-        for (li, l) in town.lights.iter().enumerate() {
-            for sl in &l.stop_lines {
-                if let Some(v) = stop_lines.get_mut(sl.lane.0 as usize) {
-                    v.push((sl.s, LightIdx(li as u32)));
-                }
-            }
-        }
-        for v in &mut stop_lines {
-            v.sort_by(|a: &(f32, LightIdx), b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        }
-        let mut conflicts = vec![Vec::new(); town.lanes.len()];
-        let mut by_junction: std::collections::BTreeMap<u32, Vec<usize>> = Default::default();
-        for (i, l) in town.lanes.iter().enumerate() {
-            if let Some(j) = l.junction {
-                by_junction.entry(j.0).or_default().push(i);
-            }
-        }
-        for lanes in by_junction.values() {
-            for (k, &a) in lanes.iter().enumerate() {
-                for &b in &lanes[k + 1..] {
-                    if centrelines_within(town, a, b, CONFLICT_M) {
-                        conflicts[a].push(LaneIdx(b as u32));
-                        conflicts[b].push(LaneIdx(a as u32));
-                    }
-                }
-            }
-        }
-        RoadRules {
-            stop_lines,
-            conflicts,
-        }
-    }
-}
-
-fn centrelines_within(town: &Town, a: usize, b: usize, d: f32) -> bool {
-    let (la, lb) = (&town.lanes[a].centerline, &town.lanes[b].centerline);
-    la.iter().any(|p| {
-        lb.iter()
-            .any(|q| (p.truncate() - q.truncate()).length_squared() < d * d)
-    })
-}
-
 /// Junction reservations: who holds which connecting lane.
 #[derive(Debug, Clone, Default)]
 pub struct Reservations {
@@ -172,8 +116,9 @@ impl Reservations {
 
     /// Whether `lane` can be granted to `id`: no other vehicle holds it or a conflicting lane.
     /// (Several vehicles may hold the same lane: they follow each other.)
-    pub fn free_for(&self, rules: &RoadRules, lane: LaneIdx, id: u32) -> bool {
-        rules.conflicts[lane.0 as usize]
+    pub fn free_for(&self, conflicts: &JunctionConflicts, lane: LaneIdx, id: u32) -> bool {
+        conflicts
+            .of(lane)
             .iter()
             .all(|c| self.holders[c.0 as usize].iter().all(|&h| h == id))
     }
@@ -242,7 +187,7 @@ pub fn next_junction_lane(
             }
             return Some((l, off - params.length_m * 0.5));
         }
-        off += lane_len(town, l);
+        off += town.lane(l).length_m();
         if off > 60.0 {
             break;
         }
@@ -253,7 +198,7 @@ pub fn next_junction_lane(
 /// The first stop line ahead of the front bumper: (path distance from the front bumper, light).
 pub fn next_stop_line(
     town: &Town,
-    rules: &RoadRules,
+    rules: &RuleBook,
     npc: &Npc,
     params: &VehicleParams,
     max_m: f32,
@@ -261,13 +206,13 @@ pub fn next_stop_line(
     let half = params.length_m * 0.5;
     let mut off = -npc.path.s_m;
     for &l in &npc.path.lanes {
-        for &(s, light) in &rules.stop_lines[l.0 as usize] {
-            let d = off + s - half;
+        for line in rules.stop_lines.on_lane(l) {
+            let d = off + line.s - half;
             if d > -0.3 && d < max_m {
-                return Some((d, light));
+                return Some((d, line.light));
             }
         }
-        off += lane_len(town, l);
+        off += town.lane(l).length_m();
         if off > max_m + half {
             break;
         }
@@ -291,33 +236,11 @@ pub struct Scratch {
     pub pts: Vec<Vec2>,
 }
 
-/// Whether an NPC stops for a light whose stop line is `d` metres ahead at
-/// speed `v` (m/s): always on red, on yellow when it can still stop at
-/// `comfort_decel_mps2` (half a metre of slack); a light missing from
-/// `lights` counts as green.
-pub fn must_stop_for_light(
-    lights: &[LightState],
-    light: LightIdx,
-    d: f32,
-    v: f32,
-    comfort_decel_mps2: f32,
-) -> bool {
-    match lights
-        .get(light.0 as usize)
-        .copied()
-        .unwrap_or(LightState::Green)
-    {
-        LightState::Red => true,
-        LightState::Yellow => d > v * v / (2.0 * comfort_decel_mps2) - 0.5,
-        LightState::Green => false,
-    }
-}
-
 /// Decides one NPC's control for this tick. `granted` says whether it holds the reservation for its next junction lane.
 #[allow(clippy::too_many_arguments)]
 pub fn decide(
     town: &Town,
-    rules: &RoadRules,
+    rules: &RuleBook,
     p: &NpcParams,
     vp: &VehicleParams,
     npc: &Npc,
@@ -362,7 +285,12 @@ pub fn decide(
     }
     // Lights.
     if let Some((d, light)) = next_stop_line(town, rules, npc, vp, look) {
-        let stop = must_stop_for_light(lights, light, d, v, p.comfort_decel_mps2);
+        let stop = rules::must_stop(
+            rules::light_state(lights, light),
+            d,
+            v,
+            p.comfort_decel_mps2,
+        );
         if stop {
             accel = accel.min(free + idm_term(p, v, d, 0.0, p.stop_gap_m));
         }
@@ -393,11 +321,6 @@ pub fn decide(
     }
 }
 
-/// Lookahead of the pure pursuit, measured from the rear axle (metres) at a speed (m/s).
-pub fn pursuit_lookahead_m(speed_mps: f32) -> f32 {
-    (2.0 + 0.5 * speed_mps).clamp(3.5, 10.0)
-}
-
 /// Steer that follows the NPC's path: pure pursuit from the rear axle.
 ///
 /// The rear axle moves along the heading (the body centre does not: it
@@ -408,7 +331,7 @@ pub fn pursuit_lookahead_m(speed_mps: f32) -> f32 {
 pub fn pursuit_steer(town: &Town, vp: &VehicleParams, npc: &Npc) -> f32 {
     let forward = Vec2::from_angle(npc.state.yaw);
     let rear = npc.state.position - forward * vp.rear_wb_m;
-    let ld = pursuit_lookahead_m(npc.state.speed_mps);
+    let ld = rules::pursuit_lookahead_m(npc.state.speed_mps);
     let (target, _, _) = npc.path.point_ahead(town, ld - vp.rear_wb_m);
     let rel = target - rear;
     let (dx, dy) = (rel.dot(forward), forward.perp_dot(rel));
@@ -438,63 +361,19 @@ mod tests {
     use crate::testtown::grid;
 
     #[test]
-    fn crossing_connecting_lanes_conflict_and_parallel_right_turns_do_not() {
-        let t = grid(3, 3, 60.0);
-        let rules = RoadRules::new(&t);
-        // In the centre junction (index 4), find a straight east-bound lane and a
-        // straight north-bound lane: they cross.
-        let dir = |l: &crate::town::DriveLane| {
-            let a = l.centerline[0].truncate();
-            let b = l.centerline.last().unwrap().truncate();
-            (b - a).normalize()
-        };
-        let jl: Vec<usize> = (0..t.lanes.len())
-            .filter(|&i| t.lanes[i].junction == Some(crate::town::JunctionIdx(4)))
-            .collect();
-        assert_eq!(jl.len(), 12);
-        let east = *jl.iter().find(|&&i| dir(&t.lanes[i]).x > 0.99).unwrap();
-        let north = *jl.iter().find(|&&i| dir(&t.lanes[i]).y > 0.99).unwrap();
-        assert!(rules.conflicts[east].contains(&LaneIdx(north as u32)));
-        // Two right turns from opposite approaches never come close.
-        let rights: Vec<usize> = jl
-            .iter()
-            .copied()
-            .filter(|&i| {
-                let l = &t.lanes[i];
-                let d0 = (l.centerline[1] - l.centerline[0]).truncate();
-                let n = l.centerline.len();
-                let d1 = (l.centerline[n - 1] - l.centerline[n - 2]).truncate();
-                d0.perp_dot(d1) < -0.5 * d0.length() * d1.length()
-            })
-            .collect();
-        assert_eq!(rights.len(), 4);
-        let conflicts_among_rights = rights
-            .iter()
-            .filter(|&&a| {
-                rights
-                    .iter()
-                    .any(|&b| rules.conflicts[a].contains(&LaneIdx(b as u32)))
-            })
-            .count();
-        assert_eq!(conflicts_among_rights, 0);
-        // Stop lines are indexed by lane.
-        let sl = &t.lights[0].stop_lines[0];
-        assert_eq!(rules.stop_lines[sl.lane.0 as usize][0].0, sl.s);
-    }
-
-    #[test]
     fn reservations_block_conflicts_only() {
         let t = grid(3, 3, 60.0);
-        let rules = RoadRules::new(&t);
+        let conflicts = JunctionConflicts::new(&t);
         let mut r = Reservations::new(t.lanes.len());
         let a = (0..t.lanes.len())
-            .find(|&i| !rules.conflicts[i].is_empty())
+            .map(|i| LaneIdx(i as u32))
+            .find(|&l| !conflicts.of(l).is_empty())
             .unwrap();
-        let b = rules.conflicts[a][0];
-        r.grant(LaneIdx(a as u32), 1);
-        assert!(!r.free_for(&rules, b, 2));
-        assert!(r.free_for(&rules, LaneIdx(a as u32), 2));
-        r.release(LaneIdx(a as u32), 1);
-        assert!(r.free_for(&rules, b, 2));
+        let b = conflicts.of(a)[0];
+        r.grant(a, 1);
+        assert!(!r.free_for(&conflicts, b, 2));
+        assert!(r.free_for(&conflicts, a, 2));
+        r.release(a, 1);
+        assert!(r.free_for(&conflicts, b, 2));
     }
 }

@@ -23,7 +23,7 @@
 //! away by steering. Every blocked sweep is a contact; [`Physics::end_tick`]
 //! turns the tick's contacts into [`ContactEvent`]s that name both parties.
 //! After the moves the kinematic bodies get their new poses and the rapier
-//! pipeline steps (dt = 1/40 s), so rapier's broad phase and query pipeline
+//! pipeline steps (by the step given to [`Physics::new`]), so rapier's broad phase and query pipeline
 //! ([`Physics::world`]) always reflect the current scene for ray and shape casts.
 //!
 //! Pedestrians do not collide with pedestrians, curbs or buildings (they
@@ -38,7 +38,8 @@ use rapier3d::parry::shape::{Capsule, Cuboid, Shape};
 use rapier3d::prelude::*;
 use std::collections::BTreeMap;
 
-/// The fixed simulation step (seconds): 40 Hz.
+/// The default simulation step (seconds): 40 Hz (PROTOCOL §1). A run steps
+/// by its scenario's `timing.tick_s` (see [`Physics::new`]).
 pub const DT_S: f32 = 0.025;
 /// Gap left between bodies when a sweep stops at a contact (metres).
 pub const SKIN_M: f32 = 0.02;
@@ -184,11 +185,12 @@ pub struct Physics {
 }
 
 impl Physics {
-    /// A world with the town's static colliders (buildings, light poles, curbs) and no actors.
-    pub fn new(town: &Town) -> Physics {
+    /// A world with the town's static colliders (buildings, light poles,
+    /// curbs) and no actors, stepping `dt_s` seconds a tick.
+    pub fn new(town: &Town, dt_s: f32) -> Physics {
         let mut world = PhysicsWorld::new();
         world.gravity = Vec3::new(0.0, 0.0, -9.81);
-        world.integration_parameters.dt = DT_S;
+        world.integration_parameters.dt = dt_s;
         let ground_z = town
             .lanes
             .first()
@@ -754,7 +756,7 @@ mod tests {
 
     #[test]
     fn car_driven_into_a_wall_stops_without_penetrating() {
-        let mut ph = Physics::new(&walled_town());
+        let mut ph = Physics::new(&walled_town(), DT_S);
         ph.add_vehicle(0, ActorKind::Ego, car(), Vec2::new(0.0, 0.0), 0.0, 0.0);
         let mut hit_at = None;
         for t in 0..200 {
@@ -789,7 +791,7 @@ mod tests {
 
     #[test]
     fn car_hitting_a_wall_at_an_angle_slides_and_can_steer_away() {
-        let mut ph = Physics::new(&walled_town());
+        let mut ph = Physics::new(&walled_town(), DT_S);
         let yaw0 = 0.5f32;
         ph.add_vehicle(0, ActorKind::Ego, car(), Vec2::new(14.0, 0.0), 0.0, yaw0);
         let mut hit = false;
@@ -817,7 +819,7 @@ mod tests {
 
     #[test]
     fn car_driven_into_another_car_stops_and_names_both() {
-        let mut ph = Physics::new(&walled_town());
+        let mut ph = Physics::new(&walled_town(), DT_S);
         ph.add_vehicle(0, ActorKind::Ego, car(), Vec2::new(-20.0, 0.0), 0.0, 0.0);
         ph.add_vehicle(3, ActorKind::Vehicle, car(), Vec2::new(-8.0, 0.5), 0.0, 0.2);
         let mut events = Vec::new();
@@ -859,7 +861,7 @@ mod tests {
 
     #[test]
     fn pedestrians_pass_each_other_but_not_cars() {
-        let mut ph = Physics::new(&walled_town());
+        let mut ph = Physics::new(&walled_town(), DT_S);
         ph.add_pedestrian(5, Vec2::new(0.0, 0.0), 0.0);
         ph.add_pedestrian(6, Vec2::new(0.3, 0.0), 0.0);
         let out = ph.move_actor(5, Vec2::new(1.0, 0.0), 0.0);

@@ -174,7 +174,7 @@ pub fn plan_route(
     }
     let mut snapped = Vec::new();
     for (i, w) in route.waypoints.iter().enumerate() {
-        let lp = town.nearest_lane(w.position.truncate(), w.yaw_rad);
+        let lp = crate::rules::nearest_lane(town, w.position.truncate(), w.yaw_rad);
         match lp {
             Some(lp) if lp.distance_m <= cfg.max_snap_m => snapped.push((lp.lane, lp.s)),
             other => {
@@ -579,20 +579,10 @@ mod tests {
     use std::path::PathBuf;
 
     fn lane(pts: Vec<Vec3>, junction: Option<u32>) -> DriveLane {
-        let s = crate::geometry::arc_lengths(&pts);
-        let n = pts.len();
+        let pts: Vec<Vec2> = pts.iter().map(|p| p.truncate()).collect();
         DriveLane {
-            road_id: "r".into(),
-            od_lane: -1,
-            centerline: pts,
-            s,
-            width: vec![3.5; n],
-            speed_limit_mps: 10.0,
             junction: junction.map(JunctionIdx),
-            successors: vec![],
-            predecessors: vec![],
-            left: None,
-            right: None,
+            ..crate::testtown::lane_through(&pts)
         }
     }
 

@@ -43,7 +43,8 @@ pub fn soak(
     lights: &mut dyn FnMut(u64, &mut Vec<LightState>),
 ) -> SoakReport {
     let mut traffic = Traffic::new(town, cfg.clone(), None);
-    let ticks = (minutes * 60.0 / crate::physics::DT_S as f64).round() as u64;
+    let tick_s = f64::from(cfg.tick_s);
+    let ticks = (minutes * 60.0 / tick_s).round() as u64;
     let mut states = Vec::new();
     let mut wall = 0.0f64;
     let cpu0 = thread_cpu_s();
@@ -59,7 +60,7 @@ pub fn soak(
         pedestrians: (cfg.pedestrians, traffic.realised_pedestrians()),
         pedestrians_alive: traffic.pedestrians.len(),
         ticks,
-        sim_s: ticks as f64 * crate::physics::DT_S as f64,
+        sim_s: ticks as f64 * tick_s,
         step_wall_s: wall,
         ticks_per_s: if wall > 0.0 { ticks as f64 / wall } else { 0.0 },
         cpu_s,

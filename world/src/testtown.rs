@@ -14,6 +14,8 @@
 //! [`FixtureLights`] cycles the lit junctions on a fixed timetable, standing
 //! in for the real controller in tests.
 
+use crate::command::Command;
+use crate::planner::{DenseRoute, RoutePoint};
 use crate::town::*;
 use glam::{Vec2, Vec3};
 
@@ -246,6 +248,67 @@ pub fn grid(nx: usize, ny: usize, block_m: f32) -> Town {
         buildings,
         road_surface: Mesh::default(),
         bounds: (node(0, 0) - margin, node(nx - 1, ny - 1) + margin),
+    }
+}
+
+/// A plain lane along the polyline `points` (ground plane, metres), for
+/// hand-made towns in tests: 3.5 m wide, the fixture's speed limit, no
+/// junction, no neighbours; set other fields with struct update syntax.
+pub fn lane_through(points: &[Vec2]) -> DriveLane {
+    make_lane(points, None, "hand".to_string(), -1)
+}
+
+/// The route a planner gives through `waypoints` (x, y in metres, heading
+/// in radians) on `town`, for tests and scripted scenes.
+pub fn planned_route(
+    town: &Town,
+    waypoints: &[(f32, f32, f32)],
+) -> Result<DenseRoute, crate::error::RouteError> {
+    let route = crate::route::Route {
+        id: "planned".into(),
+        town: None,
+        waypoints: waypoints
+            .iter()
+            .map(|&(x, y, yaw)| crate::route::RouteWaypoint {
+                position: Vec3::new(x, y, 0.0),
+                yaw_rad: Some(yaw),
+            })
+            .collect(),
+        source: "testtown::planned_route".into(),
+    };
+    crate::planner::plan_route(town, &route, &crate::planner::PlannerConfig::default())
+}
+
+/// A dense route along the polyline `points` (ground plane, metres), for
+/// tests and scripted scenes that need no lanes: headings along the
+/// segments, every point on lane 0 with `s` = `route_s` = the distance along
+/// the points, commands `LaneFollow`.
+pub fn route_through(points: &[Vec2]) -> DenseRoute {
+    let mut pts = Vec::with_capacity(points.len());
+    let mut acc = 0.0;
+    for (i, p) in points.iter().enumerate() {
+        if i > 0 {
+            acc += points[i - 1].distance(*p);
+        }
+        let d = match (i.checked_sub(1), points.get(i + 1)) {
+            (_, Some(next)) => *next - *p,
+            (Some(prev), None) => *p - points[prev],
+            (None, None) => Vec2::X,
+        };
+        pts.push(RoutePoint {
+            position: p.extend(0.0),
+            heading: d.y.atan2(d.x),
+            lane: LaneIdx(0),
+            s: acc,
+            command: Command::LaneFollow,
+            route_s: acc,
+        });
+    }
+    DenseRoute {
+        id: "route-through".into(),
+        points: pts,
+        length_m: acc,
+        waypoint_points: vec![0, points.len().saturating_sub(1)],
     }
 }
 

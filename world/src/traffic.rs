@@ -2,8 +2,9 @@
 //!
 //! [`Traffic`] owns the [`Physics`], the NPC vehicles and the pedestrians.
 //! It spawns the requested counts from a seed (reporting what it realised),
-//! and [`Traffic::step`] advances everything one 40 Hz tick given the light
-//! states (indexed by `LightIdx`). Within a tick the order is fixed:
+//! and [`Traffic::step`] advances everything one tick of
+//! [`TrafficConfig::tick_s`] (the scenario's, 40 Hz by default) given the
+//! light states (indexed by `LightIdx`). Within a tick the order is fixed:
 //! everyone decides from the start-of-tick state; junction reservations are
 //! granted; the ego, then the NPCs (by id), then the pedestrians (by id) are
 //! moved through the physics; NPC paths advance; stuck NPCs are respawned;
@@ -15,12 +16,13 @@
 
 use crate::actor::{ActorKind, ActorSnapshot};
 use crate::ahead::{ActorView, Ahead, nearest_ahead};
-use crate::lane_path::{LaneIndex, LanePath, lane_len, lane_point};
-use crate::npc::{self, Npc, NpcParams, Reservations, RoadRules, Scratch};
+use crate::lane_path::LanePath;
+use crate::npc::{self, Npc, NpcParams, Reservations, Scratch};
 use crate::pedestrian::{Pedestrian, PedestrianParams, WalkGraph};
 use crate::physics::{
     ContactEvent, DT_S, PEDESTRIAN_HEIGHT_M, PEDESTRIAN_RADIUS_M, Party, Physics,
 };
+use crate::rules::{self, RuleBook};
 use crate::town::{LaneIdx, LightState, Town};
 use crate::vehicle::{VehicleControl, VehicleParams, VehicleState};
 use glam::{Vec2, Vec3};
@@ -28,8 +30,8 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::sync::Arc;
 
-/// What to put in the town.
-#[derive(Debug, Clone, PartialEq, Default)]
+/// What to put in the town, and the step it moves by.
+#[derive(Debug, Clone, PartialEq)]
 pub struct TrafficConfig {
     /// NPC vehicles requested.
     pub vehicles: usize,
@@ -43,6 +45,23 @@ pub struct TrafficConfig {
     pub npc: NpcParams,
     /// The walkers.
     pub pedestrian: PedestrianParams,
+    /// The simulation step: each [`Traffic::step`] advances this much
+    /// (seconds; the scenario's `timing.tick_s`, [`DT_S`] by default).
+    pub tick_s: f32,
+}
+
+impl Default for TrafficConfig {
+    fn default() -> Self {
+        TrafficConfig {
+            vehicles: 0,
+            pedestrians: 0,
+            seed: 0,
+            vehicle: VehicleParams::default(),
+            npc: NpcParams::default(),
+            pedestrian: PedestrianParams::default(),
+            tick_s: DT_S,
+        }
+    }
 }
 
 /// The ego's starting pose.
@@ -55,6 +74,11 @@ pub struct EgoStart {
     /// Heading (radians).
     pub yaw: f32,
 }
+
+/// An NPC stopped this long counts as a deadlock (seconds).
+const DEADLOCK_S: f32 = 60.0;
+/// A walker held up by a vehicle this long turns back (seconds).
+const WALKER_PATIENCE_S: f32 = 0.5;
 
 /// Counters the soak and the reports read.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -96,9 +120,8 @@ pub struct Traffic {
     cfg: TrafficConfig,
     /// The physics world.
     pub physics: Physics,
-    rules: RoadRules,
+    rules: Arc<RuleBook>,
     reservations: Reservations,
-    lane_index: LaneIndex,
     walk: WalkGraph,
     ego: Option<Ego>,
     /// The NPC vehicles, by id.
@@ -121,16 +144,15 @@ fn actor_rng(seed: u64, id: u32) -> ChaCha8Rng {
 impl Traffic {
     /// Builds the world and spawns the ego (if given), then the NPCs and pedestrians from the seed.
     pub fn new(town: Arc<Town>, cfg: TrafficConfig, ego: Option<EgoStart>) -> Traffic {
-        let physics = Physics::new(&town);
-        let rules = RoadRules::new(&town);
+        let physics = Physics::new(&town, cfg.tick_s);
+        let rules = Arc::new(RuleBook::new(&town));
         let reservations = Reservations::new(town.lanes.len());
-        let lane_index = LaneIndex::new(&town, 5.0);
         let walk = WalkGraph::new(&town, &cfg.pedestrian);
         let min_len = cfg.vehicle.length_m + 4.0;
         let spawn_lanes = (0..town.lanes.len())
             .filter(|&i| {
                 town.lanes[i].junction.is_none()
-                    && lane_len(&town, LaneIdx(i as u32)) > min_len
+                    && town.lanes[i].length_m() > min_len
                     && !town.lanes[i].successors.is_empty()
             })
             .map(|i| LaneIdx(i as u32))
@@ -141,7 +163,6 @@ impl Traffic {
             physics,
             rules,
             reservations,
-            lane_index,
             walk,
             ego: None,
             npcs: Vec::new(),
@@ -179,9 +200,9 @@ impl Traffic {
         let half = self.cfg.vehicle.length_m * 0.5;
         for _ in 0..tries {
             let lane = self.spawn_lanes[rng.random_range(0..self.spawn_lanes.len())];
-            let len = lane_len(&self.town, lane);
-            let s = rng.random_range(half + 1.0..len - half - 1.0);
-            let (p, yaw, z) = lane_point(&self.town, lane, s);
+            let l = self.town.lane(lane);
+            let s = rng.random_range(half + 1.0..l.length_m() - half - 1.0);
+            let (p, yaw, z) = l.pose_at(s);
             if self.physics.vehicle_fits(
                 self.vehicle_size(),
                 p,
@@ -276,14 +297,18 @@ impl Traffic {
         self.stats
     }
 
-    /// Puts NPC number `index` (in [`Traffic::npcs`]) at rest at the start of `path`, extended with random successors; drops its reservation and request. For tests and scripted scenes: the caller checks that the spot is free.
+    /// Puts NPC number `index` (in [`Traffic::npcs`]) at rest at the start
+    /// of `path`, extended with random successors from its own stream; drops
+    /// its reservation and request and clears its stuck counters. Respawns
+    /// go through here; tests and scripted scenes call it directly (the
+    /// caller checks that the spot is free).
     pub fn place_npc(&mut self, index: usize, path: LanePath) {
         let n = &mut self.npcs[index];
         let id = n.id;
         if let Some(r) = n.reservation.take() {
             self.reservations.release(r, id);
         }
-        let (p, yaw, z) = lane_point(&self.town, path.lane(), path.s_m);
+        let (p, yaw, z) = self.town.lane(path.lane()).pose_at(path.s_m);
         n.state = VehicleState::at_rest(p, yaw);
         n.ground_z = z;
         n.path = path;
@@ -300,8 +325,10 @@ impl Traffic {
         &self.reservations
     }
 
-    /// The stop lines and junction conflicts the NPCs obey.
-    pub fn road_rules(&self) -> &RoadRules {
+    /// The town's rule tables (stop lines, junction conflicts, the lane
+    /// grid), built once by [`Traffic::new`]; share them rather than build
+    /// them again.
+    pub fn rules(&self) -> &Arc<RuleBook> {
         &self.rules
     }
 
@@ -332,9 +359,10 @@ impl Traffic {
             z: start.z,
             control: VehicleControl::BRAKE,
             lane: self
-                .lane_index
-                .locate(&self.town, start.position, start.yaw, 0.5)
-                .map(|(l, s, _)| (l, s)),
+                .rules
+                .lanes
+                .lane_under(&self.town, start.position, start.yaw)
+                .map(|lp| (lp.lane, lp.s)),
         });
         self.refresh_views();
     }
@@ -352,13 +380,6 @@ impl Traffic {
         max_m: f32,
     ) -> Option<Ahead> {
         nearest_ahead(path, &self.views, Some(0), corridor_half_m, max_m)
-    }
-
-    /// The lane under a point for a heading: (lane, arc length) (metres).
-    pub fn locate_lane(&self, p: Vec2, heading: f32) -> Option<(LaneIdx, f32)> {
-        self.lane_index
-            .locate(&self.town, p, heading, 0.5)
-            .map(|(l, s, _)| (l, s))
     }
 
     /// The contact events of the last tick.
@@ -459,8 +480,12 @@ impl Traffic {
         let v = n.state.speed_mps;
         npc::next_stop_line(&self.town, &self.rules, n, &self.cfg.vehicle, 80.0).map(
             |(d, light)| {
-                let stop =
-                    npc::must_stop_for_light(lights, light, d, v, self.cfg.npc.comfort_decel_mps2);
+                let stop = rules::must_stop(
+                    rules::light_state(lights, light),
+                    d,
+                    v,
+                    self.cfg.npc.comfort_decel_mps2,
+                );
                 (stop, d, light)
             },
         )
@@ -558,10 +583,10 @@ impl Traffic {
                 continue;
             }
             // An older request that is waiting for a conflicting lane goes first: no overtaking it.
-            let queued_behind = waiting.iter().any(|&w: &LaneIdx| {
-                w == lane || self.rules.conflicts[lane.0 as usize].contains(&w)
-            });
-            if queued_behind || !self.reservations.free_for(&self.rules, lane, id) {
+            let queued_behind = waiting
+                .iter()
+                .any(|&w: &LaneIdx| w == lane || self.rules.conflicts.of(lane).contains(&w));
+            if queued_behind || !self.reservations.free_for(&self.rules.conflicts, lane, id) {
                 waiting.push(lane);
                 continue;
             }
@@ -606,9 +631,10 @@ impl Traffic {
         }
     }
 
-    /// Advances the world one 40 Hz tick; `lights` are the light states by `LightIdx` (a light beyond the slice's end counts as green). Returns the tick's contacts.
+    /// Advances the world one tick of [`TrafficConfig::tick_s`]; `lights` are the light states by `LightIdx` (a light beyond the slice's end counts as green). Returns the tick's contacts.
     pub fn step(&mut self, lights: &[LightState]) -> &[ContactEvent] {
         let vp = self.cfg.vehicle;
+        let dt = self.cfg.tick_s;
         self.update_reservations(lights);
         // Decide.
         let mut decisions = Vec::with_capacity(self.npcs.len());
@@ -626,12 +652,12 @@ impl Traffic {
         }
         let mut ped_targets = Vec::with_capacity(self.pedestrians.len());
         for p in &mut self.pedestrians {
-            ped_targets.push(p.decide(&self.walk, &self.cfg.pedestrian, &self.views, DT_S));
+            ped_targets.push(p.decide(&self.walk, &self.cfg.pedestrian, &self.views, dt));
         }
         // Move: ego, NPCs, pedestrians.
         if let Some(e) = &mut self.ego {
             let mut s = e.state;
-            s.step(&vp, e.control, DT_S);
+            s.step(&vp, e.control, dt);
             let out = self.physics.move_actor(0, s.position, s.yaw);
             s.position = out.position;
             s.yaw = out.yaw;
@@ -644,7 +670,7 @@ impl Traffic {
             let stop_before = npc::next_stop_line(&self.town, &self.rules, n, &vp, 20.0);
             n.control = d.control;
             let mut s = n.state;
-            s.step(&vp, d.control, DT_S);
+            s.step(&vp, d.control, dt);
             let out = self.physics.move_actor(n.id, s.position, s.yaw);
             s.position = out.position;
             s.yaw = out.yaw;
@@ -664,7 +690,7 @@ impl Traffic {
             // Stuck / stopped bookkeeping.
             if s.speed_mps < 0.1 {
                 n.stopped_ticks += 1;
-                if n.stopped_ticks == (60.0 / DT_S) as u32 + 1 {
+                if n.stopped_ticks == (DEADLOCK_S / dt) as u32 + 1 {
                     self.stats.deadlocks += 1;
                 }
                 if d.accel_mps2 > 0.3 {
@@ -680,19 +706,19 @@ impl Traffic {
         for (p, (target, z)) in self.pedestrians.iter_mut().zip(ped_targets) {
             let out = self.physics.move_actor(p.id, target, p.yaw);
             let z = if out.fraction >= 1.0 { z } else { p.z };
-            p.arrive(&self.walk, out.position, z, DT_S);
+            p.arrive(&self.walk, out.position, z, dt);
             // A walker held up by a vehicle for half a second turns back (cars wait for walkers
             // in front of them; this keeps the two from waiting for each other).
             p.note_blocked(
                 &self.walk,
                 p.held_by_vehicle || (out.hit.is_some() && out.fraction < 0.5),
-                20,
+                (WALKER_PATIENCE_S / dt).round() as u32,
             );
         }
         // Respawn NPCs stuck too long or pushed off their path.
         for i in 0..self.npcs.len() {
             let n = &self.npcs[i];
-            let (lp, _, _) = lane_point(&self.town, n.path.lane(), n.path.s_m);
+            let (lp, _, _) = self.town.lane(n.path.lane()).pose_at(n.path.s_m);
             let off_path = (lp - n.state.position).length() > 4.0;
             if n.stuck_ticks > self.cfg.npc.stuck_ticks || off_path {
                 self.respawn(i);
@@ -700,9 +726,10 @@ impl Traffic {
         }
         if let Some(e) = &mut self.ego {
             e.lane = self
-                .lane_index
-                .locate(&self.town, e.state.position, e.state.yaw, 0.5)
-                .map(|(l, s, _)| (l, s));
+                .rules
+                .lanes
+                .lane_under(&self.town, e.state.position, e.state.yaw)
+                .map(|lp| (lp.lane, lp.s));
         }
         self.events.clear();
         self.events.extend_from_slice(self.physics.end_tick());
@@ -731,27 +758,16 @@ impl Traffic {
         &self.events
     }
 
+    /// Moves NPC `i` to a free spot on a random lane ([`Traffic::place_npc`]); it stays where it is if none is found.
     fn respawn(&mut self, i: usize) {
         let id = self.npcs[i].id;
         let mut rng = self.npcs[i].rng.clone();
         let spot = self.free_spot(&mut rng, 20, Some(id));
-        let n = &mut self.npcs[i];
-        n.rng = rng;
-        let Some((lane, s, p, yaw, z)) = spot else {
-            return;
-        };
-        if let Some(r) = n.reservation.take() {
-            self.reservations.release(r, id);
+        self.npcs[i].rng = rng;
+        if let Some((lane, s, ..)) = spot {
+            self.place_npc(i, LanePath::new(lane, s));
+            self.stats.respawns += 1;
         }
-        n.state = VehicleState::at_rest(p, yaw);
-        n.ground_z = z;
-        n.path = LanePath::new(lane, s);
-        n.request = None;
-        n.stuck_ticks = 0;
-        n.stopped_ticks = 0;
-        npc::extend_path(&self.town, &mut n.path, &mut n.rng, 80.0);
-        self.physics.teleport(id, p, yaw);
-        self.stats.respawns += 1;
     }
 }
 
@@ -828,6 +844,55 @@ mod tests {
         assert!(a != c, "a different seed should give a different run");
     }
 
+    /// The ego's x after `seconds` at full throttle from rest on a straight
+    /// road, stepping `tick_s`.
+    fn ego_x_after(tick_s: f32, seconds: f32) -> f32 {
+        let t = Arc::new(grid(4, 1, 200.0));
+        let ego = EgoStart {
+            position: Vec2::new(20.0, -1.75),
+            z: 0.0,
+            yaw: 0.0,
+        };
+        let c = TrafficConfig {
+            tick_s,
+            ..cfg(0, 0, 1)
+        };
+        let mut tr = Traffic::new(t, c, Some(ego));
+        tr.set_ego_control(VehicleControl {
+            steer: 0.0,
+            throttle: 1.0,
+            brake: 0.0,
+        });
+        for _ in 0..(seconds / tick_s).round() as usize {
+            tr.step(&[]);
+        }
+        tr.ego().unwrap().state.position.x
+    }
+
+    #[test]
+    fn a_tick_of_another_length_moves_the_ego_that_much_farther() {
+        // 3 s at full throttle: the vehicle model's own integration at the
+        // step, and the same distance (to the integration error) at 40 Hz.
+        let vp = VehicleParams::default();
+        let mut model = VehicleState::at_rest(Vec2::new(20.0, -1.75), 0.0);
+        let full = VehicleControl {
+            steer: 0.0,
+            throttle: 1.0,
+            brake: 0.0,
+        };
+        for _ in 0..30 {
+            model.step(&vp, full, 0.1);
+        }
+        let (x40, x10) = (ego_x_after(DT_S, 3.0), ego_x_after(0.1, 3.0));
+        assert_eq!(x10, model.position.x, "stepped by the configured tick");
+        let (d40, d10) = (x40 - 20.0, x10 - 20.0);
+        assert!(d40 > 10.0, "{d40}");
+        assert!(
+            (d10 - d40).abs() < 0.05 * d40,
+            "{d10} m at 10 Hz vs {d40} m at 40 Hz"
+        );
+    }
+
     #[test]
     fn spawns_do_not_overlap_each_other_or_the_ego() {
         let t = town();
@@ -860,25 +925,50 @@ mod tests {
         let t = town();
         let mut tr = Traffic::new(t.clone(), cfg(16, 0, 3), None);
         let red = vec![LightState::Red; t.lights.len()];
+        let vp = tr.config().vehicle;
+        let half = vp.length_m * 0.5;
+        let lines: Vec<[Vec2; 2]> = t
+            .lights
+            .iter()
+            .flat_map(|l| &l.stop_lines)
+            .map(|sl| [sl.ends[0].truncate(), sl.ends[1].truncate()])
+            .collect();
+        let front = |n: &Npc| n.state.position + Vec2::from_angle(n.state.yaw) * half;
+        // Every front bumper, tick by tick: none crosses a stop line (all are red).
+        let mut fronts: Vec<Vec2> = tr.npcs.iter().map(front).collect();
         for _ in 0..(40 * 90) {
+            let respawns = tr.stats().respawns;
             tr.step(&red);
+            // (A respawned NPC jumps: its old and new fronts are no drive.)
+            let jumped = tr.stats().respawns != respawns;
+            for (n, prev) in tr.npcs.iter().zip(&mut fronts) {
+                let now = front(n);
+                for ends in &lines {
+                    assert!(
+                        jumped || !crate::geometry::crosses_stop_line(*prev, now, *ends),
+                        "NPC {} crossed a red stop line at {now}",
+                        n.id
+                    );
+                }
+                *prev = now;
+            }
         }
         assert_eq!(tr.stats().npc_red_runs, 0);
-        // Every NPC whose next stop line is near waits before it, stopped.
-        let vp = tr.config().vehicle;
+        // NPCs whose front bumper is within 2 m before a stop line of their lane stand still.
         let mut waiting_at_line = 0;
         for n in &tr.npcs {
-            if let Some((d, _)) = npc::next_stop_line(&t, &tr.rules, n, &vp, 100.0) {
-                assert!(d >= -0.3, "NPC {} is past a red stop line by {}", n.id, -d);
-                if d < 2.0 {
-                    assert!(
-                        n.state.speed_mps < 0.1,
-                        "NPC {} at the line moving {}",
-                        n.id,
-                        n.state.speed_mps
-                    );
-                    waiting_at_line += 1;
-                }
+            let before_line = t.lights.iter().flat_map(|l| &l.stop_lines).any(|sl| {
+                let d = sl.s - (n.path.s_m + half);
+                sl.lane == n.path.lane() && (-0.3..2.0).contains(&d)
+            });
+            if before_line {
+                assert!(
+                    n.state.speed_mps < 0.1,
+                    "NPC {} at the line moving {}",
+                    n.id,
+                    n.state.speed_mps
+                );
+                waiting_at_line += 1;
             }
         }
         assert!(
@@ -939,12 +1029,10 @@ mod tests {
             yaw: 0.0,
         };
         let mut tr = Traffic::new(t.clone(), cfg(1, 0, 1), Some(ego));
-        // Move the NPC in front of the ego and freeze it with red lights... simply teleport it.
+        // The NPC 18 m ahead of the ego on its lane (x = 38); red lights keep it there.
         let id = tr.npcs[0].id;
-        tr.npcs[0].state = VehicleState::at_rest(Vec2::new(38.0, -1.75), 0.0);
-        tr.npcs[0].path = LanePath::new(LaneIdx(0), 28.0);
-        tr.physics.teleport(id, Vec2::new(38.0, -1.75), 0.0);
-        tr.refresh_views();
+        tr.place_npc(0, LanePath::new(LaneIdx(0), 28.0));
+        assert_eq!(tr.npcs[0].state.position, Vec2::new(38.0, -1.75));
         tr.set_ego_control(VehicleControl {
             steer: 0.0,
             throttle: 1.0,
@@ -992,14 +1080,9 @@ mod tests {
     fn a_stuck_npc_is_respawned_after_40_ticks() {
         let t = town();
         let mut tr = Traffic::new(t.clone(), cfg(1, 0, 2), None);
-        // Put the NPC on lane 0 and a box it cannot see (not an actor) 8 m ahead of it.
-        let id = tr.npcs[0].id;
-        let start = Vec2::new(20.0, -1.75);
-        tr.npcs[0].state = VehicleState::at_rest(start, 0.0);
-        tr.npcs[0].path = LanePath::new(LaneIdx(0), 10.0);
-        let n = &mut tr.npcs[0];
-        npc::extend_path(&t, &mut n.path, &mut n.rng, 80.0);
-        tr.physics.teleport(id, start, 0.0);
+        // Put the NPC on lane 0 (at x = 20) and a box it cannot see (not an actor) 10 m ahead of it.
+        tr.place_npc(0, LanePath::new(LaneIdx(0), 10.0));
+        assert_eq!(tr.npcs[0].state.position, Vec2::new(20.0, -1.75));
         tr.physics.add_static_box(
             Vec2::new(30.0, -1.75),
             0.0,
@@ -1007,7 +1090,6 @@ mod tests {
             0.0,
             crate::physics::StaticKind::Pole,
         );
-        tr.refresh_views();
         let green = vec![LightState::Green; t.lights.len()];
         let mut hit_tick = None;
         let mut respawn_tick = None;
@@ -1063,7 +1145,7 @@ mod tests {
     #[test]
     fn npcs_do_not_enter_a_junction_across_the_ego() {
         let t = town();
-        let rules = RoadRules::new(&t);
+        let rules = RuleBook::new(&t);
         let dir_of = |l: usize| {
             let c = &t.lanes[l].centerline;
             (c[c.len() - 1] - c[0]).truncate().normalize()
@@ -1073,11 +1155,8 @@ mod tests {
         let ego_lane = (0..t.lanes.len())
             .find(|&l| in_j4(l) && dir_of(l).y > 0.99)
             .unwrap();
-        let (p, yaw, _) = lane_point(
-            &t,
-            LaneIdx(ego_lane as u32),
-            lane_len(&t, LaneIdx(ego_lane as u32)) * 0.5,
-        );
+        let l = &t.lanes[ego_lane];
+        let (p, yaw, _) = l.pose_at(l.length_m() * 0.5);
         let mut tr = Traffic::new(
             t.clone(),
             cfg(1, 0, 4),
@@ -1100,17 +1179,16 @@ mod tests {
             .iter()
             .find(|s| dir_of(s.0 as usize).x > 0.99)
             .unwrap();
-        assert!(rules.conflicts[ego_lane].contains(&straight));
+        assert!(
+            rules
+                .conflicts
+                .of(LaneIdx(ego_lane as u32))
+                .contains(&straight)
+        );
         let entry_x = t.lanes[straight.0 as usize].centerline[0].x;
-        let start = lane_point(&t, LaneIdx(approach as u32), 5.0);
-        let n = &mut tr.npcs[0];
-        n.state = VehicleState::at_rest(start.0, start.1);
-        n.path = LanePath::new(LaneIdx(approach as u32), 5.0);
-        n.path.lanes.push_back(straight);
-        npc::extend_path(&t, &mut n.path, &mut n.rng, 80.0);
-        let id = n.id;
-        tr.physics.teleport(id, start.0, start.1);
-        tr.refresh_views();
+        let mut path = LanePath::new(LaneIdx(approach as u32), 5.0);
+        path.lanes.push_back(straight);
+        tr.place_npc(0, path);
         let green = vec![LightState::Green; t.lights.len()];
         let half = tr.config().vehicle.length_m * 0.5;
         for _ in 0..(40 * 20) {
@@ -1158,9 +1236,11 @@ mod tests {
         for _ in 0..(40 * 5) {
             tr.step(&red);
         }
-        let (d, _) = npc::next_stop_line(&t, &tr.rules, &tr.npcs[0], &tr.cfg.vehicle, 10.0)
-            .expect("still before the line");
-        assert!(d > -0.3, "crossed the red line: {d}");
+        // Still on the approach lane with its front bumper at most 0.3 m over the line.
+        let n = &tr.npcs[0];
+        assert_eq!(n.path.lane(), sl.lane, "left the approach lane");
+        let over = n.path.s_m + half - sl.s;
+        assert!(over < 0.3, "crossed the red line by {over} m");
         assert_eq!(tr.npcs[0].reservation, None);
         assert!(!tr.reservations().holders(turn).contains(&id));
         assert_eq!(tr.stats().npc_red_runs, 0);
@@ -1171,14 +1251,7 @@ mod tests {
         // A straight road through unlit junctions: 4 x 1 junctions 200 m apart.
         let t = Arc::new(grid(4, 1, 200.0));
         let mut tr = Traffic::new(t.clone(), cfg(1, 0, 8), None);
-        let n = &mut tr.npcs[0];
-        let start = lane_point(&t, LaneIdx(0), 1.0);
-        n.state = VehicleState::at_rest(start.0, start.1);
-        n.path = LanePath::new(LaneIdx(0), 1.0);
-        npc::extend_path(&t, &mut n.path, &mut n.rng, 80.0);
-        let id = n.id;
-        tr.physics.teleport(id, start.0, start.1);
-        tr.refresh_views();
+        tr.place_npc(0, LanePath::new(LaneIdx(0), 1.0));
         let green = vec![LightState::Green; t.lights.len()];
         let limit = t.lanes[0].speed_limit_mps;
         let mut top = 0.0f32;
@@ -1191,7 +1264,7 @@ mod tests {
             "top speed {top} vs limit {limit}"
         );
         // Tracking: it stays near its lane's centre.
-        let (lp, _, _) = lane_point(&t, tr.npcs[0].path.lane(), tr.npcs[0].path.s_m);
+        let (lp, _, _) = t.lane(tr.npcs[0].path.lane()).pose_at(tr.npcs[0].path.s_m);
         assert!((lp - tr.npcs[0].state.position).length() < 0.3);
     }
 }

@@ -2,7 +2,7 @@
 
 use std::sync::Arc;
 use world::generator::{GridTownParams, generate_grid_town};
-use world::lane_path::{LanePath, lane_len};
+use world::lane_path::LanePath;
 use world::testdata::carla_dir;
 use world::traffic::{Traffic, TrafficConfig};
 use world::{LaneIdx, LightController, LightIdx, LightTiming, LoadOptions, Town, load_xodr_str};
@@ -66,7 +66,7 @@ fn drive_every_turn(town: &Arc<Town>) -> f32 {
         else {
             continue;
         };
-        let len = lane_len(town, approach);
+        let len = town.lane(approach).length_m();
         let s = (len - 20.0).max(half + 0.5).min(len);
         let mut path = LanePath::new(approach, s);
         path.lanes.push_back(turn);

@@ -136,10 +136,7 @@ mod tests {
     /// Drives along +x, with the lateral position given per tick.
     fn weave(lateral: impl Fn(usize) -> f32) -> Vec<EgoPose> {
         (0..400)
-            .map(|i| EgoPose {
-                position: Vec2::new(10.0 + 0.2 * i as f32, lateral(i)),
-                heading: 0.0,
-            })
+            .map(|i| scripted::pose(10.0 + 0.2 * i as f32, lateral(i), 0.0))
             .collect()
     }
 

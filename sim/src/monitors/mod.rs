@@ -22,8 +22,9 @@ pub mod route;
 pub mod score;
 
 use serde::{Deserialize, Serialize};
+pub use world::EgoPose;
+use world::LightState;
 use world::geometry::OrientedBox;
-use world::{LightState, Vec2};
 
 /// What the other body in a collision was.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -44,15 +45,6 @@ pub struct EgoContact {
     pub other: u32,
     /// What it is.
     pub kind: ContactKind,
-}
-
-/// Where the ego was at one tick.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct EgoPose {
-    /// Centre of the footprint (metres, world frame).
-    pub position: Vec2,
-    /// Heading (radians, counter-clockwise from +x).
-    pub heading: f32,
 }
 
 /// Everything the monitors see of one tick, after the physics step.
@@ -82,7 +74,7 @@ impl EgoTick<'_> {
     /// The footprint after the step.
     pub fn footprint(&self) -> OrientedBox {
         OrientedBox {
-            center: self.now.position,
+            center: self.now.ground(),
             heading: self.now.heading,
             half_length: self.size_m.0 / 2.0,
             half_width: self.size_m.1 / 2.0,
@@ -174,7 +166,7 @@ impl Infraction {
             tick: tick.tick,
             time_s: tick.time_s,
             kind,
-            position: tick.now.position.to_array(),
+            position: tick.now.ground().to_array(),
             detail,
         }
     }
@@ -185,14 +177,19 @@ pub(crate) mod scripted {
     //! Scripted ego motions for the monitors' tests.
     use super::*;
 
+    /// A pose on the ground at (x, y) (metres) heading `heading` (radians).
+    pub fn pose(x: f32, y: f32, heading: f32) -> EgoPose {
+        EgoPose {
+            position: world::Vec3::new(x, y, 0.0),
+            heading,
+        }
+    }
+
     /// A straight drive along +x at `speed_mps` from `x0`, one pose a tick
     /// of 25 ms, at lateral position `y`.
     pub fn straight(x0: f32, y: f32, speed_mps: f32, ticks: usize) -> Vec<EgoPose> {
         (0..=ticks)
-            .map(|i| EgoPose {
-                position: Vec2::new(x0 + speed_mps * 0.025 * i as f32, y),
-                heading: 0.0,
-            })
+            .map(|i| pose(x0 + speed_mps * 0.025 * i as f32, y, 0.0))
             .collect()
     }
 

@@ -1,8 +1,8 @@
 //! Driving outside the lanes (scenario_runner's `OutsideRouteLanesTest`):
 //! the share of the distance driven with the ego's centre off every driving
 //! lane, or on one that runs the other way. The lane under the ego is the
-//! traffic model's (within half a lane width plus 0.5 m, heading within 60
-//! degrees), so the expert, the NPCs and this monitor agree on it.
+//! rule book's ([`world::rules::lanes`]: within half a lane width plus 0.5 m,
+//! heading within 60 degrees), so the NPCs and this monitor agree on it.
 
 use super::EgoTick;
 
@@ -17,7 +17,7 @@ impl OutsideLaneMonitor {
     /// Adds this tick's distance; `on_lane` says whether the ego is on a
     /// driving lane in its direction after the step.
     pub fn observe(&mut self, tick: &EgoTick<'_>, on_lane: bool) {
-        let d = f64::from(tick.now.position.distance(tick.prev.position));
+        let d = f64::from(tick.now.ground().distance(tick.prev.ground()));
         self.driven_m += d;
         if !on_lane {
             self.outside_m += d;

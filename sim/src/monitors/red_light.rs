@@ -1,12 +1,16 @@
 //! Red-light infractions (PROTOCOL §3, CARLA's `RunningRedLightTest`): the
 //! ego crosses, in its driving direction, the stop line of a light that is
-//! red, faster than 0.3 m/s. As in CARLA, the point that must cross is near
-//! the car's tail (0.8 half-lengths behind its centre), so a car that stops
-//! with its nose over the line has not run the light; each crossing of a stop
-//! line is one passage, so one infraction.
+//! red, faster than 0.3 m/s. The point that must cross is the rule book's
+//! crossing point ([`world::rules::crossing`]: 0.8 half-lengths behind the
+//! centre), so a car that stops with its nose over the line has not run the
+//! light; each crossing of a stop line is one passage, so one infraction.
+//! The stop lines are the rule book's table ([`world::rules::StopLines`]).
 
+use std::sync::Arc;
+
+use world::LightState;
 use world::geometry::crosses_stop_line;
-use world::{LightState, Town, Vec2};
+use world::rules::{RuleBook, crossing_point};
 
 use super::{EgoTick, Infraction, InfractionKind};
 
@@ -15,33 +19,17 @@ use super::{EgoTick, Infraction, InfractionKind};
 pub struct RedLightMonitor {
     /// Only crossings faster than this count (metres per second).
     pub min_speed_mps: f32,
-    /// Stop lines: (light index, [left end, right end]) on the ground plane.
-    stop_lines: Vec<(usize, [Vec2; 2])>,
+    /// The town's rule tables (its stop lines).
+    rules: Arc<RuleBook>,
 }
 
 impl RedLightMonitor {
-    /// Collects the town's stop lines.
-    pub fn new(town: &Town) -> Self {
-        let stop_lines = town
-            .lights
-            .iter()
-            .enumerate()
-            .flat_map(|(i, light)| {
-                light
-                    .stop_lines
-                    .iter()
-                    .map(move |l| (i, [l.ends[0].truncate(), l.ends[1].truncate()]))
-            })
-            .collect();
+    /// Watches the stop lines of a town's rule book.
+    pub fn new(rules: Arc<RuleBook>) -> Self {
         Self {
             min_speed_mps: 0.3,
-            stop_lines,
+            rules,
         }
-    }
-
-    /// The point that must cross a stop line: 0.8 half-lengths behind the centre.
-    fn tail(position: Vec2, heading: f32, length_m: f32) -> Vec2 {
-        position - Vec2::from_angle(heading) * (0.8 * length_m / 2.0)
     }
 
     /// Pushes an infraction if the ego ran a red light during this tick.
@@ -49,15 +37,16 @@ impl RedLightMonitor {
         if tick.speed_mps <= self.min_speed_mps {
             return;
         }
-        let from = Self::tail(tick.prev.position, tick.prev.heading, tick.size_m.0);
-        let to = Self::tail(tick.now.position, tick.now.heading, tick.size_m.0);
-        for &(light, ends) in &self.stop_lines {
-            let red = tick.lights.get(light).copied() == Some(LightState::Red);
-            if red && crosses_stop_line(from, to, ends) {
+        let length_m = tick.size_m.0;
+        let from = crossing_point(tick.prev.ground(), tick.prev.heading, length_m);
+        let to = crossing_point(tick.now.ground(), tick.now.heading, length_m);
+        for line in self.rules.stop_lines.all() {
+            let red = tick.lights.get(line.light.0 as usize).copied() == Some(LightState::Red);
+            if red && crosses_stop_line(from, to, line.ends) {
                 out.push(Infraction::at(
                     tick,
                     InfractionKind::RedLight,
-                    format!("light {light}"),
+                    format!("light {}", line.light.0),
                 ));
             }
         }
@@ -68,7 +57,7 @@ impl RedLightMonitor {
 mod tests {
     use super::super::{EgoPose, scripted};
     use super::*;
-    use world::{LaneIdx, StopLine, TrafficLight, Vec3};
+    use world::{LaneIdx, StopLine, Town, TrafficLight, Vec2, Vec3};
 
     /// One light with a stop line across the lane y in [-3.5, 0] at x = 50,
     /// for traffic heading +x.
@@ -93,7 +82,7 @@ mod tests {
     }
 
     fn count(poses: &[EgoPose], speed: f32, state: LightState) -> usize {
-        let mut monitor = RedLightMonitor::new(&town_with_light());
+        let mut monitor = RedLightMonitor::new(Arc::new(RuleBook::new(&town_with_light())));
         let mut out = Vec::new();
         scripted::drive(poses, speed, &[state], |t| monitor.observe(t, &mut out));
         out.len()

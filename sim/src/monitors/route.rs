@@ -9,6 +9,8 @@
 //! deviation limit from the route near the ego ends the run.
 
 use world::Vec2;
+use world::planner::DenseRoute;
+use world::rules::nearest_route_point;
 
 use super::{EgoTick, Infraction, InfractionKind};
 
@@ -18,9 +20,7 @@ const WINDOW_POINTS: usize = 40;
 /// Tracks progress along a dense route.
 #[derive(Debug, Clone)]
 pub struct RouteMonitor {
-    points: Vec<Vec2>,
-    /// Arc length at each point (metres).
-    s: Vec<f32>,
+    route: DenseRoute,
     /// The route point reached.
     index: usize,
     /// Distance from the route that ends the run (metres).
@@ -29,19 +29,10 @@ pub struct RouteMonitor {
 }
 
 impl RouteMonitor {
-    /// Follows the route through `points` (metres, world frame, about 1 m apart).
-    pub fn new(points: Vec<Vec2>, deviation_m: f32) -> Self {
-        let mut s = Vec::with_capacity(points.len());
-        let mut acc = 0.0;
-        for (i, p) in points.iter().enumerate() {
-            if i > 0 {
-                acc += p.distance(points[i - 1]);
-            }
-            s.push(acc);
-        }
+    /// Follows a dense route (its points' `route_s` measure the progress).
+    pub fn new(route: &DenseRoute, deviation_m: f32) -> Self {
         Self {
-            points,
-            s,
+            route: route.clone(),
             index: 0,
             deviation_m,
             deviated: false,
@@ -50,7 +41,7 @@ impl RouteMonitor {
 
     /// The route's length (metres).
     pub fn length_m(&self) -> f32 {
-        self.s.last().copied().unwrap_or(0.0)
+        self.route.length_m
     }
 
     /// The index of the route point reached.
@@ -60,7 +51,7 @@ impl RouteMonitor {
 
     /// Distance driven along the route so far (metres).
     pub fn progress_m(&self) -> f32 {
-        self.s.get(self.index).copied().unwrap_or(0.0)
+        self.route.points.get(self.index).map_or(0.0, |p| p.route_s)
     }
 
     /// Route completion in percent.
@@ -74,26 +65,26 @@ impl RouteMonitor {
 
     /// Whether the route counts as driven: >= 99 % and within 10 m of its end.
     pub fn succeeded(&self, position: Vec2) -> bool {
-        let end = self.points.last().copied().unwrap_or(position);
+        let end = self
+            .route
+            .points
+            .last()
+            .map_or(position, |p| p.position.truncate());
         self.completion_pct() >= 99.0 && position.distance(end) <= 10.0
     }
 
     /// Advances the progress; pushes a deviation (once) when the ego is too far
     /// from the route.
     pub fn observe(&mut self, tick: &EgoTick<'_>, out: &mut Vec<Infraction>) {
-        let p = tick.now.position;
-        let end = (self.index + WINDOW_POINTS).min(self.points.len());
-        let mut best = (f32::INFINITY, self.index);
-        for i in self.index..end {
-            let d = self.points[i].distance_squared(p);
-            if d < best.0 {
-                best = (d, i);
+        let nearest =
+            nearest_route_point(&self.route, tick.now.ground(), self.index, WINDOW_POINTS);
+        let distance = match nearest {
+            Some((i, d)) => {
+                self.index = i;
+                d
             }
-        }
-        if best.0.is_finite() {
-            self.index = best.1;
-        }
-        let distance = best.0.sqrt();
+            None => f32::INFINITY,
+        };
         if distance > self.deviation_m && !self.deviated {
             self.deviated = true;
             out.push(Infraction::at(
@@ -109,6 +100,7 @@ impl RouteMonitor {
 mod tests {
     use super::super::{EgoPose, scripted};
     use super::*;
+    use world::testtown::route_through;
 
     fn line(length: usize) -> Vec<Vec2> {
         (0..=length).map(|i| Vec2::new(i as f32, 0.0)).collect()
@@ -116,34 +108,31 @@ mod tests {
 
     #[test]
     fn driving_the_whole_route_completes_and_succeeds() {
-        let mut monitor = RouteMonitor::new(line(100), 10.0);
+        let mut monitor = RouteMonitor::new(&route_through(&line(100)), 10.0);
         let mut out = Vec::new();
         let poses = scripted::straight(0.0, -1.5, 6.0, 700); // to x = 105
         scripted::drive(&poses, 6.0, &[], |t| monitor.observe(t, &mut out));
         assert!(out.is_empty());
         assert_eq!(monitor.completion_pct(), 100.0);
-        assert!(monitor.succeeded(poses.last().unwrap().position));
+        assert!(monitor.succeeded(poses.last().unwrap().ground()));
     }
 
     #[test]
     fn stopping_halfway_completes_half() {
-        let mut monitor = RouteMonitor::new(line(100), 10.0);
+        let mut monitor = RouteMonitor::new(&route_through(&line(100)), 10.0);
         let mut out = Vec::new();
         let poses = scripted::straight(0.0, 0.0, 5.0, 400); // to x = 50
         scripted::drive(&poses, 5.0, &[], |t| monitor.observe(t, &mut out));
         assert!((monitor.completion_pct() - 50.0).abs() < 1e-3);
-        assert!(!monitor.succeeded(poses.last().unwrap().position));
+        assert!(!monitor.succeeded(poses.last().unwrap().ground()));
     }
 
     #[test]
     fn leaving_the_route_is_one_deviation() {
-        let mut monitor = RouteMonitor::new(line(100), 10.0);
+        let mut monitor = RouteMonitor::new(&route_through(&line(100)), 10.0);
         let mut out = Vec::new();
         let poses: Vec<EgoPose> = (0..200)
-            .map(|i| EgoPose {
-                position: Vec2::new(i as f32 * 0.1, i as f32 * 0.1),
-                heading: 0.8,
-            })
+            .map(|i| scripted::pose(i as f32 * 0.1, i as f32 * 0.1, 0.8))
             .collect();
         scripted::drive(&poses, 5.0, &[], |t| monitor.observe(t, &mut out));
         assert_eq!(out.len(), 1);
@@ -156,7 +145,7 @@ mod tests {
         // at both the first and the last point, but has driven nothing.
         let mut points = line(50);
         points.extend((0..50).rev().map(|i| Vec2::new(i as f32, 0.0)));
-        let mut monitor = RouteMonitor::new(points, 10.0);
+        let mut monitor = RouteMonitor::new(&route_through(&points), 10.0);
         let mut out = Vec::new();
         let poses = scripted::straight(0.0, 0.0, 0.0, 10);
         scripted::drive(&poses, 0.0, &[], |t| monitor.observe(t, &mut out));

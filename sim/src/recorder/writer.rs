@@ -10,7 +10,7 @@ use serde_json::{Value, json};
 use world::{ActorKind, ActorSnapshot, LightState, MarkColor, Town, Vec3};
 
 use super::NS;
-use crate::driver::{Control, RgbImage};
+use crate::driver::{RgbImage, VehicleControl};
 use crate::monitors::Infraction;
 
 /// Foxglove schemas, embedded (see `sim/schemas/foxglove/README.md`).
@@ -385,10 +385,10 @@ impl<W: Write + Seek> Recorder<W> {
     pub fn control(
         &mut self,
         t_ns: u64,
-        computed: Option<Control>,
-        applied: Control,
+        computed: Option<VehicleControl>,
+        applied: VehicleControl,
     ) -> Result<(), RecordError> {
-        let c = |c: Control| json!({ "steer": c.steer, "throttle": c.throttle, "brake": c.brake });
+        let c = |c: VehicleControl| json!({ "steer": c.steer, "throttle": c.throttle, "brake": c.brake });
         let msg = json!({ "computed": computed.map(c), "applied": c(applied) });
         let channel = self.channels.control;
         self.write(channel, t_ns, &msg)
@@ -535,12 +535,12 @@ pub(crate) mod tests {
             rec.ego_transform(t, &ego).unwrap();
             rec.control(
                 t,
-                (tick % 2 == 0).then_some(Control {
+                (tick % 2 == 0).then_some(VehicleControl {
                     steer: 0.1,
                     throttle: 0.5,
                     brake: 0.0,
                 }),
-                Control::default(),
+                VehicleControl::default(),
             )
             .unwrap();
             if tick == 7 {

@@ -12,7 +12,7 @@ use world::{
     LaneMarking, LightIdx, LightState, MarkColor, MarkKind, Sidewalk, StopLine, Town, TrafficLight,
 };
 
-use super::rig::EgoPose;
+use world::EgoPose;
 
 /// Lane width (metres).
 pub const LANE_W_M: f32 = 3.5;

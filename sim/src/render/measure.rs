@@ -11,8 +11,9 @@ use world::{ActorSnapshot, LightState, Town, TrafficLight};
 use super::classes;
 use super::demo;
 use super::renderer::{RenderError, Renderer};
-use super::rig::{EgoPose, RigConfig};
+use super::rig::RigConfig;
 use super::scene::LAMP_DIAMETER_M;
+use world::EgoPose;
 
 /// A lamp's size in the image at one distance and scale.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -26,9 +26,10 @@ use world::{ActorSnapshot, LightState, Town};
 use super::classes;
 use super::gpu::{Gpu, GpuError};
 use super::image::ClassImage;
-use super::rig::{EgoPose, RigConfig, View};
+use super::rig::{RigConfig, View};
 use super::scene::{Dynamic, Instance, StaticScene, UNIT_MESHES, UnitMesh, Vertex};
 use crate::driver::RgbImage;
+use world::EgoPose;
 
 /// How far from the ego static geometry is drawn (metres).
 pub const DRAW_DISTANCE_M: f32 = 200.0;

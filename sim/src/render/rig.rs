@@ -9,28 +9,10 @@
 //! 60 deg horizontal FOV over its share.
 
 use glam::{Mat4, Vec2, Vec3, Vec4};
-use world::ActorSnapshot;
+use world::EgoPose;
 
 /// Near plane of the perspective cameras (metres).
 pub const NEAR_M: f32 = 0.1;
-
-/// The ego's pose, as the rig needs it.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct EgoPose {
-    /// Centre of the footprint on the ground (metres, world frame).
-    pub position: Vec3,
-    /// Heading (radians, counter-clockwise from +x).
-    pub heading: f32,
-}
-
-impl From<&ActorSnapshot> for EgoPose {
-    fn from(a: &ActorSnapshot) -> EgoPose {
-        EgoPose {
-            position: a.position,
-            heading: a.heading,
-        }
-    }
-}
 
 /// The rig's geometry at the base size S0 and the anti-aliasing factor.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -1,0 +1,63 @@
+//! The rule book: the rules of the road, each written once, which every
+//! consumer calls (the NPC driver, the expert, the monitors, the resolution
+//! selectors, the renderer's "light ahead" and the world-on-rails labels).
+//!
+//! | file | rule |
+//! | --- | --- |
+//! | [`stop_lines`] | the stop lines of a town by lane, and the stops a route crosses, in route order |
+//! | [`lights`] | whether a light's state makes a vehicle stop before its line (red, and yellow with one slack) |
+//! | [`crossing`] | the point of a vehicle that crosses a stop line |
+//! | [`route`] | the distance along a route of a pose, the route's point at a distance, the route point reached, the path ahead |
+//! | [`pursuit`] | the pure-pursuit lookahead |
+//! | [`lanes`] | the lane under a point (heading agreement, one width lookup), the nearest lane, and [`LaneGrid`] |
+//! | [`conflicts`] | which connecting lanes of a junction conflict |
+//!
+//! Each rule is a plain function or table built from a [`Town`] (and a
+//! [`crate::DenseRoute`]): none needs a running [`crate::traffic::Traffic`].
+//! [`RuleBook`] holds a town's tables, built once; a run shares one
+//! ([`crate::traffic::Traffic::rules`]). The vehicle model every vehicle
+//! moves by is [`crate::vehicle::VehicleState::step`].
+
+pub mod conflicts;
+pub mod crossing;
+pub mod lanes;
+pub mod lights;
+pub mod pursuit;
+pub mod route;
+pub mod stop_lines;
+
+pub use conflicts::JunctionConflicts;
+pub use crossing::{crossing_offset_m, crossing_point};
+pub use lanes::{LaneGrid, heading_agrees, nearest_lane, project_on_lane};
+pub use lights::{YELLOW_SLACK_M, light_state, must_stop};
+pub use pursuit::pursuit_lookahead_m;
+pub use route::{nearest_route_point, route_ahead, route_point_at, route_s_at};
+pub use stop_lines::{RouteStop, RouteStops, StopLineEntry, StopLines};
+
+use crate::town::Town;
+
+/// Side of the cells of a rule book's lane grid (metres).
+pub const LANE_GRID_CELL_M: f32 = 5.0;
+
+/// A town's rule tables, built once: its stop lines by lane, its junction
+/// conflicts and the grid that finds the lane under a point.
+#[derive(Debug, Clone)]
+pub struct RuleBook {
+    /// Every stop line, and by lane.
+    pub stop_lines: StopLines,
+    /// Conflicting connecting lanes of each junction.
+    pub conflicts: JunctionConflicts,
+    /// The lane under a point.
+    pub lanes: LaneGrid,
+}
+
+impl RuleBook {
+    /// Builds the tables of a town.
+    pub fn new(town: &Town) -> RuleBook {
+        RuleBook {
+            stop_lines: StopLines::new(town),
+            conflicts: JunctionConflicts::new(town),
+            lanes: LaneGrid::new(town, LANE_GRID_CELL_M),
+        }
+    }
+}

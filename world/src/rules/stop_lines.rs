@@ -1,0 +1,254 @@
+//! Stop lines: one table per town, indexed by lane, and the stops a route
+//! crosses, in route order.
+//!
+//! A town's stop lines come from its lights ([`crate::TrafficLight::stop_lines`]).
+//! [`StopLines`] lists them once, with what every consumer needs (the light,
+//! the lane and arc length, the line's centre and ends, the driving heading
+//! there), and indexes them by lane. [`StopLines::on_route`] finds the stops
+//! a dense route crosses: a stop line is on the route where a route point's
+//! lane is the stop line's lane and the route passes its arc length.
+
+use glam::Vec2;
+
+use crate::planner::DenseRoute;
+use crate::town::{LaneIdx, LightIdx, Town};
+
+/// One stop line of a town, as the table lists it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StopLineEntry {
+    /// The light that governs it.
+    pub light: LightIdx,
+    /// The lane it is on (the approach lane).
+    pub lane: LaneIdx,
+    /// Arc length along that lane (metres).
+    pub s: f32,
+    /// Centre of the line (metres, ground plane).
+    pub position: Vec2,
+    /// Driving heading of the lane at the line (radians, counter-clockwise from +x).
+    pub heading: f32,
+    /// The line's ends (metres, ground plane): left end first, right end
+    /// second, seen in the driving direction.
+    pub ends: [Vec2; 2],
+}
+
+/// Every stop line of a town, and for each lane its stop lines by arc length.
+#[derive(Debug, Clone, Default)]
+pub struct StopLines {
+    lines: Vec<StopLineEntry>,
+    /// For each lane, indices into `lines`, sorted by arc length (then light).
+    by_lane: Vec<Vec<usize>>,
+}
+
+impl StopLines {
+    /// Collects the stop lines of a town's lights, in light order.
+    pub fn new(town: &Town) -> StopLines {
+        let mut lines = Vec::new();
+        let mut by_lane = vec![Vec::new(); town.lanes.len()];
+        for (li, light) in town.lights.iter().enumerate() {
+            for sl in &light.stop_lines {
+                let ends = [sl.ends[0].truncate(), sl.ends[1].truncate()];
+                let lane = town.lanes.get(sl.lane.0 as usize);
+                let heading = match lane {
+                    Some(l) => l.heading_at(sl.s),
+                    // A line on no lane faces across its ends (left -> right, turned clockwise).
+                    None => {
+                        let f = (ends[1] - ends[0]).perp();
+                        f.y.atan2(f.x)
+                    }
+                };
+                if let Some(v) = by_lane.get_mut(sl.lane.0 as usize) {
+                    v.push(lines.len());
+                }
+                lines.push(StopLineEntry {
+                    light: LightIdx(li as u32),
+                    lane: sl.lane,
+                    s: sl.s,
+                    position: (ends[0] + ends[1]) * 0.5,
+                    heading,
+                    ends,
+                });
+            }
+        }
+        for v in &mut by_lane {
+            v.sort_by(|&a, &b| {
+                lines[a]
+                    .s
+                    .total_cmp(&lines[b].s)
+                    .then(lines[a].light.cmp(&lines[b].light))
+            });
+        }
+        StopLines { lines, by_lane }
+    }
+
+    /// Every stop line, in light order.
+    pub fn all(&self) -> &[StopLineEntry] {
+        &self.lines
+    }
+
+    /// The stop lines on a lane, by arc length (none for a lane not in the town).
+    pub fn on_lane(&self, lane: LaneIdx) -> impl Iterator<Item = &StopLineEntry> + '_ {
+        self.by_lane
+            .get(lane.0 as usize)
+            .map_or(&[][..], |v| &v[..])
+            .iter()
+            .map(|&k| &self.lines[k])
+    }
+
+    /// The stop lines a dense route crosses, in route order. A line counts
+    /// where a route point's lane is the line's lane and the next point is
+    /// past its arc length (or on another lane); one light's line met twice
+    /// within 0.5 m counts once.
+    pub fn on_route(&self, route: &DenseRoute) -> RouteStops {
+        let mut stops: Vec<RouteStop> = Vec::new();
+        for w in route.points.windows(2) {
+            let (a, b) = (w[0], w[1]);
+            for line in self.on_lane(a.lane) {
+                if a.s <= line.s && (b.lane != a.lane || line.s < b.s) {
+                    let route_s = a.route_s + (line.s - a.s);
+                    if stops.last().is_none_or(|last| {
+                        (last.route_s - route_s).abs() > 0.5 || last.light != line.light
+                    }) {
+                        stops.push(RouteStop {
+                            route_s,
+                            light: line.light,
+                            line: *line,
+                        });
+                    }
+                }
+            }
+        }
+        stops.sort_by(|a, b| a.route_s.total_cmp(&b.route_s));
+        RouteStops { stops }
+    }
+}
+
+/// A stop line on a route.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RouteStop {
+    /// Distance along the route (metres).
+    pub route_s: f32,
+    /// The light.
+    pub light: LightIdx,
+    /// The stop line.
+    pub line: StopLineEntry,
+}
+
+/// The stop lines a route crosses, sorted by distance along the route.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RouteStops {
+    stops: Vec<RouteStop>,
+}
+
+impl RouteStops {
+    /// Every stop, in route order.
+    pub fn all(&self) -> &[RouteStop] {
+        &self.stops
+    }
+
+    /// The first stop farther along the route than `route_s` (metres).
+    pub fn next_after(&self, route_s: f32) -> Option<&RouteStop> {
+        self.stops.iter().find(|s| s.route_s > route_s)
+    }
+
+    /// The last stop at or before `route_s` along the route (metres).
+    pub fn last_up_to(&self, route_s: f32) -> Option<&RouteStop> {
+        self.stops.iter().rev().find(|s| s.route_s <= route_s)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testtown::{JUNCTION_HALF_M, STOP_LINE_BACK_M, grid, planned_route};
+    use crate::town::{StopLine, TrafficLight};
+    use glam::Vec3;
+    use std::f32::consts::PI;
+
+    #[test]
+    fn the_table_indexes_every_line_by_lane_with_its_pose() {
+        let t = grid(3, 3, 60.0);
+        let lines = StopLines::new(&t);
+        assert_eq!(
+            lines.all().len(),
+            t.lights.iter().map(|l| l.stop_lines.len()).sum()
+        );
+        // The junction at (60, 0) is lit (three roads meet); its west approach
+        // runs +x on lane 0 (y = -1.75) from x = 10 to x = 50; the stop line
+        // is 4 m before its end.
+        let on0: Vec<_> = lines.on_lane(LaneIdx(0)).collect();
+        assert_eq!(on0.len(), 1);
+        let l = on0[0];
+        let s = 40.0 - STOP_LINE_BACK_M;
+        assert!((l.s - s).abs() < 1e-4, "{}", l.s);
+        let x = JUNCTION_HALF_M + s;
+        assert!(
+            l.position.distance(Vec2::new(x, -1.75)) < 1e-4,
+            "{}",
+            l.position
+        );
+        assert!(l.heading.abs() < 1e-4);
+        // Left end first, seen driving +x: the left end is on the north side.
+        assert!(l.ends[0].y > l.ends[1].y);
+        // The oncoming lane 1 (-x) ends at the corner junction (0, 0): unlit.
+        assert_eq!(lines.on_lane(LaneIdx(1)).count(), 0);
+        assert_eq!(lines.on_lane(LaneIdx(999)).count(), 0);
+    }
+
+    #[test]
+    fn a_route_through_a_lit_junction_meets_its_stop_line_once_at_its_route_distance() {
+        let t = grid(3, 3, 60.0);
+        // From x = 15 on lane 0 straight through the junction at (60, 0) to x = 100.
+        let dense = planned_route(&t, &[(15.0, -1.75, 0.0), (100.0, -1.75, 0.0)]).unwrap();
+        let stops = StopLines::new(&t).on_route(&dense);
+        assert_eq!(stops.all().len(), 1, "{:?}", stops.all());
+        let st = stops.all()[0];
+        // The line is at x = 46: 31 m from the start.
+        assert!((st.route_s - 31.0).abs() < 0.01, "{}", st.route_s);
+        assert_eq!(st.line.lane, LaneIdx(0));
+        assert_eq!(stops.next_after(30.0).map(|s| s.light), Some(st.light));
+        assert!(stops.next_after(31.5).is_none());
+        assert!(stops.last_up_to(30.0).is_none());
+        assert_eq!(stops.last_up_to(40.0).map(|s| s.route_s), Some(st.route_s));
+    }
+
+    #[test]
+    fn a_route_that_starts_past_the_line_or_on_the_other_lane_meets_none() {
+        let t = grid(3, 3, 60.0);
+        let dense = planned_route(&t, &[(47.0, -1.75, 0.0), (100.0, -1.75, 0.0)]).unwrap();
+        assert!(StopLines::new(&t).on_route(&dense).all().is_empty());
+        // Westbound through the junction at (60, 0): its east approach is lit.
+        let dense = planned_route(&t, &[(100.0, 1.75, PI), (20.0, 1.75, PI)]).unwrap();
+        let stops = StopLines::new(&t).on_route(&dense);
+        assert_eq!(stops.all().len(), 1);
+        // The east approach ends at x = 70; its line is at x = 74: 26 m from x = 100.
+        assert!((stops.all()[0].route_s - 26.0).abs() < 0.01);
+    }
+
+    #[test]
+    fn lines_on_a_lane_are_sorted_by_arc_length() {
+        let t0 = grid(3, 3, 60.0);
+        let line = |s: f32| StopLine {
+            lane: LaneIdx(0),
+            s,
+            ends: [Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, -1.0, 0.0)],
+        };
+        let light = |s: f32| TrafficLight {
+            od_id: "x".into(),
+            position: Vec3::ZERO,
+            heading: 0.0,
+            head_height_m: 3.0,
+            junction: None,
+            group: 0,
+            stop_lines: vec![line(s)],
+        };
+        let t = Town {
+            lights: vec![light(20.0), light(5.0), light(12.0)],
+            ..t0
+        };
+        let s: Vec<(f32, u32)> = StopLines::new(&t)
+            .on_lane(LaneIdx(0))
+            .map(|l| (l.s, l.light.0))
+            .collect();
+        assert_eq!(s, vec![(5.0, 1), (12.0, 2), (20.0, 0)]);
+    }
+}
