@@ -141,20 +141,7 @@ pub(super) fn merged_mesh(pos: &[Vec3], tris: &[[u32; 3]], t: &mut Tris, col: u3
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::scene::Vertex;
-
-    fn area(v: &[Vertex]) -> f32 {
-        v.chunks_exact(3)
-            .map(|q| {
-                let (a, b, c) = (
-                    Vec3::from(q[0].pos),
-                    Vec3::from(q[1].pos),
-                    Vec3::from(q[2].pos),
-                );
-                0.5 * (b - a).cross(c - a).length()
-            })
-            .sum()
-    }
+    use crate::render::scene::primitives::area;
 
     /// A lane-like strip: ribs `[left, right]` at each centre point, two
     /// triangles per quad as xodr emits them.

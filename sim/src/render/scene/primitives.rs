@@ -232,6 +232,21 @@ impl Line {
     }
 }
 
+/// The area of a triangle list (square metres), for tests of the builders.
+#[cfg(test)]
+pub(super) fn area(v: &[Vertex]) -> f32 {
+    v.chunks_exact(3)
+        .map(|q| {
+            let (a, b, c) = (
+                Vec3::from(q[0].pos),
+                Vec3::from(q[1].pos),
+                Vec3::from(q[2].pos),
+            );
+            0.5 * (b - a).cross(c - a).length()
+        })
+        .sum()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -251,17 +266,7 @@ mod tests {
         let mut t = Tris::default();
         line.strip(&mut t, 0.0, 0.1, Some((3.0, 6.0)), 0.0, 0);
         // 10 dashes of 3 m x 0.1 m = 3 m^2.
-        let area: f32 =
-            t.v.chunks_exact(3)
-                .map(|q| {
-                    let (a, b, c) = (
-                        Vec3::from(q[0].pos),
-                        Vec3::from(q[1].pos),
-                        Vec3::from(q[2].pos),
-                    );
-                    0.5 * (b - a).cross(c - a).length()
-                })
-                .sum();
+        let area = area(&t.v);
         assert!((area - 3.0).abs() < 1e-3, "area {area}");
     }
 }
