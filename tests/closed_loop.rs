@@ -1,33 +1,22 @@
-//! The closed loop through the command line: determinism, and a sweep that is
+//! The closed loop through the command line: determinism, each resolution
+//! selector switching past a light, a policy driving, and a sweep that is
 //! killed mid-way and resumed.
 
+mod common;
+
+use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
+use common::{mrdrive, root, run_ok};
 
-fn mrdrive() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_mrdrive"));
-    c.current_dir(root());
-    c
-}
-
+/// `mrdrive run --quiet ARGS --json JSON`: the record it wrote.
 fn run_json(args: &[&str], json: &Path) -> serde_json::Value {
-    let out = mrdrive()
-        .args(["run", "--quiet"])
-        .args(args)
-        .arg("--json")
-        .arg(json)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "mrdrive run failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let mut all: Vec<OsString> = vec!["run".into(), "--quiet".into()];
+    all.extend(args.iter().map(OsString::from));
+    all.extend(["--json".into(), json.into()]);
+    run_ok(&all);
     serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap()
 }
 
@@ -158,51 +147,130 @@ fn a_killed_sweep_resumes_with_every_finished_record_intact() {
     assert!(out.join("summary.md").is_file() && out.join("summary.csv").is_file());
 }
 
+/// A scenario on gen01's route 0 (its first light is ~80 m on, and the ego
+/// waits there for green) with the latencies of 0.75 and 1.0, `resolution`
+/// and `driver` sections, cut at `timeout_s` seconds.
+fn selector_scenario(dir: &Path, name: &str, sections: &str, timeout_s: f64) -> PathBuf {
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(
+        &path,
+        format!(
+            "[map]\nfile = {:?}\n[route]\nfile = {:?}\nid = 0\n\
+             [timing]\nlatency_ms = {{ \"0.75\" = 50.0, \"1.0\" = 100.0 }}\n{sections}\n\
+             [termination]\ntimeout_s = {timeout_s:?}\n",
+            root().join("maps/gen01.xodr"),
+            root().join("routes/gen01.toml"),
+        ),
+    )
+    .unwrap();
+    path
+}
+
+/// Share of control boundaries at `scale` ("0.75", "1") in a record.
+fn share(record: &serde_json::Value, scale: &str) -> f64 {
+    record["result"]["scale_share"][scale]
+        .as_f64()
+        .unwrap_or(0.0)
+}
+
 #[test]
-fn a_policy_checkpoint_drives_a_scenario_with_each_selector() {
+fn each_selector_switches_as_its_scenario_says_past_a_light() {
+    let tmp = tempfile::tempdir().unwrap();
+    // 60 s: the expert reaches the first light, waits for green and drives
+    // through it and on (about 45 % of the route).
+    let run = |name: &str, resolution: &str| {
+        let scenario = selector_scenario(tmp.path(), name, resolution, 60.0);
+        let record = run_json(
+            &[scenario.to_str().unwrap()],
+            &tmp.path().join(format!("{name}.json")),
+        );
+        let completion = record["result"]["completion_pct"].as_f64().unwrap();
+        assert!(completion > 30.0, "{name}: only {completion} % driven");
+        record
+    };
+    let name = |r: &serde_json::Value| r["result"]["settings"]["resolution"].clone();
+    let latency = |r: &serde_json::Value| r["result"]["max_latency_ms"].as_f64().unwrap();
+
+    let fixed = run(
+        "fixed",
+        "[resolution]\nselector = \"fixed\"\nscale = 0.75\n",
+    );
+    assert_eq!(name(&fixed), "fixed-0.75");
+    assert_eq!(share(&fixed, "0.75"), 1.0);
+    assert_eq!(latency(&fixed), 50.0);
+
+    // The oracle: low on the road, high within 5 m of the light and until
+    // 15 m past it, low again after.
+    let oracle = run("oracle", "[resolution]\nselector = \"oracle\"\n");
+    assert_eq!(name(&oracle), "oracle-0.75/1-5/15m");
+    let oracle_high = share(&oracle, "1");
+    assert!(
+        oracle_high > 0.1 && share(&oracle, "0.75") > 0.1,
+        "the oracle must switch up at the light and back down past it: {}",
+        oracle["result"]["scale_share"]
+    );
+    assert_eq!(latency(&oracle), 100.0);
+
+    // Its parameters reach it: switching up from 30 m keeps the high scale longer.
+    let early = run(
+        "oracle-early",
+        "[resolution]\nselector = \"oracle\"\nnear_m = 30.0\nfar_m = 40.0\n",
+    );
+    assert_eq!(name(&early), "oracle-0.75/1-30/40m");
+    assert!(
+        share(&early, "1") > oracle_high,
+        "{}",
+        early["result"]["scale_share"]
+    );
+
+    // The lookahead, with the lead time its latencies need (50 + 100 ms).
+    let lookahead = run("lookahead", "[resolution]\nselector = \"lookahead\"\n");
+    assert_eq!(name(&lookahead), "lookahead-0.75/1-5/15m-cover0.15s");
+    assert!(
+        share(&lookahead, "1") > 0.1 && share(&lookahead, "0.75") > 0.1,
+        "{}",
+        lookahead["result"]["scale_share"]
+    );
+
+    // The budget: the highest scale within 75 ms.
+    let budget = run(
+        "budget",
+        "[resolution]\nselector = \"budget\"\nbudget_ms = 75.0\n",
+    );
+    assert_eq!(name(&budget), "budget-75ms");
+    assert_eq!(share(&budget, "0.75"), 1.0);
+    assert_eq!(latency(&budget), 50.0);
+}
+
+#[test]
+fn a_policy_checkpoint_drives_a_scenario_through_its_camera() {
     let tmp = tempfile::tempdir().unwrap();
     let weights = tmp.path().join("random.safetensors");
-    let init = mrdrive()
-        .args(["policy", "init", "--seed", "1", "--out"])
-        .arg(&weights)
-        .output()
-        .unwrap();
-    assert!(
-        init.status.success(),
-        "{}",
-        String::from_utf8_lossy(&init.stderr)
+    let weights_arg = weights.to_str().unwrap();
+    run_ok(&["policy", "init", "--seed", "1", "--out", weights_arg]);
+    let scenario = selector_scenario(
+        tmp.path(),
+        "policy",
+        "[driver]\nkind = \"policy\"\ncheckpoint = \"random.safetensors\"\n\
+         [resolution]\nselector = \"oracle\"\n",
+        1.5,
     );
-    for selector in ["fixed", "oracle", "lookahead", "budget"] {
-        let scenario = tmp.path().join(format!("{selector}.toml"));
-        std::fs::write(
-            &scenario,
-            format!(
-                "[map]\nfile = {:?}\n[route]\nfile = {:?}\nid = 0\n[driver]\nkind = \"policy\"\ncheckpoint = \"random.safetensors\"\n\
-                 [timing]\nlatency_ms = {{ \"0.75\" = 50.0, \"1.0\" = 100.0 }}\n[resolution]\nselector = \"{selector}\"\nscale = 0.75\nbudget_ms = 75.0\n\
-                 [termination]\ntimeout_s = 1.5\n",
-                root().join("maps/gen01.xodr"),
-                root().join("routes/gen01.toml"),
-            ),
-        )
-        .unwrap();
-        let json = tmp.path().join(format!("{selector}.json"));
-        let record = run_json(&[scenario.to_str().unwrap()], &json);
-        let r = &record["result"];
-        assert!(
-            r["provenance"]["driver"]
-                .as_str()
-                .unwrap()
-                .contains("random.safetensors"),
-            "{selector}: {r}"
-        );
-        assert!(
-            r["provenance"]["render_backend"].as_str().unwrap() != "none",
-            "{selector}: the policy needs the camera"
-        );
-        assert!(r["ticks"].as_u64().unwrap() > 0);
-        assert!(
-            r["max_latency_ms"].as_f64().unwrap() <= 100.0,
-            "{selector}: latency above L_high"
-        );
-    }
+    let record = run_json(&[scenario.to_str().unwrap()], &tmp.path().join("p.json"));
+    let r = &record["result"];
+    assert!(
+        r["provenance"]["driver"]
+            .as_str()
+            .unwrap()
+            .contains("random.safetensors"),
+        "{r}"
+    );
+    assert!(
+        r["provenance"]["render_backend"].as_str().unwrap() != "none",
+        "the policy needs the camera"
+    );
+    assert!(r["ticks"].as_u64().unwrap() > 0);
+    assert!(
+        r["max_latency_ms"].as_f64().unwrap() <= 100.0,
+        "latency above L_high"
+    );
 }

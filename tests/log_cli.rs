@@ -2,29 +2,15 @@
 //! recordings of one deterministic run are byte-identical, and the summary
 //! reads them back.
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn mrdrive(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mrdrive"))
-        .args(args)
-        .output()
-        .expect("mrdrive runs")
-}
-
-fn ok(o: &Output) -> String {
-    let out = String::from_utf8_lossy(&o.stdout).into_owned();
-    assert!(
-        o.status.success(),
-        "{out}\n{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    out
-}
+use common::{run, run_ok};
 
 /// The default scenario, cut to `timeout_s` of sim time, with absolute paths.
 fn short_scenario(dir: &Path, timeout_s: f64) -> PathBuf {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let root = common::root();
     let text = format!(
         "name = \"short\"\n\
          [map]\nfile = \"{}\"\n\
@@ -56,19 +42,19 @@ fn two_recordings_are_byte_identical_and_summarised() {
     let a = dir.path().join("a.mcap");
     let b = dir.path().join("b.mcap");
     for log in [&a, &b] {
-        ok(&mrdrive(&[
+        run_ok(&[
             "run",
             scenario,
             "--quiet",
             "--record",
             log.to_str().unwrap(),
-        ]));
+        ]);
     }
     let (bytes_a, bytes_b) = (std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
     assert!(bytes_a.len() > 1000, "{} bytes", bytes_a.len());
     assert!(bytes_a == bytes_b, "the two recordings differ");
 
-    let summary = ok(&mrdrive(&["log", "summary", a.to_str().unwrap()]));
+    let summary = run_ok(&["log", "summary", a.to_str().unwrap()]);
     for (topic, schema) in [
         ("/tf", "foxglove.FrameTransform"),
         ("/scene/map", "foxglove.SceneUpdate"),
@@ -106,7 +92,7 @@ fn two_recordings_are_byte_identical_and_summarised() {
 fn summary_of_a_missing_or_broken_file_names_it() {
     let dir = tempfile::tempdir().unwrap();
     let missing = dir.path().join("nope.mcap");
-    let o = mrdrive(&["log", "summary", missing.to_str().unwrap()]);
+    let o = run(&["log", "summary", missing.to_str().unwrap()]);
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
@@ -116,7 +102,7 @@ fn summary_of_a_missing_or_broken_file_names_it() {
 
     let broken = dir.path().join("broken.mcap");
     std::fs::write(&broken, b"\x89MCAP0\r\nnot a log").unwrap();
-    let o = mrdrive(&["log", "summary", broken.to_str().unwrap()]);
+    let o = run(&["log", "summary", broken.to_str().unwrap()]);
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(

@@ -1,26 +1,10 @@
 //! `mrdrive policy ...` through the command line: BN recalibration on rendered frames.
 
+mod common;
+
+use common::{run, run_ok};
 use policy::burn::tensor::Device;
-use std::path::{Path, PathBuf};
-use std::process::Command;
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn mrdrive(args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_mrdrive"))
-        .current_dir(root())
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "mrdrive {args:?} failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
+use std::path::Path;
 
 /// Running mean and variance of the stem's BN bank, branch `branch`.
 fn stem_stats(weights: &Path, branch: usize) -> (Vec<f32>, Vec<f32>) {
@@ -39,8 +23,8 @@ fn recalibration_sets_each_branch_from_frames_at_its_scale() {
     let before = tmp.path().join("tiny.safetensors");
     let after = tmp.path().join("tiny-recal.safetensors");
     let s = |p: &Path| p.to_str().unwrap().to_string();
-    mrdrive(&["policy", "init", "--preset", "tiny", "--out", &s(&before)]);
-    let out = mrdrive(&[
+    run_ok(&["policy", "init", "--preset", "tiny", "--out", &s(&before)]);
+    let out = run_ok(&[
         "policy",
         "recalibrate",
         &s(&before),
@@ -72,7 +56,7 @@ fn recalibration_sets_each_branch_from_frames_at_its_scale() {
     );
     assert_ne!(a_v, b_v);
     // The card keeps the weights' status and says what was done.
-    let info = mrdrive(&["policy", "info", &s(&after)]);
+    let info = run_ok(&["policy", "info", &s(&after)]);
     assert!(
         info.contains("recalibrated on 6 frames per scale") && info.contains("\"trained\": false"),
         "{info}"
@@ -93,37 +77,29 @@ fn recalibration_sets_each_branch_from_frames_at_its_scale() {
 
 #[test]
 fn recalibration_errors_name_the_problem() {
-    let out = Command::new(env!("CARGO_BIN_EXE_mrdrive"))
-        .current_dir(root())
-        .args([
-            "policy",
-            "recalibrate",
-            "no-such.safetensors",
-            "--scenario",
-            "scenarios/default.toml",
-            "--out",
-            "/tmp/never.safetensors",
-        ])
-        .output()
-        .unwrap();
+    let out = run(&[
+        "policy",
+        "recalibrate",
+        "no-such.safetensors",
+        "--scenario",
+        "scenarios/default.toml",
+        "--out",
+        "/tmp/never.safetensors",
+    ]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("no-such"), "{err}");
-    let out = Command::new(env!("CARGO_BIN_EXE_mrdrive"))
-        .current_dir(root())
-        .args([
-            "policy",
-            "recalibrate",
-            "x.safetensors",
-            "--scenario",
-            "scenarios/default.toml",
-            "--batches",
-            "0",
-            "--out",
-            "/tmp/never.safetensors",
-        ])
-        .output()
-        .unwrap();
+    let out = run(&[
+        "policy",
+        "recalibrate",
+        "x.safetensors",
+        "--scenario",
+        "scenarios/default.toml",
+        "--batches",
+        "0",
+        "--out",
+        "/tmp/never.safetensors",
+    ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         !out.status.success() && err.contains("--batches 0"),

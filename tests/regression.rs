@@ -1,6 +1,9 @@
 //! The regression suite: short scenarios driven by the expert at D = 0, 100
 //! and 200 ms and each traffic density, whose exact infraction counts and
-//! route completion are golden files in `tests/golden/`.
+//! route completion are golden files in `tests/golden/`. Each scenario's
+//! traffic seed is its own (`[traffic] seed`), chosen so that traffic
+//! changes what the ego meets: a golden file whose lines are the same at
+//! every density could not catch an NPC regression.
 //!
 //! Runs are deterministic, so counts are exact: any change shows as a
 //! readable line diff. After a deliberate change, `cargo xtask bless`
@@ -8,19 +11,20 @@
 //! record the render backend of each run ("none" for the expert, which draws
 //! nothing).
 //!
-//! Scenarios on CARLA's maps need `../shared/carla/`; without it they are
-//! skipped with a message, unless `MRDRIVE_REQUIRE_SHARED=1`.
+//! Scenarios on CARLA's maps need `../shared/carla/` (or
+//! `$MRDRIVE_SHARED_DIR/carla/`); without it they skip through
+//! `world::testdata` (counted by `cargo xtask test`), unless
+//! `MRDRIVE_REQUIRE_SHARED=1`.
 
+mod common;
+
+use std::ffi::OsString;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+
+use common::root;
 
 const DELAYS: &str = "0,100,200";
 const DENSITIES: &str = "0:0,5:10,20:40";
-const SEED: &str = "1";
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
 
 /// One line per run: its settings and every count that must not drift.
 fn golden_line(record: &serde_json::Value) -> String {
@@ -46,31 +50,30 @@ fn golden_line(record: &serde_json::Value) -> String {
     )
 }
 
-/// Runs one regression scenario through `mrdrive sweep` and returns its lines.
+/// Runs one regression scenario through `mrdrive sweep` (at its own traffic
+/// seed) and returns its lines.
 fn run_scenario(scenario: &Path, out: &Path) -> Vec<String> {
-    let status = Command::new(env!("CARGO_BIN_EXE_mrdrive"))
-        .args(["sweep"])
-        .arg(scenario)
-        .args([
-            "--delays",
-            DELAYS,
-            "--densities",
-            DENSITIES,
-            "--seeds",
-            SEED,
-            "--jobs",
-            "2",
-            "--out",
-        ])
-        .arg(out)
-        .output()
-        .expect("mrdrive starts");
-    assert!(
-        status.status.success(),
-        "sweep of {} failed:\n{}",
-        scenario.display(),
-        String::from_utf8_lossy(&status.stderr)
-    );
+    let seed = sim::scenario::Scenario::from_file(scenario)
+        .unwrap()
+        .traffic
+        .seed
+        .to_string();
+    let mut args: Vec<OsString> = vec!["sweep".into(), scenario.into()];
+    for a in [
+        "--delays",
+        DELAYS,
+        "--densities",
+        DENSITIES,
+        "--seeds",
+        seed.as_str(),
+        "--jobs",
+        "2",
+        "--out",
+    ] {
+        args.push(a.into());
+    }
+    args.push(out.into());
+    common::run_ok(&args);
     let plan: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("plan.json")).unwrap()).unwrap();
     let mut lines = Vec::new();
@@ -119,27 +122,28 @@ fn check(name: &str, lines: &[String]) -> Result<(), String> {
     Err(diff)
 }
 
-fn shared_available(scenario: &str) -> bool {
-    if root().join("../shared/carla/Town01.xodr").is_file() {
-        return true;
+/// The scenario file of `name`. One on CARLA's maps refers to them as
+/// `../../../shared/carla/...`; it is rewritten into `tmp` to point at the
+/// CARLA folder the tests use, or is `None` (skipped) without one.
+fn scenario_file(name: &str, needs_carla: bool, tmp: &Path) -> Option<PathBuf> {
+    let file = root().join("tests/regression").join(format!("{name}.toml"));
+    if !needs_carla {
+        return Some(file);
     }
-    assert!(
-        std::env::var("MRDRIVE_REQUIRE_SHARED").as_deref() != Ok("1"),
-        "{scenario}: ../shared/carla not found and MRDRIVE_REQUIRE_SHARED=1"
-    );
-    println!("SKIPPED: {scenario}: ../shared/carla not found");
-    false
+    let carla = world::testdata::carla_dir(name)?;
+    let text = std::fs::read_to_string(&file).unwrap();
+    let text = text.replace("../../../shared/carla", &carla.display().to_string());
+    let copy = tmp.join(format!("{name}.toml"));
+    std::fs::write(&copy, text).unwrap();
+    Some(copy)
 }
 
 fn regression(name: &str, needs_carla: bool) {
-    if needs_carla && !shared_available(name) {
-        return;
-    }
     let tmp = tempfile::tempdir().unwrap();
-    let lines = run_scenario(
-        &root().join("tests/regression").join(format!("{name}.toml")),
-        tmp.path(),
-    );
+    let Some(scenario) = scenario_file(name, needs_carla, tmp.path()) else {
+        return;
+    };
+    let lines = run_scenario(&scenario, &tmp.path().join("sweep"));
     assert_eq!(lines.len(), 9, "3 delays x 3 densities");
     if let Err(diff) = check(name, &lines) {
         panic!("{diff}");
@@ -149,6 +153,11 @@ fn regression(name: &str, needs_carla: bool) {
 #[test]
 fn gen01_route0() {
     regression("gen01_route0", false);
+}
+
+#[test]
+fn gen01_route1() {
+    regression("gen01_route1", false);
 }
 
 #[test]

@@ -1,13 +1,8 @@
 //! `mrdrive traffic ...` end to end on the built-in fixture town.
 
-use std::process::Command;
+mod common;
 
-fn mrdrive(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_mrdrive"))
-        .args(args)
-        .output()
-        .expect("mrdrive runs")
-}
+use common::{run, run_ok};
 
 fn field(out: &str, name: &str) -> f64 {
     let line = out
@@ -24,7 +19,7 @@ fn field(out: &str, name: &str) -> f64 {
 
 #[test]
 fn soak_on_the_fixture_prints_its_figures() {
-    let o = mrdrive(&[
+    let out = run_ok(&[
         "traffic",
         "soak",
         "--fixture",
@@ -40,12 +35,6 @@ fn soak_on_the_fixture_prints_its_figures() {
         "--seed",
         "3",
     ]);
-    let out = String::from_utf8_lossy(&o.stdout);
-    assert!(
-        o.status.success(),
-        "{out}\n{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
     assert!(out.contains("FIXTURE town"));
     assert_eq!(field(&out, "simulated"), 30.0);
     assert_eq!(field(&out, "realised vehicles"), 10.0);
@@ -56,7 +45,7 @@ fn soak_on_the_fixture_prints_its_figures() {
 
 #[test]
 fn table_prints_three_densities() {
-    let o = mrdrive(&[
+    let out = run_ok(&[
         "traffic",
         "table",
         "--fixture",
@@ -66,8 +55,6 @@ fn table_prints_three_densities() {
         "--resets",
         "2",
     ]);
-    let out = String::from_utf8_lossy(&o.stdout);
-    assert!(o.status.success(), "{out}");
     for d in ["(0, 0)", "(5, 10)", "(20, 40)"] {
         assert!(out.contains(d), "{d} missing:\n{out}");
     }
@@ -75,14 +62,14 @@ fn table_prints_three_densities() {
 
 #[test]
 fn bad_town_arguments_name_the_problem() {
-    let o = mrdrive(&["traffic", "soak", "--map", "/nonexistent/Town01.xodr"]);
+    let o = run(&["traffic", "soak", "--map", "/nonexistent/Town01.xodr"]);
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
         err.contains("/nonexistent/Town01.xodr") && err.contains("--fixture"),
         "{err}"
     );
-    let o = mrdrive(&["traffic", "soak", "--fixture", "3by3"]);
+    let o = run(&["traffic", "soak", "--fixture", "3by3"]);
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("NXxNY"));
 }

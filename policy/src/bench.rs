@@ -2,9 +2,11 @@
 //! Called by `mrdrive bench policy`; never asserted in tests.
 
 use crate::model::{ParamCounts, PolicyConfig};
+use crate::train::presets::Preset;
 use crate::train::synthetic::toy_batch;
 use crate::train::{MultiResTrainer, TrainConfig};
 use burn::prelude::*;
+use sim::render::image::test_pattern;
 use std::time::Instant;
 
 /// Latency statistics of repeated runs (milliseconds).
@@ -82,7 +84,7 @@ pub fn fused_latency(
         .iter()
         .map(|&r| {
             let [h, w] = config.input_size(r);
-            (0..h * w * 3).map(|i| (i * 131 % 251) as u8).collect()
+            test_pattern(w as u32, h as u32, 0).data
         })
         .collect();
     per_scale(config, warmup, repeats, |branch| {
@@ -162,6 +164,57 @@ impl Overhead {
     pub fn percent(&self) -> f64 {
         100.0 * (self.multi - self.single) as f64 / self.single as f64
     }
+}
+
+/// The networks `policy overhead` compares: the paper's at two and five
+/// scales, a full-width ResNet-18, and the CPU default.
+pub fn overhead_networks() -> Vec<(&'static str, PolicyConfig)> {
+    vec![
+        (
+            "resnet34 (paper, 64-512)",
+            Preset::Paper.config(&[0.75, 1.0]),
+        ),
+        (
+            "resnet34 (paper), 5 scales",
+            Preset::Paper.config(&[0.5, 0.625, 0.75, 0.875, 1.0]),
+        ),
+        ("resnet18 (64-512)", Preset::Resnet18.config(&[0.75, 1.0])),
+        (
+            "default: resnet18 half (32-256)",
+            Preset::Cpu.config(&[0.75, 1.0]),
+        ),
+    ]
+}
+
+/// The networks `bench policy` times (R = {0.75, 1.0}): the CPU default,
+/// and unless `quick` the full-width ResNet-18 and ResNet-34 at the CPU and
+/// the paper's S0 and the default at the paper's S0.
+pub fn latency_networks(quick: bool) -> Vec<(&'static str, PolicyConfig)> {
+    let r = [0.75, 1.0];
+    let mut nets = vec![("default: resnet18 half 32-256", Preset::Cpu.config(&r))];
+    if !quick {
+        let cpu_s0 = |c: PolicyConfig| c.with_input_height(96).with_input_width(240);
+        nets.extend([
+            (
+                "resnet18 64-512 @ 240x96",
+                cpu_s0(Preset::Resnet18.config(&r)),
+            ),
+            ("resnet18 64-512 @ 480x192", Preset::Resnet18.config(&r)),
+            ("resnet34 64-512 @ 240x96", cpu_s0(Preset::Paper.config(&r))),
+            (
+                "resnet34 64-512 @ 480x192 (paper)",
+                Preset::Paper.config(&r),
+            ),
+            (
+                "resnet18 half 32-256 @ 480x192",
+                Preset::Cpu
+                    .config(&r)
+                    .with_input_height(192)
+                    .with_input_width(480),
+            ),
+        ]);
+    }
+    nets
 }
 
 /// Parameter overhead of the BN banks of `config` against the same network with one branch.

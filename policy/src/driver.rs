@@ -1,12 +1,16 @@
 //! The policy as a `Driver`: the image at the selector's scale in, a control out.
 
 use crate::checkpoint::{self, CheckpointError, ModelCard};
+use crate::device::{DeviceError, DeviceKind};
 use crate::fused::FusedPolicy;
 use crate::model::PolicyNet;
 use burn::prelude::*;
 use dataset::action::{NUM_ACTIONS, NUM_SPEED_BINS};
 use dataset::decode::{Decoded, decode, interpolate_speed};
+use sim::build::{DriverFactory, FactoryError};
 use sim::driver::{Driver, DriverNeeds, Observation, VehicleControl};
+use sim::runner::Prepared;
+use sim::scenario::Scenario;
 use std::path::Path;
 
 /// A multi-resolution CNN policy driving the ego.
@@ -132,6 +136,63 @@ impl PolicyDriver {
     }
 }
 
+/// Builds the [`PolicyDriver`] a scenario names (`driver.kind = "policy"`,
+/// `driver.checkpoint`, `driver.device`): register it with
+/// `sim::build::Drivers::with(DriverKind::Policy, PolicyFactory)`.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct PolicyFactory;
+
+/// A scenario's policy driver could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum PolicyDriverError {
+    /// No checkpoint is named.
+    #[error(
+        "driver.checkpoint is missing; fix: a policy driver needs `checkpoint = \"path/to/model.safetensors\"`"
+    )]
+    NoCheckpoint,
+    /// The device named cannot be opened.
+    #[error("driver.device")]
+    Device(#[source] DeviceError),
+    /// The checkpoint cannot be used.
+    #[error(transparent)]
+    Checkpoint(#[from] CheckpointError),
+}
+
+impl PolicyFactory {
+    fn checkpoint(scenario: &Scenario) -> Result<&Path, PolicyDriverError> {
+        scenario
+            .driver
+            .checkpoint
+            .as_deref()
+            .ok_or(PolicyDriverError::NoCheckpoint)
+    }
+}
+
+impl DriverFactory for PolicyFactory {
+    fn driver(
+        &self,
+        scenario: &Scenario,
+        _prepared: &Prepared,
+    ) -> Result<Box<dyn Driver>, FactoryError> {
+        let weights = Self::checkpoint(scenario)?;
+        let kind: DeviceKind = scenario
+            .driver
+            .device
+            .as_deref()
+            .unwrap_or("cpu")
+            .parse()
+            .map_err(PolicyDriverError::Device)?;
+        let device = crate::device::open(kind).map_err(PolicyDriverError::Device)?;
+        Ok(Box::new(PolicyDriver::from_checkpoint(weights, device)?))
+    }
+
+    fn input_size(&self, scenario: &Scenario) -> Result<Option<(u32, u32)>, FactoryError> {
+        let (config, _) = checkpoint::read_manifest(Self::checkpoint(scenario)?)?;
+        let [h, w] = config.input_size(1.0);
+        Ok(Some((h as u32, w as u32)))
+    }
+}
+
 fn nearest_branch(scales: &[f32], scale: f32) -> usize {
     (0..scales.len())
         .min_by(|&a, &b| {
@@ -195,18 +256,8 @@ mod tests {
     use super::*;
     use crate::backbone::Depth;
     use crate::model::PolicyConfig;
-    use sim::driver::{Command, RgbImage};
-
-    fn image(w: u32, h: u32, seed: u8) -> RgbImage {
-        let data = (0..w * h * 3)
-            .map(|i| (i as u8).wrapping_mul(31).wrapping_add(seed))
-            .collect();
-        RgbImage {
-            width: w,
-            height: h,
-            data,
-        }
-    }
+    use sim::driver::Command;
+    use sim::render::image::test_pattern;
 
     #[test]
     fn drives_at_each_scale_deterministically() {
@@ -221,7 +272,7 @@ mod tests {
         assert!(a.needs().camera);
         for scale in [0.75f32, 1.0] {
             let [h, w] = cfg.input_size(scale);
-            let img = image(w as u32, h as u32, 3);
+            let img = test_pattern(w as u32, h as u32, 3);
             let obs = Observation {
                 time_s: 0.0,
                 speed_mps: 2.0,
@@ -242,7 +293,7 @@ mod tests {
         bn.running_mean =
             burn::module::RunningState::new(bn.running_mean.value_sync().add_scalar(0.5));
         let c = PolicyDriver::new(net, ModelCard::random_init(9), "c", device);
-        let img = image(96, 64, 1);
+        let img = test_pattern(96, 64, 1);
         assert_ne!(c.logits(&img, 0.75, 3, 2.0), c.logits(&img, 1.0, 3, 2.0));
         assert_eq!(a.logits(&img, 0.75, 3, 2.0), a.logits(&img, 1.0, 3, 2.0));
     }
@@ -261,7 +312,7 @@ mod tests {
         assert!(fused.is_fused() && !plain.is_fused());
         for scale in [0.75f32, 1.0] {
             let [h, w] = cfg.input_size(scale);
-            let img = image(w as u32, h as u32, 5);
+            let img = test_pattern(w as u32, h as u32, 5);
             for command in 0..6 {
                 let a = fused.logits(&img, scale, command, 3.0);
                 let b = plain.logits(&img, scale, command, 3.0);
@@ -292,6 +343,53 @@ mod tests {
             e.contains("bins3.json") && e.contains("num_speed_bins = 3"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn the_factory_builds_a_scenario_policy_and_gives_the_rig_its_s0() {
+        use sim::build::{Drivers, error_chain, rig_for};
+        use sim::scenario::DriverKind;
+        let device = Device::flex();
+        let cfg = PolicyConfig::new(Depth::Resnet18, [4, 8, 8, 16])
+            .with_input_height(64)
+            .with_input_width(96);
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("tiny.safetensors");
+        checkpoint::save(&cfg.init(&device), &ModelCard::random_init(0), &path).unwrap();
+        let mut scenario = Scenario::from_toml_str(
+            "[map]\nfile = \"t.xodr\"\n[route]\nfile = \"r.toml\"\nid = 0\n\
+             [driver]\nkind = \"policy\"\ncheckpoint = \"m.safetensors\"\n",
+            Path::new("s.toml"),
+        )
+        .unwrap();
+        scenario.driver.checkpoint = Some(path.clone());
+        let drivers = Drivers::new().with(DriverKind::Policy, PolicyFactory);
+        assert_eq!(drivers.input_size(&scenario).unwrap(), Some((64, 96)));
+        assert_eq!(rig_for(&scenario, &drivers).unwrap().base_size(), (96, 64));
+        let prepared = Prepared {
+            town: std::sync::Arc::new(world::Town::empty("t")),
+            route: world::planner::DenseRoute {
+                id: "0".into(),
+                points: vec![],
+                length_m: 0.0,
+                waypoint_points: vec![],
+            },
+            route_file: "r.toml".into(),
+        };
+        let driver = drivers.driver(&scenario, &prepared).unwrap();
+        assert!(
+            driver.name().contains("tiny.safetensors"),
+            "{}",
+            driver.name()
+        );
+        assert!(driver.needs().camera);
+        scenario.driver.device = Some("tpu".into());
+        let e = error_chain(&drivers.driver(&scenario, &prepared).err().unwrap());
+        assert!(e.contains("driver.device") && e.contains("tpu"), "{e}");
+        scenario.driver.device = None;
+        scenario.driver.checkpoint = Some(tmp.path().join("missing.safetensors"));
+        let e = error_chain(&drivers.input_size(&scenario).err().unwrap());
+        assert!(e.contains("missing.json"), "{e}");
     }
 
     #[test]

@@ -470,10 +470,9 @@ mod tests {
     use burn::module::{Module, RunningState};
     use burn::tensor::Distribution;
 
+    /// RGB8 bytes of an image `h` x `w` (the shared test pattern).
     fn image(h: usize, w: usize, seed: u8) -> Vec<u8> {
-        (0..h * w * 3)
-            .map(|i| ((i * 37) as u8).wrapping_add(seed).wrapping_mul(13))
-            .collect()
+        sim::render::image::test_pattern(w as u32, h as u32, u64::from(seed)).data
     }
 
     /// A net whose BN statistics and affine parameters are far from the identity, so that a

@@ -1,9 +1,11 @@
 //! The multi-resolution driving policy: a ResNet whose every BatchNorm is a bank
-//! (one branch per input scale), WoR's action head and decoding, resolution
-//! selectors, checkpoints, the training step, and the `Driver` the loop calls.
+//! (one branch per input scale), WoR's action head and decoding, checkpoints,
+//! training (presets, the multi-resolution step, BN recalibration), and the
+//! `Driver` the loop calls with the factory that builds it from a scenario.
+//! The resolution selectors that pick the scale live in `sim::selector`.
 //!
 //! Read in this order: [`bn_bank`], [`backbone`], [`heads`], [`model`],
-//! `dataset::action` and `dataset::decode` (the 28 actions and WoR's decoding, shared with the labels), [`device`], [`checkpoint`], [`selector`], [`fused`], [`driver`], [`train`], [`bench`].
+//! `dataset::action` and `dataset::decode` (the 28 actions and WoR's decoding, shared with the labels), [`device`], [`checkpoint`], [`fused`], [`driver`], [`train`], [`bench`].
 
 pub mod backbone;
 pub mod bench;
@@ -15,11 +17,10 @@ pub mod driver;
 pub mod fused;
 pub mod heads;
 pub mod model;
-pub use sim::selector;
 pub mod train;
 
 pub use checkpoint::ModelCard;
-pub use driver::PolicyDriver;
+pub use driver::{PolicyDriver, PolicyFactory};
 pub use model::{PolicyConfig, PolicyNet};
 
 /// The burn version this crate is built on, for callers that need devices or tensors.

@@ -7,22 +7,16 @@ use policy::backbone::Depth;
 use policy::burn::prelude::*;
 use policy::checkpoint::{self, ModelCard};
 use policy::model::PolicyConfig;
-use policy::selector::{
+use sim::driver::{Command, Driver, Observation, RgbImage};
+use sim::render::image::test_pattern;
+use sim::selector::{
     Fixed, LatencyBudget, LatencyTable, Lookahead, Oracle, ResolutionSelector, SelectorInput,
 };
-use sim::driver::{Command, Driver, Observation, RgbImage};
 
 /// A stand-in for the renderer: a deterministic image of the size the scale gives.
 fn render(cfg: &PolicyConfig, scale: f32, t: usize) -> RgbImage {
     let [h, w] = cfg.input_size(scale);
-    let data = (0..h * w * 3)
-        .map(|i| ((i * 13 + t * 7) % 251) as u8)
-        .collect();
-    RgbImage {
-        width: w as u32,
-        height: h as u32,
-        data,
-    }
+    test_pattern(w as u32, h as u32, t as u64)
 }
 
 #[test]
@@ -86,8 +80,8 @@ fn a_checkpoint_drives_a_scripted_approach_with_each_selector() {
             // 30 m -> -28.5 m in 1.5 m steps: up at d = 4.5 m (oracle) / 6.0 m (lookahead: trigger at
             // 5 + 10 m/s x 0.15 s = 6.5 m),
             // down past 15 m behind.
-            "oracle" => assert_eq!(highs, 14, "{used:?}"),
-            "lookahead" => assert_eq!(highs, 15, "{used:?}"),
+            "oracle-0.75/1-5/15m" => assert_eq!(highs, 14, "{used:?}"),
+            "lookahead-0.75/1-5/15m-cover0.15s" => assert_eq!(highs, 15, "{used:?}"),
             other => panic!("unexpected selector {other}"),
         }
         assert!(used.iter().all(|(s, l)| (*s == 1.0) == (*l == 100.0)));

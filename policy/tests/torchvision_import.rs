@@ -1,14 +1,14 @@
 //! Loading a torchvision ResNet state dict written by Python's `safetensors` + `numpy`.
 //!
 //! Needs a Python with those packages: `MRDRIVE_PYTHON` names it, else
-//! `<workspace>/.venv/bin/python`, else `python3`. Without one the test prints
-//! "SKIPPED" and passes, unless `MRDRIVE_REQUIRE_PYTHON=1`.
+//! `<workspace>/.venv/bin/python`, else `python3`. Without one the test skips
+//! through `world::testdata::skip` (counted by `cargo xtask test`), unless
+//! `MRDRIVE_REQUIRE_PYTHON=1`.
 
 use policy::backbone::Depth;
 use policy::burn::prelude::*;
 use policy::checkpoint::load_torchvision_backbone;
 use policy::model::PolicyConfig;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -26,14 +26,13 @@ fn python() -> Option<PathBuf> {
     })
 }
 
-fn write_files() -> Option<tempfile::TempDir> {
+fn write_files(test: &str) -> Option<tempfile::TempDir> {
     let Some(py) = python() else {
-        let msg = "SKIPPED: no Python with `safetensors` and `numpy` (set MRDRIVE_PYTHON or create .venv)";
-        if std::env::var("MRDRIVE_REQUIRE_PYTHON").is_ok_and(|v| v == "1") {
-            panic!("{msg}, and MRDRIVE_REQUIRE_PYTHON=1");
-        }
-        // Straight to the stderr handle: the test harness captures `eprintln!`.
-        let _ = writeln!(std::io::stderr(), "{msg}");
+        world::testdata::skip(
+            test,
+            world::testdata::Needs::Python,
+            "no Python with `safetensors` and `numpy` (set MRDRIVE_PYTHON or create .venv)",
+        );
         return None;
     };
     let dir = tempfile::tempdir().unwrap();
@@ -80,7 +79,9 @@ fn config() -> PolicyConfig {
 
 #[test]
 fn torchvision_state_dict_loads_into_every_branch() {
-    let Some(dir) = write_files() else { return };
+    let Some(dir) = write_files("torchvision_state_dict_loads_into_every_branch") else {
+        return;
+    };
     let device = Device::flex();
     for (file, prefix) in [
         ("tiny_resnet18.safetensors", ""),
@@ -132,7 +133,9 @@ fn torchvision_state_dict_loads_into_every_branch() {
 
 #[test]
 fn broken_torchvision_files_name_the_tensor() {
-    let Some(dir) = write_files() else { return };
+    let Some(dir) = write_files("broken_torchvision_files_name_the_tensor") else {
+        return;
+    };
     let device = Device::flex();
     let e = load_torchvision_backbone(
         &dir.path().join("tiny_missing.safetensors"),

@@ -1,8 +1,51 @@
-//! The wgpu rig as the loop's [`Camera`].
+//! The loop's camera: what renders the policy's view ([`Camera`]), and the
+//! wgpu rig ([`Renderer`]) as one.
+
+use world::{ActorSnapshot, LightState};
 
 use crate::driver::RgbImage;
 use crate::render::{EgoPose, Renderer};
-use crate::runner::{Camera, CameraFrame};
+
+/// What the camera is asked to draw.
+#[derive(Debug, Clone, Copy)]
+pub struct CameraFrame<'a> {
+    /// The ego (the rig is mounted on it).
+    pub ego: &'a ActorSnapshot,
+    /// Every actor, ego first.
+    pub actors: &'a [ActorSnapshot],
+    /// Light states by `LightIdx`.
+    pub lights: &'a [LightState],
+}
+
+/// Something that renders the policy's view: the wgpu rig, or a test double.
+pub trait Camera {
+    /// Renders the rig at `scale` (fraction of S0).
+    fn render(&mut self, frame: &CameraFrame<'_>, scale: f64) -> Result<&RgbImage, String>;
+    /// The backend and adapter, for result records.
+    fn backend(&self) -> String;
+    /// Renders the rig at `scale` like [`Camera::render`] and paints its
+    /// class image in the label palette into `labels`; `None` if this camera
+    /// has no class image.
+    fn render_labelled(
+        &mut self,
+        _frame: &CameraFrame<'_>,
+        _scale: f64,
+        _labels: &mut RgbImage,
+    ) -> Option<Result<&RgbImage, String>> {
+        None
+    }
+    /// Renders the bird's-eye view around the ego (forward up), `extent_m`
+    /// metres across, `width` x `height` pixels; `None` if this camera cannot.
+    fn render_bev(
+        &mut self,
+        _frame: &CameraFrame<'_>,
+        _width: u32,
+        _height: u32,
+        _extent_m: f32,
+    ) -> Option<Result<&RgbImage, String>> {
+        None
+    }
+}
 
 impl Camera for Renderer {
     fn render(&mut self, frame: &CameraFrame<'_>, scale: f64) -> Result<&RgbImage, String> {

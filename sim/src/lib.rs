@@ -1,7 +1,13 @@
 //! The closed loop: camera, timing and delay, drivers, monitors, recorder,
 //! scenarios and sweeps. It knows nothing of neural networks: a policy is a
-//! [`Driver`].
+//! [`Driver`], built from a scenario by a [`build::DriverFactory`] that the
+//! program registers.
+//!
+//! From a scenario file to a result: [`scenario`] reads it, [`build`] makes
+//! its driver, selector and camera, [`runner`] drives the loop, [`record`]
+//! holds the result, [`sweep`] runs many and tabulates them.
 
+pub mod build;
 pub mod camera;
 pub mod delay;
 pub mod driver;

@@ -7,7 +7,7 @@
 //! wall-clock timings, which is not.
 
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
@@ -85,7 +85,8 @@ pub struct RunSettings {
     pub delay_ms: f64,
     /// Control period Tc (milliseconds).
     pub control_period_ms: f64,
-    /// The selector ("fixed 1.0", "oracle 0.75/1.0", ...).
+    /// The selector with its parameters ([`crate::selector::ResolutionSelector::name`]:
+    /// "fixed-1", "oracle-0.75/1-5/15m", ...).
     pub resolution: String,
     /// Target NPC vehicles.
     pub vehicles: u32,
@@ -152,9 +153,37 @@ pub fn write_atomically(path: &Path, record: &RunRecord) -> std::io::Result<()> 
     std::fs::rename(&tmp, path)
 }
 
+/// A record file could not be read back.
+#[derive(Debug, thiserror::Error)]
+pub enum ReadRecordError {
+    /// The file could not be read.
+    #[error("cannot read {path}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file is not a record of this version.
+    #[error("{path} is not a run record; fix: delete it and run again to redo that run")]
+    Json {
+        /// The file.
+        path: PathBuf,
+        /// What the parser said.
+        #[source]
+        source: serde_json::Error,
+    },
+}
+
 /// Reads a record written by [`write_atomically`].
-pub fn read(path: &Path) -> Result<RunRecord, String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-    serde_json::from_str(&text).map_err(|e| format!("{} is not a run record: {e}", path.display()))
+pub fn read(path: &Path) -> Result<RunRecord, ReadRecordError> {
+    let text = std::fs::read_to_string(path).map_err(|source| ReadRecordError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    serde_json::from_str(&text).map_err(|source| ReadRecordError::Json {
+        path: path.to_path_buf(),
+        source,
+    })
 }

@@ -21,6 +21,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use world::ahead::Ahead;
+use world::pedestrian::PedestrianParams;
 use world::physics::Party;
 use world::planner::{DenseRoute, PlannerConfig, plan_route};
 use world::route::RouteFile;
@@ -30,6 +31,7 @@ use world::traffic_light::{LightController, LightTiming};
 use world::xodr_map::{LoadOptions, UnsignalledJunctions, load_xodr_file};
 use world::{ActorKind, ActorSnapshot, LightIdx, LightState, Town, Vec2};
 
+use crate::camera::{Camera, CameraFrame};
 use crate::delay::{DelayLine, DelayTiming};
 use crate::driver::{Driver, Observation, Privileged, RgbImage, VehicleControl};
 use crate::monitors::blocked::BlockedMonitor;
@@ -105,47 +107,6 @@ pub fn prepare(scenario: &Scenario) -> Result<Prepared, RunError> {
         route: dense,
         route_file: scenario.route.file.clone(),
     })
-}
-
-/// What the camera is asked to draw.
-#[derive(Debug, Clone, Copy)]
-pub struct CameraFrame<'a> {
-    /// The ego (the rig is mounted on it).
-    pub ego: &'a ActorSnapshot,
-    /// Every actor, ego first.
-    pub actors: &'a [ActorSnapshot],
-    /// Light states by `LightIdx`.
-    pub lights: &'a [LightState],
-}
-
-/// Something that renders the policy's view: the wgpu rig, or a test double.
-pub trait Camera {
-    /// Renders the rig at `scale` (fraction of S0).
-    fn render(&mut self, frame: &CameraFrame<'_>, scale: f64) -> Result<&RgbImage, String>;
-    /// The backend and adapter, for result records.
-    fn backend(&self) -> String;
-    /// Renders the rig at `scale` like [`Camera::render`] and paints its
-    /// class image in the label palette into `labels`; `None` if this camera
-    /// has no class image.
-    fn render_labelled(
-        &mut self,
-        _frame: &CameraFrame<'_>,
-        _scale: f64,
-        _labels: &mut RgbImage,
-    ) -> Option<Result<&RgbImage, String>> {
-        None
-    }
-    /// Renders the bird's-eye view around the ego (forward up), `extent_m`
-    /// metres across, `width` x `height` pixels; `None` if this camera cannot.
-    fn render_bev(
-        &mut self,
-        _frame: &CameraFrame<'_>,
-        _width: u32,
-        _height: u32,
-        _extent_m: f32,
-    ) -> Option<Result<&RgbImage, String>> {
-        None
-    }
 }
 
 /// Settings given on the command line over the scenario's.
@@ -320,12 +281,17 @@ pub fn run(
     let seed = scenario.traffic.seed;
 
     // The world.
+    let defaults = TrafficConfig::default();
     let cfg = TrafficConfig {
         vehicles: scenario.traffic.vehicles as usize,
         pedestrians: scenario.traffic.pedestrians as usize,
         seed,
         tick_s: tick_s as f32,
-        ..TrafficConfig::default()
+        pedestrian: PedestrianParams {
+            cross_factor: scenario.traffic.cross_factor,
+            ..defaults.pedestrian
+        },
+        ..defaults
     };
     let vehicle = cfg.vehicle;
     let mut traffic = Traffic::new(town.clone(), cfg, Some(ego_start(route)?));

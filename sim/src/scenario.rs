@@ -188,6 +188,16 @@ pub enum DriverKind {
     Policy,
 }
 
+impl DriverKind {
+    /// The name a scenario file uses (`driver.kind = "expert"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            DriverKind::Expert => "expert",
+            DriverKind::Policy => "policy",
+        }
+    }
+}
+
 /// The camera rig: WoR's three cameras at a base size S0.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -552,6 +562,17 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("resolution.scale"), "{err}");
+    }
+
+    #[test]
+    fn driver_kinds_are_named_as_the_file_writes_them() {
+        for kind in [DriverKind::Expert, DriverKind::Policy] {
+            let text = format!(
+                "{MINIMAL}[driver]\nkind = \"{}\"\ncheckpoint = \"m.safetensors\"\n",
+                kind.name()
+            );
+            assert_eq!(parse(&text).unwrap().driver.kind, kind);
+        }
     }
 
     #[test]

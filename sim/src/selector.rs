@@ -30,7 +30,10 @@ impl SelectorInput {
 
 /// Chooses the input scale at each control boundary.
 pub trait ResolutionSelector {
-    /// Short name for result records ("fixed-0.75", "oracle", ...).
+    /// The selector with every parameter that changes what it selects, for
+    /// result records and sweep tables ("fixed-0.75",
+    /// "oracle-0.75/1-5/15m", ...): two selectors that may select
+    /// differently never share a name.
     fn name(&self) -> String;
     /// The scale to use from this boundary on.
     fn select(&mut self, input: &SelectorInput) -> f32;
@@ -180,7 +183,10 @@ fn hysteresis(active: bool, input: &SelectorInput, enter_m: f32, exit_m: f32) ->
 
 impl ResolutionSelector for Oracle {
     fn name(&self) -> String {
-        "oracle".into()
+        format!(
+            "oracle-{}/{}-{}/{}m",
+            self.low, self.high, self.enter_m, self.exit_m
+        )
     }
     fn select(&mut self, input: &SelectorInput) -> f32 {
         self.active = hysteresis(self.active, input, self.enter_m, self.exit_m);
@@ -236,7 +242,10 @@ impl Lookahead {
 
 impl ResolutionSelector for Lookahead {
     fn name(&self) -> String {
-        "lookahead".into()
+        format!(
+            "lookahead-{}/{}-{}/{}m-cover{}s",
+            self.low, self.high, self.enter_m, self.exit_m, self.cover_s
+        )
     }
     fn select(&mut self, input: &SelectorInput) -> f32 {
         let enter = self.trigger_m(input.speed_mps);
@@ -358,6 +367,44 @@ mod tests {
             .to_string();
         assert!(e.contains("entry 1") && e.contains("twice"), "{e}");
         assert!(LatencyTable::new(&[(0.75, f64::NAN)]).is_err());
+    }
+
+    #[test]
+    fn names_carry_every_parameter() {
+        let o = Oracle::default();
+        assert_eq!(o.name(), "oracle-0.75/1-5/15m");
+        let names: std::collections::BTreeSet<String> = [
+            o.clone(),
+            Oracle {
+                low: 0.5,
+                ..o.clone()
+            },
+            Oracle {
+                high: 0.9,
+                ..o.clone()
+            },
+            Oracle {
+                enter_m: 8.0,
+                ..o.clone()
+            },
+            Oracle {
+                exit_m: 20.0,
+                ..o.clone()
+            },
+        ]
+        .iter()
+        .map(ResolutionSelector::name)
+        .collect();
+        assert_eq!(names.len(), 5, "{names:?}");
+        let table = LatencyTable::new(&[(1.0, 100.0), (0.75, 50.0)]).unwrap();
+        let la = Lookahead::covering(0.75, 1.0, &table).unwrap();
+        assert_eq!(la.name(), "lookahead-0.75/1-5/15m-cover0.15s");
+        let slower = Lookahead {
+            cover_s: 0.3,
+            ..la.clone()
+        };
+        assert_ne!(la.name(), slower.name());
+        assert_ne!(Fixed { scale: 0.75 }.name(), Fixed { scale: 1.0 }.name());
     }
 
     #[test]

@@ -3,7 +3,8 @@
 //! message of each topic against Foxglove's schemas.
 //!
 //! Needs a Python with `mcap` and `jsonschema` in `MRDRIVE_PYTHON` (`cargo
-//! xtask test` makes one); without it the test skips with a message, unless
+//! xtask test` makes one); without it the test skips through
+//! `world::testdata::skip` (counted by `cargo xtask test`), unless
 //! `MRDRIVE_REQUIRE_PYTHON=1`.
 
 use std::path::{Path, PathBuf};
@@ -17,24 +18,23 @@ use sim::render::{Renderer, RigConfig};
 use sim::runner::{self, RunInputs};
 use sim::scenario::Scenario;
 use sim::selector::Fixed;
+use world::testdata::{self, Needs};
 use world::{
     ActorKind, ActorSnapshot, LaneMarking, LightState, MarkColor, MarkKind, Town, Vec2, Vec3,
 };
 
-fn python() -> Option<PathBuf> {
-    match std::env::var_os("MRDRIVE_PYTHON") {
-        Some(p) => Some(PathBuf::from(p)),
-        None => {
-            assert!(
-                std::env::var_os("MRDRIVE_REQUIRE_PYTHON").is_none(),
-                "MRDRIVE_PYTHON is not set: run the tests through `cargo xtask test`"
-            );
-            eprintln!(
-                "SKIPPED: MRDRIVE_PYTHON not set (run `cargo xtask test` to make the Python environment)"
-            );
-            None
-        }
+/// The Python `cargo xtask test` made (`MRDRIVE_PYTHON`), or `None` after
+/// skipping `test`.
+fn python(test: &str) -> Option<PathBuf> {
+    let python = std::env::var_os("MRDRIVE_PYTHON").map(PathBuf::from);
+    if python.is_none() {
+        testdata::skip(
+            test,
+            Needs::Python,
+            "MRDRIVE_PYTHON not set (run `cargo xtask test` to make the Python environment)",
+        );
     }
+    python
 }
 
 fn town() -> Town {
@@ -71,7 +71,8 @@ fn check_with_python(python: &Path, log: &Path) -> String {
 
 #[test]
 fn python_mcap_reads_and_validates_a_log_of_the_real_loop() {
-    let Some(python) = python() else { return };
+    let test = "python_mcap_reads_and_validates_a_log_of_the_real_loop";
+    let Some(python) = python(test) else { return };
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let mut scenario = Scenario::from_file(&root.join("scenarios/default.toml")).unwrap();
     scenario.termination.timeout_s = Some(2.0);
@@ -79,11 +80,11 @@ fn python_mcap_reads_and_validates_a_log_of_the_real_loop() {
     let mut camera = match Renderer::new(&prepared.town, RigConfig::cpu_default(), 1) {
         Ok(r) => Some(r),
         Err(e) => {
-            assert!(
-                std::env::var_os("MRDRIVE_REQUIRE_GPU_API").is_none(),
-                "no renderer: {e}"
+            testdata::skip(
+                &format!("{test} (camera topics)"),
+                Needs::Renderer,
+                &format!("no renderer here: {e}"),
             );
-            eprintln!("SKIPPED (camera topics): no renderer here: {e}");
             None
         }
     };
@@ -104,7 +105,7 @@ fn python_mcap_reads_and_validates_a_log_of_the_real_loop() {
             prepared: &prepared,
             driver: &mut driver,
             selector: &mut selector,
-            camera: camera.as_mut().map(|c| c as &mut dyn runner::Camera),
+            camera: camera.as_mut().map(|c| c as &mut dyn sim::camera::Camera),
             recorder: Some(&mut rec),
             progress: &mut |_| {},
             max_ticks: None,
@@ -141,7 +142,9 @@ fn python_mcap_reads_and_validates_a_log_of_the_real_loop() {
 
 #[test]
 fn python_mcap_reads_and_validates_every_topic() {
-    let Some(python) = python() else { return };
+    let Some(python) = python("python_mcap_reads_and_validates_every_topic") else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("run.mcap");
     let town = town();

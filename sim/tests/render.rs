@@ -68,7 +68,7 @@ fn known_layout_has_the_expected_class_at_each_projected_pixel() {
     let walker = actor(ActorKind::Pedestrian, 12.0, 2.5, Vec3::new(0.5, 0.5, 1.8));
     let actors = [car, walker];
     let size = rig.size_at(1.0).unwrap();
-    let cams = rig.cameras(&ego, size);
+    let cams = rig.views(&ego, size);
     let lamp = lamp_center(r.scene(), 0, LightState::Red).unwrap();
     let (rgb, labels) = r
         .render_rig(&ego, &actors, &[LightState::Red], 1.0)

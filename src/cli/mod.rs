@@ -11,3 +11,9 @@ pub mod routes;
 pub mod run;
 pub mod sweep;
 pub mod traffic;
+
+/// Every driver kind a scenario can name: the expert (built by `sim`) and the
+/// policy (built by `policy` from its checkpoint).
+pub fn drivers() -> sim::build::Drivers {
+    sim::build::Drivers::new().with(sim::scenario::DriverKind::Policy, ::policy::PolicyFactory)
+}

@@ -1,51 +1,13 @@
 //! `mrdrive policy ...`, `mrdrive train --synthetic`, `mrdrive bench policy`.
 
-use anyhow::{Context, Result, bail};
-use clap::{Args, Subcommand, ValueEnum};
-use policy::backbone::Depth;
+use anyhow::{Result, bail};
+use clap::{Args, Subcommand};
 use policy::bench;
 use policy::checkpoint::{self, ModelCard};
-pub use policy::device::DeviceKind;
-use policy::model::PolicyConfig;
-use policy::train::synthetic::toy_batch;
-use policy::train::{MultiResTrainer, TrainConfig};
+use policy::device::{self, DeviceKind};
+use policy::train::synthetic::{SmokeRun, train_on_toy_batch};
+use policy::train::{Preset, TrainConfig};
 use std::path::PathBuf;
-
-/// A named network configuration.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum Preset {
-    /// Half-width ResNet-18 at 240 x 96 (the CPU default).
-    Cpu,
-    /// ResNet-34 at 480 x 192 (the paper).
-    Paper,
-    /// Full-width ResNet-18 at 480 x 192.
-    Resnet18,
-    /// A tiny network (widths 8-16-16-32, 96 x 48) for smoke runs.
-    Tiny,
-}
-
-impl Preset {
-    /// The config of this preset with scale set `scales`.
-    pub fn config(self, scales: &[f32]) -> PolicyConfig {
-        let c = match self {
-            Preset::Cpu => PolicyConfig::cpu_default(),
-            Preset::Paper => PolicyConfig::paper(),
-            Preset::Resnet18 => PolicyConfig {
-                depth: Depth::Resnet18,
-                ..PolicyConfig::paper()
-            },
-            Preset::Tiny => PolicyConfig::new(Depth::Resnet18, [8, 16, 16, 32])
-                .with_input_height(48)
-                .with_input_width(96),
-        };
-        c.with_scales(scales.to_vec())
-    }
-}
-
-/// The burn device for `kind` (an error names the feature to build with when it is missing).
-pub fn device(kind: DeviceKind) -> Result<policy::burn::tensor::Device> {
-    Ok(policy::device::open(kind)?)
-}
 
 /// `mrdrive policy ...`
 #[derive(Debug, Args)]
@@ -64,7 +26,7 @@ enum PolicyCommand {
         #[arg(long)]
         out: PathBuf,
         /// Network preset.
-        #[arg(long, value_enum, default_value = "cpu")]
+        #[arg(long, default_value = "cpu")]
         preset: Preset,
         /// Scale set R, comma-separated.
         #[arg(long, value_delimiter = ',', default_value = "0.75,1.0")]
@@ -85,7 +47,7 @@ enum PolicyCommand {
         #[arg(long, default_value = "")]
         prefix: String,
         /// Network preset (must match the file's depth and widths).
-        #[arg(long, value_enum, default_value = "paper")]
+        #[arg(long, default_value = "paper")]
         preset: Preset,
         /// Scale set R, comma-separated.
         #[arg(long, value_delimiter = ',', default_value = "0.75,1.0")]
@@ -112,21 +74,7 @@ pub fn run_policy(args: PolicyArgs) -> Result<()> {
                 "{:<34} {:>6} {:>12} {:>12} {:>10} {:>9} {:>14}",
                 "network", "scales", "single", "banked", "extra", "extra %", "extra buffers"
             );
-            let rows = [
-                (
-                    "resnet34 (paper, 64-512)",
-                    Preset::Paper.config(&[0.75, 1.0]),
-                ),
-                (
-                    "resnet34 (paper), 5 scales",
-                    Preset::Paper.config(&[0.5, 0.625, 0.75, 0.875, 1.0]),
-                ),
-                ("resnet18 (64-512)", Preset::Resnet18.config(&[0.75, 1.0])),
-                (
-                    "default: resnet18 half (32-256)",
-                    Preset::Cpu.config(&[0.75, 1.0]),
-                ),
-            ];
+            let rows = bench::overhead_networks();
             for (name, cfg) in rows {
                 let o = bench::overhead(name, &cfg);
                 println!(
@@ -150,7 +98,7 @@ pub fn run_policy(args: PolicyArgs) -> Result<()> {
         } => {
             let cfg = preset.config(&scales);
             cfg.validate()?;
-            let dev = device(DeviceKind::Cpu)?;
+            let dev = device::open(DeviceKind::Cpu)?;
             dev.seed(seed);
             let net = cfg.init(&dev);
             checkpoint::save(&net, &ModelCard::random_init(seed), &out)?;
@@ -169,7 +117,7 @@ pub fn run_policy(args: PolicyArgs) -> Result<()> {
             scales,
         } => {
             let cfg = preset.config(&scales);
-            let dev = device(DeviceKind::Cpu)?;
+            let dev = device::open(DeviceKind::Cpu)?;
             dev.seed(0);
             let net = checkpoint::load_torchvision_backbone(&weights, &prefix, &cfg, &dev)?;
             let card = ModelCard {
@@ -206,7 +154,7 @@ pub struct TrainArgs {
     #[arg(long, default_value_t = 8)]
     batch: usize,
     /// Network preset.
-    #[arg(long, value_enum, default_value = "tiny")]
+    #[arg(long, default_value = "tiny")]
     preset: Preset,
     /// Scale set R, comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "0.75,1.0")]
@@ -229,30 +177,26 @@ pub fn run_train(args: TrainArgs) -> Result<()> {
             "only `mrdrive train --synthetic` exists so far: the datasets and the training pipeline come with the data issue"
         );
     }
-    let cfg = args.preset.config(&args.scales);
-    cfg.validate()?;
-    let dev = device(args.device)?.autodiff();
-    dev.seed(args.seed);
-    let batch = toy_batch(&cfg, args.batch, args.seed, &dev);
-    let tc = TrainConfig::new()
-        .with_lr(args.lr)
-        .with_freeze_action_head(false);
-    let mut trainer = MultiResTrainer::new(cfg.init(&dev), None, tc, &dev);
+    let run = SmokeRun {
+        config: args.preset.config(&args.scales),
+        batch: args.batch,
+        steps: args.steps,
+        lr: args.lr,
+        seed: args.seed,
+    };
     println!(
         "synthetic multi-resolution training: {} scales {:?}, batch {}, {} steps (one fixed toy batch)",
-        cfg.depth.name(),
-        cfg.scales,
-        args.batch,
-        args.steps
+        run.config.depth.name(),
+        run.config.scales,
+        run.batch,
+        run.steps
     );
-    let mut first = None;
-    let mut last = 0.0;
-    for _ in 0..args.steps {
-        let r = trainer.step(&batch);
+    let dev = device::open(args.device)?.autodiff();
+    let outcome = train_on_toy_batch(&run, &dev, |r| {
         let per: Vec<String> = r
             .per_scale
             .iter()
-            .zip(&cfg.scales)
+            .zip(&run.config.scales)
             .map(|(l, s)| format!("{s}x {l:.4}"))
             .collect();
         println!(
@@ -261,19 +205,18 @@ pub fn run_train(args: TrainArgs) -> Result<()> {
             r.loss,
             per.join(", ")
         );
-        first.get_or_insert(r.loss);
-        last = r.loss;
-    }
-    let first = first.context("--steps must be at least 1")?;
+    })?;
     println!(
-        "loss {first:.4} -> {last:.4} ({})",
-        if last < first {
+        "loss {:.4} -> {:.4} ({})",
+        outcome.first_loss,
+        outcome.last_loss,
+        if outcome.fell() {
             "falling"
         } else {
             "NOT falling"
         }
     );
-    if last.is_nan() || last >= first {
+    if !outcome.fell() {
         bail!("the loss did not fall on the toy batch");
     }
     Ok(())
@@ -310,48 +253,14 @@ pub fn run_bench_command(command: BenchCommand) -> Result<()> {
         quick,
         device: kind,
     } = command;
-    let dev = device(kind)?;
+    let dev = device::open(kind)?;
     let threads = policy::cpu_threads();
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     println!(
         "policy benchmark: device {kind} (burn; cpu = flex with {threads} rayon threads, RAYON_NUM_THREADS), batch 1 inference, median of {repeats} (scales interleaved)"
     );
     println!("load average before: {}", load.trim());
-    let mut nets = vec![(
-        "default: resnet18 half 32-256",
-        Preset::Cpu.config(&[0.75, 1.0]),
-    )];
-    if !quick {
-        nets.push((
-            "resnet18 64-512 @ 240x96",
-            Preset::Resnet18
-                .config(&[0.75, 1.0])
-                .with_input_height(96)
-                .with_input_width(240),
-        ));
-        nets.push((
-            "resnet18 64-512 @ 480x192",
-            Preset::Resnet18.config(&[0.75, 1.0]),
-        ));
-        nets.push((
-            "resnet34 64-512 @ 240x96",
-            Preset::Paper
-                .config(&[0.75, 1.0])
-                .with_input_height(96)
-                .with_input_width(240),
-        ));
-        nets.push((
-            "resnet34 64-512 @ 480x192 (paper)",
-            Preset::Paper.config(&[0.75, 1.0]),
-        ));
-        nets.push((
-            "resnet18 half 32-256 @ 480x192",
-            Preset::Cpu
-                .config(&[0.75, 1.0])
-                .with_input_height(192)
-                .with_input_width(480),
-        ));
-    }
+    let nets = bench::latency_networks(quick);
     println!(
         "{:<36} {:<6} {:>6} {:>10} {:>10} {:>9} {:>9} {:>12}",
         "network", "engine", "scale", "input WxH", "median ms", "min ms", "max ms", "t(.75)/t(1)"

@@ -4,14 +4,14 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail, ensure};
 use clap::{Args, Subcommand};
+use sim::build;
+use sim::camera::Camera;
 use sim::driver::RgbImage;
 use sim::render::image::save_png;
 use sim::render::{EgoPose, RigConfig, demo, measure};
 use sim::runner::{self, RunInputs};
 use sim::scenario::Scenario;
 use world::{ActorSnapshot, LightState, rules};
-
-use super::run;
 
 /// `mrdrive render-demo`: a hand-made junction scene, rendered.
 #[derive(Debug, Args)]
@@ -179,9 +179,10 @@ fn render_at(a: &RenderAtArgs) -> Result<()> {
         runner::prepare(&scenario).with_context(|| format!("scenario {}", path.display()))?;
     let tick_s = scenario.timing.tick_s;
     let ticks = (a.at / tick_s).round() as u64;
-    let mut driver = run::driver_for(&scenario)?;
-    let mut selector = run::selector_for(&scenario, None)?;
-    let mut camera = run::camera_for(&scenario, &prepared)?;
+    let drivers = super::drivers();
+    let mut driver = drivers.driver(&scenario, &prepared)?;
+    let mut selector = build::selector_for(&scenario, None)?;
+    let mut camera = build::camera_for(&scenario, &prepared, &drivers)?;
     let mut moment = Moment::default();
     let mut keep = |tick: u64, actors: &[ActorSnapshot], lights: &[LightState]| {
         moment.tick = Some(tick);
@@ -198,7 +199,7 @@ fn render_at(a: &RenderAtArgs) -> Result<()> {
             prepared: &prepared,
             driver: driver.as_mut(),
             selector: selector.as_mut(),
-            camera: needs_camera.then_some(&mut camera as &mut dyn sim::runner::Camera),
+            camera: needs_camera.then_some(&mut camera as &mut dyn Camera),
             recorder: None,
             progress: &mut |_| {},
             max_ticks: Some(ticks),
@@ -295,44 +296,19 @@ fn bench_scenario(
         runner::prepare(&scenario).with_context(|| format!("scenario {}", path.display()))?;
     let rig = RigConfig {
         supersample,
-        ..run::rig_for(&scenario)?
+        ..build::rig_for(&scenario, &super::drivers())?
     };
-    let mut r = sim::render::Renderer::new(&prepared.town, rig, scenario.traffic.seed)?;
-    let mut poses = Vec::new();
-    let mut next_s = 0.0;
-    for p in &prepared.route.points {
-        if p.route_s >= next_s {
-            poses.push(EgoPose {
-                position: p.position,
-                heading: p.heading,
-            });
-            next_s = p.route_s + 1.0;
-        }
-    }
-    let states = vec![LightState::Red; prepared.town.lights.len()];
-    println!(
-        "backend: {}\ntown {}: {} static triangles in {} cells; route {} ({} poses, 1 m apart); \
-         no actors, all lights red; supersampling {}x; {} frames x {} repeats",
-        r.backend(),
-        prepared.town.name,
-        r.scene().triangle_count(),
-        r.scene().cells.len(),
-        prepared.route.id,
-        poses.len(),
-        r.rig().supersample,
-        frames,
-        repeats
+    print!(
+        "{}",
+        measure::route_report(
+            &prepared.town,
+            &prepared.route,
+            rig,
+            scenario.traffic.seed,
+            frames,
+            repeats
+        )?
     );
-    for m in measure::bench_poses(
-        &mut r,
-        &poses,
-        (&[], &states),
-        &[1.0, 0.75],
-        frames,
-        repeats,
-    )? {
-        println!("{}", measure::speed_line("scenario", &m));
-    }
     Ok(())
 }
 

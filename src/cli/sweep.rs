@@ -2,13 +2,10 @@
 //! runs the cross product in parallel, one record per run; `sweep merge`
 //! joins shard folders; `sweep summary` prints a folder's tables.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::{Args, Subcommand};
-use sim::record::RunRecord;
-use sim::recorder::RecordOptions;
-use sim::runner::Overrides;
 use sim::sweep::{self, RunSpec, SweepDir, SweepPlan};
 
 /// `sweep` arguments.
@@ -112,7 +109,7 @@ fn parse_seeds(text: &str) -> anyhow::Result<Vec<u64>> {
 pub fn run(a: SweepArgs) -> anyhow::Result<()> {
     match a.command {
         Some(SweepCommand::Merge { shards, out }) => {
-            let missing = sweep::merge(&shards, &out).map_err(anyhow::Error::msg)?;
+            let missing = sweep::merge(&shards, &out)?;
             write_tables(&SweepDir { root: out.clone() })?;
             if !missing.is_empty() {
                 anyhow::bail!(
@@ -161,13 +158,13 @@ fn run_sweep(a: SweepRunArgs) -> anyhow::Result<()> {
         &parse_seeds(&a.seeds)?,
     );
     let (index, count) = match &a.shard {
-        Some(s) => sweep::parse_shard(s).map_err(anyhow::Error::msg)?,
+        Some(s) => sweep::parse_shard(s)?,
         None => (0, 1),
     };
     let dir = SweepDir {
         root: a.out.clone(),
     };
-    dir.prepare(&plan).map_err(anyhow::Error::msg)?;
+    dir.prepare(&plan)?;
     let mine = plan.shard(index, count);
     let logs = a.out.join("logs");
     if a.record {
@@ -189,30 +186,19 @@ fn run_sweep(a: SweepRunArgs) -> anyhow::Result<()> {
         mine.len(),
         a.jobs
     );
+    let drivers = super::drivers();
+    let log_dir = a.record.then_some(logs.as_path());
     let outcome = sweep::execute(
         &dir,
         &mine,
         a.jobs,
         |spec: &RunSpec| {
-            let overrides = Overrides {
-                delay_ms: spec.delay_ms,
-                seed: Some(spec.seed),
-                vehicles: spec.density.map(|d| d.0),
-                pedestrians: spec.density.map(|d| d.1),
-            };
-            let log = logs.join(format!("{}.mcap", spec.key()));
-            let record = a
-                .record
-                .then_some((log.as_path(), RecordOptions::default()));
-            super::run::run_one(
-                &spec.scenario,
-                &overrides,
-                spec.scale,
-                record,
-                false,
-                &mut |_| {},
-            )
-            .map_err(|e| format!("{e:#}"))
+            let done = sweep::run_spec(spec, &drivers, log_dir)
+                .map_err(|e| sim::build::error_chain(&e))?;
+            for w in &done.warnings {
+                bar.suspend(|| eprintln!("sweep: run {}: warning: {w}", spec.key()));
+            }
+            Ok::<_, String>(done.record)
         },
         |_| bar.inc(1),
     );
@@ -235,51 +221,10 @@ fn run_sweep(a: SweepRunArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The configuration a record belongs to in the main table: delay and resolution.
-fn by_delay_and_scale(r: &RunRecord) -> String {
-    format!(
-        "D={:>3} ms, {}",
-        r.result.settings.delay_ms, r.result.settings.resolution
-    )
-}
-
-/// The fine-grained configuration: scenario, density, delay, resolution.
-fn by_run_setting(r: &RunRecord) -> String {
-    format!(
-        "{} ({:>2}, {:>2}), D={:>3} ms, {}",
-        r.result.provenance.scenario,
-        r.result.settings.vehicles,
-        r.result.settings.pedestrians,
-        r.result.settings.delay_ms,
-        r.result.settings.resolution
-    )
-}
-
-/// Writes `summary.md`, `summary.csv` and `detail.csv` and prints the main table.
+/// Writes the folder's tables and prints the summary table.
 fn write_tables(dir: &SweepDir) -> anyhow::Result<()> {
-    let records = sweep::read_records(dir).map_err(anyhow::Error::msg)?;
-    let rows = sweep::summarise(&records, by_delay_and_scale);
-    let detail = sweep::summarise(&records, by_run_setting);
-    let md = format!(
-        "# Sweep summary ({} runs)\n\n## By delay and resolution\n\n{}\n## By scenario, density, delay and resolution\n\n{}",
-        records.len(),
-        sweep::summary_markdown(&rows),
-        sweep::summary_markdown(&detail)
-    );
-    let write = |name: &str, text: &str| -> anyhow::Result<()> {
-        let path: PathBuf = Path::new(&dir.root).join(name);
-        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))
-    };
-    write("summary.md", &md)?;
-    write(
-        "summary.csv",
-        &sweep::summary_csv(&rows).map_err(anyhow::Error::msg)?,
-    )?;
-    write(
-        "detail.csv",
-        &sweep::summary_csv(&detail).map_err(anyhow::Error::msg)?,
-    )?;
-    println!("{}", sweep::summary_markdown(&rows));
+    let tables = sweep::write_tables(dir)?;
+    println!("{}", sweep::tables::summary_markdown(&tables.summary));
     println!(
         "tables: {}/summary.md, summary.csv, detail.csv",
         dir.root.display()

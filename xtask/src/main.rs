@@ -4,7 +4,7 @@
 //! | --- | --- |
 //! | `setup` | installs what the tests and the camera need and are missing (Debian packages, a Python venv) |
 //! | `run [ARGS]` | `setup`, then `cargo run --release -- run scenarios/default.toml` (or the given arguments) |
-//! | `test [ARGS]` | `setup`, then the whole test suite in release mode |
+//! | `test [ARGS]` | `setup`, then the whole test suite in release mode; ends with the count of skipped tests and why |
 //! | `ci` | what `.ci/run` runs: formatting, then `test` with every skip turned into a failure |
 //! | `lint` | `cargo fmt --check` and `cargo clippy --all-targets -- -D warnings` (run before committing; kept out of CI because it needs a second, check-mode build of every dependency) |
 //! | `data [--quick]` | collects and labels the two datasets of the study into `data/original` and `data/retarget` (resumable; regenerates them bit for bit; `--quick`: 2 short episodes each, for a smoke run) |
@@ -14,6 +14,12 @@
 //! The set-up never asks: it installs a missing Debian package when it runs as
 //! root (or with password-less sudo), and otherwise prints the exact command to
 //! run and carries on, so the tests that need the package skip with a message.
+//!
+//! A test that skips (no `../shared`, no Python, no renderer) says so through
+//! `world::testdata::skip`, which appends a line to the skip log
+//! (`target/skipped-tests.txt`, passed as `MRDRIVE_SKIP_LOG`). `test` empties
+//! the log before the run and prints its lines, counted, after it: the
+//! harness itself reports a skipped test as "ok".
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
@@ -168,7 +174,15 @@ fn run(root: &Path, env: &Env, args: &[String]) -> Result<(), String> {
 }
 
 fn test(root: &Path, env: &Env, args: &[String], strict: bool) -> Result<(), String> {
+    let log = root.join("target").join("skipped-tests.txt");
+    let log_str = log.to_str().ok_or("the target path is not UTF-8")?;
+    match std::fs::remove_file(&log) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => return Err(format!("cannot empty the skip log {}: {e}", log.display())),
+    }
     let mut vars = borrow(env);
+    vars.push(("MRDRIVE_SKIP_LOG", log_str));
     if strict {
         vars.push(("MRDRIVE_REQUIRE_SHARED", "1"));
         vars.push(("MRDRIVE_REQUIRE_PYTHON", "1"));
@@ -176,7 +190,46 @@ fn test(root: &Path, env: &Env, args: &[String], strict: bool) -> Result<(), Str
     }
     let mut cmd: Vec<&str> = vec!["cargo", "test", "--workspace", "--release"];
     cmd.extend(args.iter().map(String::as_str));
-    status_in(root, &cmd, &vars)
+    let outcome = status_in(root, &cmd, &vars);
+    let skipped = read_skips(&log)?;
+    eprintln!("{}", skip_report(&skipped));
+    outcome?;
+    if strict && !skipped.is_empty() {
+        return Err(format!(
+            "{} test(s) skipped; CI must run every test",
+            skipped.len()
+        ));
+    }
+    Ok(())
+}
+
+/// The lines of the skip log (none if there is no log).
+fn read_skips(log: &Path) -> Result<Vec<String>, String> {
+    match std::fs::read_to_string(log) {
+        Ok(text) => Ok(text
+            .lines()
+            .filter(|l| !l.trim().is_empty())
+            .map(str::to_string)
+            .collect()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(Vec::new()),
+        Err(e) => Err(format!("cannot read the skip log {}: {e}", log.display())),
+    }
+}
+
+/// The closing lines of a test run: how many tests skipped and why.
+fn skip_report(skipped: &[String]) -> String {
+    if skipped.is_empty() {
+        return "xtask: no test skipped".into();
+    }
+    let mut text = format!(
+        "xtask: {} test(s) SKIPPED (they passed without running; see why below):",
+        skipped.len()
+    );
+    for line in skipped {
+        text += "\n  ";
+        text += line.strip_prefix("SKIPPED: ").unwrap_or(line);
+    }
+    text
 }
 
 fn ci(root: &Path) -> Result<(), String> {
@@ -298,5 +351,36 @@ fn status_in(dir: &Path, cmd: &[&str], vars: &[(&str, &str)]) -> Result<(), Stri
         Ok(s) if s.success() => Ok(()),
         Ok(s) => Err(format!("`{}` failed ({s})", cmd.join(" "))),
         Err(e) => Err(format!("`{}` could not start: {e}", cmd.join(" "))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_skip_report_counts_each_skip_and_says_why() {
+        let tmp = std::env::temp_dir().join(format!("xtask-skips-{}", std::process::id()));
+        std::fs::write(
+            &tmp,
+            "SKIPPED: a: /x/carla/Town01.xodr not found\n\nSKIPPED: b: no Python\n",
+        )
+        .unwrap();
+        let skips = read_skips(&tmp).unwrap();
+        std::fs::remove_file(&tmp).unwrap();
+        assert_eq!(skips.len(), 2);
+        let report = skip_report(&skips);
+        assert!(report.contains("2 test(s) SKIPPED"), "{report}");
+        assert!(
+            report.contains("\n  a: /x/carla/Town01.xodr not found"),
+            "{report}"
+        );
+        assert!(report.contains("\n  b: no Python"), "{report}");
+        assert_eq!(skip_report(&[]), "xtask: no test skipped");
+        assert!(
+            read_skips(Path::new("/nonexistent/skips.txt"))
+                .unwrap()
+                .is_empty()
+        );
     }
 }

@@ -1,10 +1,15 @@
-//! Training: the losses, the batch resize, the multi-resolution step, BN recalibration,
-//! and a synthetic toy batch for smoke runs and tests.
+//! Training: the network presets, the losses, the batch resize, the
+//! multi-resolution step, BN recalibration (on batches, or on frames rendered
+//! along scenarios), and a synthetic toy batch with the smoke run that trains
+//! on it.
 
 pub mod losses;
 pub mod multires;
+pub mod presets;
 pub mod recalibrate;
+pub mod recalibrate_scenes;
 pub mod resize;
 pub mod synthetic;
 
 pub use multires::{Batch, MultiResTrainer, TrainConfig};
+pub use presets::Preset;

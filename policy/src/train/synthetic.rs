@@ -1,8 +1,9 @@
-//! A synthetic batch for smoke runs and tests: random images, action values and labels
-//! from a seeded ChaCha8 generator.
+//! A synthetic batch for smoke runs and tests (random images, action values and
+//! labels from a seeded ChaCha8 generator), and the smoke run itself
+//! (`mrdrive train --synthetic`): a fresh network must fit one toy batch.
 
-use super::multires::Batch;
-use crate::model::PolicyConfig;
+use super::multires::{Batch, MultiResTrainer, StepReport, TrainConfig};
+use crate::model::{ConfigError, PolicyConfig};
 use burn::prelude::*;
 use dataset::action::NUM_ACTIONS;
 use rand::{RngExt, SeedableRng};
@@ -65,5 +66,114 @@ pub fn toy_batch(config: &PolicyConfig, n: usize, seed: u64, device: &Device) ->
             device,
         ),
         seg: Tensor::from_data(TensorData::new(seg, [n, h, w]), device),
+    }
+}
+
+/// Settings of a smoke run on one fixed toy batch.
+#[derive(Debug, Clone)]
+pub struct SmokeRun {
+    /// The network to train from a fresh initialisation.
+    pub config: PolicyConfig,
+    /// Samples in the toy batch.
+    pub batch: usize,
+    /// Training steps.
+    pub steps: usize,
+    /// Adam learning rate.
+    pub lr: f64,
+    /// Seed of the initialisation and of the toy batch.
+    pub seed: u64,
+}
+
+/// The losses at the ends of a smoke run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SmokeOutcome {
+    /// Loss of the first step.
+    pub first_loss: f32,
+    /// Loss of the last step.
+    pub last_loss: f32,
+}
+
+impl SmokeOutcome {
+    /// Whether the loss fell (and stayed a number).
+    pub fn fell(&self) -> bool {
+        self.last_loss.is_finite() && self.last_loss < self.first_loss
+    }
+}
+
+/// A smoke run could not start.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SmokeError {
+    /// The network config is invalid.
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// Nothing to train.
+    #[error(
+        "steps = {steps}, batch = {batch}: both must be at least 1; fix: e.g. --steps 30 --batch 8"
+    )]
+    Empty {
+        /// Steps asked for.
+        steps: usize,
+        /// Batch size asked for.
+        batch: usize,
+    },
+}
+
+/// Trains a fresh network of `run.config` on one fixed toy batch with the
+/// multi-resolution step (every scale, action head trainable) on `device`
+/// (an autodiff device, seeded here); `on_step` sees each step's losses.
+pub fn train_on_toy_batch(
+    run: &SmokeRun,
+    device: &Device,
+    mut on_step: impl FnMut(&StepReport),
+) -> Result<SmokeOutcome, SmokeError> {
+    run.config.validate()?;
+    if run.steps == 0 || run.batch == 0 {
+        return Err(SmokeError::Empty {
+            steps: run.steps,
+            batch: run.batch,
+        });
+    }
+    device.seed(run.seed);
+    let batch = toy_batch(&run.config, run.batch, run.seed, device);
+    let tc = TrainConfig::new()
+        .with_lr(run.lr)
+        .with_freeze_action_head(false);
+    let mut trainer = MultiResTrainer::new(run.config.init(device), None, tc, device);
+    let mut first = None;
+    let mut last = f32::NAN;
+    for _ in 0..run.steps {
+        let report = trainer.step(&batch);
+        on_step(&report);
+        first.get_or_insert(report.loss);
+        last = report.loss;
+    }
+    Ok(SmokeOutcome {
+        first_loss: first.unwrap_or(f32::NAN),
+        last_loss: last,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::train::presets::Preset;
+
+    #[test]
+    fn a_smoke_run_fits_the_toy_batch_and_refuses_zero_steps() {
+        let device = Device::flex().autodiff();
+        let run = SmokeRun {
+            config: Preset::Tiny.config(&[0.75, 1.0]),
+            batch: 2,
+            steps: 4,
+            lr: 1e-3,
+            seed: 0,
+        };
+        let mut steps = Vec::new();
+        let outcome = train_on_toy_batch(&run, &device, |r| steps.push(r.step)).unwrap();
+        assert_eq!(steps, vec![0, 1, 2, 3]);
+        assert!(outcome.fell(), "{outcome:?}");
+        let none = SmokeRun { steps: 0, ..run };
+        let e = train_on_toy_batch(&none, &device, |_| {}).unwrap_err();
+        assert!(e.to_string().contains("--steps"), "{e}");
     }
 }

@@ -46,6 +46,21 @@ pub fn rgb_at(img: &RgbImage, x: u32, y: u32) -> Option<[u8; 3]> {
     Some([img.data[i], img.data[i + 1], img.data[i + 2]])
 }
 
+/// A deterministic stand-in for a rendered frame of `width` x `height`
+/// pixels: byte `i` is `(131 i + 7 seed) mod 251`, so neighbouring pixels
+/// differ and each seed gives another image. For tests and benchmarks that
+/// need an image of a given size.
+pub fn test_pattern(width: u32, height: u32, seed: u64) -> RgbImage {
+    let n = width as u64 * height as u64 * 3;
+    RgbImage {
+        width,
+        height,
+        data: (0..n)
+            .map(|i| ((i * 131 + seed.wrapping_mul(7)) % 251) as u8)
+            .collect(),
+    }
+}
+
 /// Writes an RGB image as PNG.
 pub fn save_png(img: &RgbImage, path: &Path) -> Result<(), image::ImageError> {
     image::save_buffer(
@@ -75,5 +90,15 @@ mod tests {
         assert_eq!(img.get(1, 0), Some(classes::LAMP_RED));
         assert_eq!(img.get(2, 0), None);
         assert_eq!(img.count(classes::ROAD), 1);
+    }
+
+    #[test]
+    fn the_test_pattern_has_its_size_and_differs_by_seed() {
+        let a = test_pattern(5, 3, 0);
+        assert_eq!((a.width, a.height, a.data.len()), (5, 3, 45));
+        assert_eq!(&a.data[..3], &[0, 131, 11]);
+        assert_eq!(a, test_pattern(5, 3, 0));
+        let b = test_pattern(5, 3, 1);
+        assert!(a.data.iter().zip(&b.data).all(|(x, y)| x != y));
     }
 }

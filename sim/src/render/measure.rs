@@ -5,6 +5,7 @@
 use std::time::Instant;
 
 use glam::{Vec2, Vec3};
+use world::planner::DenseRoute;
 use world::{ActorSnapshot, LightState, Town, TrafficLight};
 
 use super::classes;
@@ -246,6 +247,63 @@ pub fn lamp_size_report(scales: &[f32], distances_m: &[f32]) -> Result<String, R
     Ok(s)
 }
 
+/// Ego poses along `route`, one every `spacing_m` metres of route.
+pub fn poses_along(route: &DenseRoute, spacing_m: f32) -> Vec<EgoPose> {
+    let mut poses = Vec::new();
+    let mut next_s = 0.0;
+    for p in &route.points {
+        if p.route_s >= next_s {
+            poses.push(EgoPose {
+                position: p.position,
+                heading: p.heading,
+            });
+            next_s = p.route_s + spacing_m;
+        }
+    }
+    poses
+}
+
+/// The `bench render --scenario` figures: median rig fps along `route` in
+/// `town` (one pose per metre, no actors, every light red) at 1.0 and 0.75
+/// of `rig`'s S0, scenery from `seed`.
+pub fn route_report(
+    town: &Town,
+    route: &DenseRoute,
+    rig: RigConfig,
+    seed: u64,
+    frames: usize,
+    repeats: usize,
+) -> Result<String, RenderError> {
+    use std::fmt::Write;
+    let mut r = Renderer::new(town, rig, seed)?;
+    let poses = poses_along(route, 1.0);
+    let states = vec![LightState::Red; town.lights.len()];
+    let mut s = format!(
+        "backend: {}\ntown {}: {} static triangles in {} cells; route {} ({} poses, 1 m apart); \
+         no actors, all lights red; supersampling {}x; {} frames x {} repeats\n",
+        r.backend(),
+        town.name,
+        r.scene().triangle_count(),
+        r.scene().cells.len(),
+        route.id,
+        poses.len(),
+        r.rig().supersample,
+        frames,
+        repeats
+    );
+    for m in bench_poses(
+        &mut r,
+        &poses,
+        (&[], &states),
+        &[1.0, 0.75],
+        frames,
+        repeats,
+    )? {
+        let _ = writeln!(s, "{}", speed_line("scenario", &m));
+    }
+    Ok(s)
+}
+
 /// The `bench render` figures: median rig fps at the CPU S0, 0.75 of it, and
 /// the paper's 480x192 (and 0.75 of that), on the 4x4 demo town.
 pub fn bench_report(
@@ -293,4 +351,36 @@ pub fn bench_report(
         }
     }
     Ok(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use world::planner::RoutePoint;
+    use world::{Command, LaneIdx};
+
+    use super::*;
+
+    #[test]
+    fn poses_along_a_route_are_a_metre_apart() {
+        let points = (0..=40)
+            .map(|i| RoutePoint {
+                position: Vec3::new(i as f32 * 0.25, 2.0, 0.0),
+                heading: 0.5,
+                lane: LaneIdx(0),
+                s: i as f32 * 0.25,
+                command: Command::LaneFollow,
+                route_s: i as f32 * 0.25,
+            })
+            .collect();
+        let route = DenseRoute {
+            id: "r".into(),
+            points,
+            length_m: 10.0,
+            waypoint_points: vec![0, 40],
+        };
+        let poses = poses_along(&route, 1.0);
+        assert_eq!(poses.len(), 11);
+        assert_eq!(poses[3].position, Vec3::new(3.0, 2.0, 0.0));
+        assert_eq!(poses[3].heading, 0.5);
+    }
 }

@@ -23,5 +23,5 @@ pub mod scene;
 pub use classes::{ClassId, WorClass};
 pub use image::ClassImage;
 pub use renderer::{RenderError, Renderer};
-pub use rig::{Camera, RigConfig};
+pub use rig::{RigConfig, View};
 pub use world::EgoPose;

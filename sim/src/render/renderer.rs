@@ -26,7 +26,7 @@ use world::{ActorSnapshot, LightState, Town};
 use super::classes;
 use super::gpu::{Gpu, GpuError};
 use super::image::ClassImage;
-use super::rig::{Camera, RigConfig};
+use super::rig::{RigConfig, View};
 use super::scene::{Dynamic, Instance, StaticScene, UNIT_MESHES, UnitMesh, Vertex};
 use crate::driver::RgbImage;
 use world::EgoPose;
@@ -93,10 +93,10 @@ pub enum RenderError {
     Readback(String),
 }
 
-/// The camera uniform as the shader sees it.
+/// One view's uniform as the shader sees it.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
-struct CameraUniform {
+struct ViewUniform {
     view_proj: [[f32; 4]; 4],
     eye: [f32; 4],
     lamp: [f32; 4],
@@ -164,7 +164,7 @@ impl Renderer {
         let scene = StaticScene::build(town, seed);
         let device = &gpu.device;
         let align = u64::from(device.limits().min_uniform_buffer_offset_alignment);
-        let cam_stride = (std::mem::size_of::<CameraUniform>() as u64).div_ceil(align) * align;
+        let cam_stride = (std::mem::size_of::<ViewUniform>() as u64).div_ceil(align) * align;
         let cam_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("cameras"),
             size: cam_stride * MAX_VIEWS as u64,
@@ -179,7 +179,7 @@ impl Renderer {
                 ty: wgpu::BindingType::Buffer {
                     ty: wgpu::BufferBindingType::Uniform,
                     has_dynamic_offset: true,
-                    min_binding_size: NonZeroU64::new(std::mem::size_of::<CameraUniform>() as u64),
+                    min_binding_size: NonZeroU64::new(std::mem::size_of::<ViewUniform>() as u64),
                 },
                 count: None,
             }],
@@ -192,7 +192,7 @@ impl Renderer {
                 resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
                     buffer: &cam_buffer,
                     offset: 0,
-                    size: NonZeroU64::new(std::mem::size_of::<CameraUniform>() as u64),
+                    size: NonZeroU64::new(std::mem::size_of::<ViewUniform>() as u64),
                 }),
             }],
         });
@@ -417,7 +417,7 @@ impl Renderer {
                 base_w,
                 base_h,
             })?;
-        let cams = self.rig.cameras(ego, size);
+        let cams = self.rig.views(ego, size);
         self.render_views(
             size,
             &cams,
@@ -447,7 +447,7 @@ impl Renderer {
                 extent_m,
             });
         }
-        let cam = Camera::top_down(ego.position, ego.heading, extent_m, [0, 0, width, height]);
+        let cam = View::top_down(ego.position, ego.heading, extent_m, [0, 0, width, height]);
         let reach = extent_m * (1.0 + height as f32 / width as f32);
         self.render_views(
             (width, height),
@@ -463,7 +463,7 @@ impl Renderer {
     fn render_views(
         &mut self,
         size: (u32, u32),
-        cams: &[Camera],
+        cams: &[View],
         center: Vec2,
         reach_m: f32,
         actors: &[ActorSnapshot],
@@ -479,7 +479,7 @@ impl Renderer {
             }
         };
         self.upload_instances(actors, light_states);
-        self.upload_cameras(cams);
+        self.upload_views(cams);
         self.collect_visible(cams, center, reach_m);
         let device = &self.gpu.device;
         let t = &self.targets[ti];
@@ -648,10 +648,10 @@ impl Renderer {
             .write_buffer(&self.instance_buf, 0, bytemuck::cast_slice(&self.instances));
     }
 
-    fn upload_cameras(&mut self, cams: &[Camera]) {
+    fn upload_views(&mut self, cams: &[View]) {
         let k = self.rig.supersample as f32;
         for (i, cam) in cams.iter().take(MAX_VIEWS).enumerate() {
-            let u = CameraUniform {
+            let u = ViewUniform {
                 view_proj: cam.view_proj.to_cols_array_2d(),
                 eye: cam.eye.extend(if cam.fog { 1.0 } else { 0.0 }).to_array(),
                 lamp: match cam.focal_px {
@@ -660,7 +660,7 @@ impl Renderer {
                 },
             };
             let at = i * self.cam_stride as usize;
-            self.cam_bytes[at..at + std::mem::size_of::<CameraUniform>()]
+            self.cam_bytes[at..at + std::mem::size_of::<ViewUniform>()]
                 .copy_from_slice(bytemuck::bytes_of(&u));
         }
         let used = cams.len().min(MAX_VIEWS) * self.cam_stride as usize;
@@ -673,7 +673,7 @@ impl Renderer {
     /// `center` that the view may see, nearest cell first (so the depth test
     /// rejects hidden pixels before they are shaded), runs adjacent in the
     /// buffer merged and long ones split.
-    fn collect_visible(&mut self, cams: &[Camera], center: Vec2, reach_m: f32) {
+    fn collect_visible(&mut self, cams: &[View], center: Vec2, reach_m: f32) {
         let gap = |min: Vec2, max: Vec2, p: Vec2| (min - p).max(p - max).max(Vec2::ZERO).length();
         for (cam, visible) in cams.iter().zip(&mut self.visible) {
             visible.clear();

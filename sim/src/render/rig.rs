@@ -77,8 +77,8 @@ impl RigConfig {
         (w >= 3 && h >= 1 && w <= 16384 && h <= 16384).then_some((w, h))
     }
 
-    /// The three cameras for an output of `size` (width, height) pixels.
-    pub fn cameras(&self, ego: &EgoPose, size: (u32, u32)) -> [Camera; 3] {
+    /// The views of the three cameras for an output of `size` (width, height) pixels.
+    pub fn views(&self, ego: &EgoPose, size: (u32, u32)) -> [View; 3] {
         let (w, h) = size;
         let (_, h0) = self.base_size();
         let sy = h as f32 / h0 as f32;
@@ -99,14 +99,15 @@ impl RigConfig {
             let cy = (self.cam_height_px as f32 * 0.5 - self.crop_top_px as f32) * sy;
             // CARLA's yaw is clockwise; ours is counter-clockwise.
             let yaw = ego.heading - self.yaws_deg[i].to_radians();
-            Camera::perspective(eye, yaw, [x0, 0, cw, h], fx, fy, cx, cy)
+            View::perspective(eye, yaw, [x0, 0, cw, h], fx, fy, cx, cy)
         })
     }
 }
 
-/// One camera: where it draws in the output and its world-to-clip matrix.
+/// One view of the scene (a rig camera or the top-down view): where it
+/// draws in the output and its world-to-clip matrix.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Camera {
+pub struct View {
     /// Viewport in output pixels: x, y, width, height.
     pub viewport: [u32; 4],
     /// World to clip space (reversed depth: near = 1, far -> 0).
@@ -122,7 +123,7 @@ pub struct Camera {
     pub wedge: Option<[Vec2; 3]>,
 }
 
-impl Camera {
+impl View {
     /// Whether any part of the ground box `min..max` (metres) may be in view
     /// (conservative: only boxes wholly outside one wedge edge are refused).
     pub fn may_see(&self, min: Vec2, max: Vec2) -> bool {
@@ -137,7 +138,7 @@ impl Camera {
     }
 }
 
-impl Camera {
+impl View {
     /// A pinhole camera at `eye` looking along `yaw` (radians, counter-clockwise
     /// from +x), level; focal lengths and principal point in viewport pixels.
     pub fn perspective(
@@ -148,7 +149,7 @@ impl Camera {
         fy: f32,
         cx: f32,
         cy: f32,
-    ) -> Camera {
+    ) -> View {
         let (s, c) = yaw.sin_cos();
         let fwd = Vec3::new(c, s, 0.0);
         let right = Vec3::new(s, -c, 0.0);
@@ -177,7 +178,7 @@ impl Camera {
         let left_n = rot(f2, lh).perp() * -1.0;
         let right_n = rot(f2, -rh).perp();
         let wedge = Some([left_n, right_n, f2]);
-        Camera {
+        View {
             viewport,
             view_proj: proj * view,
             eye,
@@ -189,7 +190,7 @@ impl Camera {
 
     /// A top-down orthographic camera centred on `center`, image up along
     /// `heading`, covering `extent_m` metres across the viewport's width.
-    pub fn top_down(center: Vec3, heading: f32, extent_m: f32, viewport: [u32; 4]) -> Camera {
+    pub fn top_down(center: Vec3, heading: f32, extent_m: f32, viewport: [u32; 4]) -> View {
         let (s, c) = heading.sin_cos();
         let up_img = Vec3::new(c, s, 0.0);
         let right = Vec3::new(s, -c, 0.0);
@@ -209,7 +210,7 @@ impl Camera {
                 1.0,
             ),
         );
-        Camera {
+        View {
             viewport,
             view_proj: m,
             eye: center + Vec3::Z * 1000.0,
@@ -263,7 +264,7 @@ mod tests {
             position: Vec3::new(10.0, -3.0, 0.0),
             heading: 0.7,
         };
-        let cams = rig.cameras(&ego, (480, 192));
+        let cams = rig.views(&ego, (480, 192));
         assert_eq!(cams[1].viewport, [160, 0, 160, 192]);
         // A far point at camera height straight ahead: centre column, row 120 - 48 = 72.
         let dir = Vec3::new(0.7f32.cos(), 0.7f32.sin(), 0.0);
@@ -281,7 +282,7 @@ mod tests {
     fn carla_negative_yaw_is_the_left_camera() {
         let rig = RigConfig::cpu_default();
         let ego = EgoPose::default();
-        let cams = rig.cameras(&ego, rig.base_size());
+        let cams = rig.views(&ego, rig.base_size());
         // A point 55 deg to the left (counter-clockwise) lands in the left third.
         let a = 55f32.to_radians();
         let p = Vec3::new(1.5, 0.0, 2.4) + Vec3::new(a.cos(), a.sin(), 0.0) * 50.0;
@@ -293,7 +294,7 @@ mod tests {
     #[test]
     fn the_wedge_keeps_boxes_in_view_and_drops_boxes_behind() {
         let rig = RigConfig::cpu_default();
-        let cams = rig.cameras(&EgoPose::default(), rig.base_size());
+        let cams = rig.views(&EgoPose::default(), rig.base_size());
         let centre = &cams[1];
         let b = |x: f32, y: f32| (Vec2::new(x, y), Vec2::new(x + 10.0, y + 10.0));
         let (lo, hi) = b(50.0, -5.0);
@@ -312,7 +313,7 @@ mod tests {
 
     #[test]
     fn top_down_puts_the_ego_in_the_middle_and_forward_up() {
-        let cam = Camera::top_down(Vec3::new(5.0, 5.0, 0.0), 0.0, 40.0, [0, 0, 200, 200]);
+        let cam = View::top_down(Vec3::new(5.0, 5.0, 0.0), 0.0, 40.0, [0, 0, 200, 200]);
         let c = cam.project(Vec3::new(5.0, 5.0, 0.0)).unwrap();
         assert!((c - Vec2::new(100.0, 100.0)).length() < 1e-3);
         let ahead = cam.project(Vec3::new(15.0, 5.0, 0.0)).unwrap();

@@ -1,0 +1,80 @@
+//! What can go wrong in a sweep.
+
+use std::path::PathBuf;
+
+use crate::record::ReadRecordError;
+
+/// A sweep's folder, plan or tables could not be used.
+#[derive(Debug, thiserror::Error)]
+pub enum SweepError {
+    /// `--shard` is not `INDEX/COUNT` with `0 <= INDEX < COUNT`.
+    #[error(
+        "--shard {text}: {problem}; fix: write it as INDEX/COUNT with 0 <= INDEX < COUNT, e.g. 0/4"
+    )]
+    Shard {
+        /// What was given.
+        text: String,
+        /// What is wrong with it.
+        problem: &'static str,
+    },
+    /// A file or folder could not be read, written or created.
+    #[error("cannot {action} {path}")]
+    Io {
+        /// "read", "write" or "create".
+        action: &'static str,
+        /// The file or folder.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// `plan.json` is not a sweep plan.
+    #[error("{path} is not a sweep plan; fix: give a sweep's folder, or another --out folder")]
+    NotAPlan {
+        /// The file.
+        path: PathBuf,
+        /// What the parser said.
+        #[source]
+        source: serde_json::Error,
+    },
+    /// A run record could not be read.
+    #[error(transparent)]
+    Record(#[from] ReadRecordError),
+    /// The folder holds another sweep's plan.
+    #[error(
+        "{root} holds a different sweep; fix: resume it with the same arguments, or give another --out folder"
+    )]
+    OtherSweep {
+        /// The sweep folder.
+        root: PathBuf,
+    },
+    /// A shard folder of a merge belongs to another sweep.
+    #[error(
+        "{shard} belongs to another sweep (its plan.json differs); fix: merge only the shards of one sweep"
+    )]
+    ShardOfOtherSweep {
+        /// The shard folder.
+        shard: PathBuf,
+    },
+    /// A merge without shards.
+    #[error("no shard folders to merge; fix: give at least one")]
+    NoShards,
+    /// A table could not be written as CSV.
+    #[error("writing a CSV table")]
+    Csv(#[from] csv::Error),
+}
+
+impl SweepError {
+    /// An I/O error on `path`.
+    pub(crate) fn io(
+        action: &'static str,
+        path: impl Into<PathBuf>,
+        source: std::io::Error,
+    ) -> Self {
+        SweepError::Io {
+            action,
+            path: path.into(),
+            source,
+        }
+    }
+}

@@ -1,0 +1,156 @@
+//! The runs of a sweep and how they are cut into shards.
+
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+
+use super::SweepError;
+use crate::runner::Overrides;
+
+/// One run of a sweep: a scenario file and the settings that override it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunSpec {
+    /// The scenario file.
+    pub scenario: PathBuf,
+    /// Injected delay (milliseconds); `None` keeps the scenario's.
+    pub delay_ms: Option<f64>,
+    /// Input scale (fraction of S0); `None` keeps the scenario's selector.
+    pub scale: Option<f64>,
+    /// Target (vehicles, pedestrians); `None` keeps the scenario's.
+    pub density: Option<(u32, u32)>,
+    /// Traffic seed.
+    pub seed: u64,
+}
+
+impl RunSpec {
+    /// A file-name-safe key, unique within a sweep.
+    pub fn key(&self) -> String {
+        let stem = self
+            .scenario
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let scale = self.scale.map_or("sel".to_string(), |s| format!("{s:.3}"));
+        let delay = self
+            .delay_ms
+            .map_or("sc".to_string(), |d| format!("{:03}", d.round() as u64));
+        let density = self
+            .density
+            .map_or("sc".to_string(), |(v, p)| format!("v{v}p{p}"));
+        format!("{stem}__d{delay}_s{scale}_{density}_seed{}", self.seed)
+    }
+
+    /// The delay, seed and density of this run as overrides of its scenario
+    /// (the scale goes to the selector).
+    pub fn overrides(&self) -> Overrides {
+        Overrides {
+            delay_ms: self.delay_ms,
+            seed: Some(self.seed),
+            vehicles: self.density.map(|d| d.0),
+            pedestrians: self.density.map(|d| d.1),
+        }
+    }
+}
+
+/// The axes of a sweep.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SweepPlan {
+    /// Every run, in a fixed order.
+    pub runs: Vec<RunSpec>,
+}
+
+impl SweepPlan {
+    /// The cross product, scenarios outermost, seeds innermost.
+    pub fn cross(
+        scenarios: &[PathBuf],
+        delays_ms: &[Option<f64>],
+        scales: &[Option<f64>],
+        densities: &[Option<(u32, u32)>],
+        seeds: &[u64],
+    ) -> Self {
+        let mut runs = Vec::new();
+        for scenario in scenarios {
+            for &delay_ms in delays_ms {
+                for &scale in scales {
+                    for &density in densities {
+                        for &seed in seeds {
+                            runs.push(RunSpec {
+                                scenario: scenario.clone(),
+                                delay_ms,
+                                scale,
+                                density,
+                                seed,
+                            });
+                        }
+                    }
+                }
+            }
+        }
+        Self { runs }
+    }
+
+    /// The runs of shard `index` of `count` (every `count`-th run from `index`).
+    pub fn shard(&self, index: usize, count: usize) -> Vec<&RunSpec> {
+        self.runs
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| i % count.max(1) == index)
+            .map(|(_, r)| r)
+            .collect()
+    }
+}
+
+/// Parses `i/n` for `--shard`.
+pub fn parse_shard(text: &str) -> Result<(usize, usize), SweepError> {
+    let bad = |problem| SweepError::Shard {
+        text: text.to_string(),
+        problem,
+    };
+    let (i, n) = text.split_once('/').ok_or_else(|| bad("no `/`"))?;
+    let i: usize = i.trim().parse().map_err(|_| bad("INDEX is not a number"))?;
+    let n: usize = n.trim().parse().map_err(|_| bad("COUNT is not a number"))?;
+    if n == 0 || i >= n {
+        return Err(bad("INDEX is not below COUNT"));
+    }
+    Ok((i, n))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::fixtures::plan;
+    use super::*;
+
+    #[test]
+    fn cross_product_has_every_combination_with_unique_keys() {
+        let p = plan();
+        assert_eq!(p.runs.len(), 2 * 2 * 2 * 2 * 2);
+        let keys: std::collections::BTreeSet<String> = p.runs.iter().map(RunSpec::key).collect();
+        assert_eq!(keys.len(), p.runs.len());
+    }
+
+    #[test]
+    fn shards_partition_the_plan() {
+        let p = plan();
+        let mut all: Vec<String> = (0..3)
+            .flat_map(|i| p.shard(i, 3))
+            .map(RunSpec::key)
+            .collect();
+        all.sort();
+        let mut want: Vec<String> = p.runs.iter().map(RunSpec::key).collect();
+        want.sort();
+        assert_eq!(all, want);
+        assert_eq!(parse_shard("1/4").unwrap(), (1, 4));
+        let e = parse_shard("4/4").unwrap_err().to_string();
+        assert!(e.contains("--shard 4/4") && e.contains("below"), "{e}");
+        assert!(parse_shard("x").is_err());
+    }
+
+    #[test]
+    fn a_spec_overrides_delay_seed_and_density() {
+        let spec = &plan().runs[31];
+        let o = spec.overrides();
+        assert_eq!(o.delay_ms, Some(100.0));
+        assert_eq!(o.seed, Some(2));
+        assert_eq!((o.vehicles, o.pedestrians), (Some(5), Some(10)));
+    }
+}

@@ -1,0 +1,47 @@
+//! What the command-line tests share: running `mrdrive` from the workspace
+//! root and checking that it succeeded.
+
+// Each test file uses its own part of this module.
+#![allow(dead_code)]
+
+use std::ffi::OsStr;
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+/// The workspace root (where `scenarios/`, `maps/` and `routes/` are).
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A `mrdrive` command run from the workspace root.
+pub fn mrdrive() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_mrdrive"));
+    c.current_dir(root());
+    c
+}
+
+/// Runs `mrdrive ARGS` and returns what it did, whatever the outcome.
+pub fn run<S: AsRef<OsStr>>(args: &[S]) -> Output {
+    mrdrive().args(args).output().expect("mrdrive starts")
+}
+
+/// Runs `mrdrive ARGS`, asserts that it succeeded (else panics with the
+/// arguments, its output and its errors) and returns its standard output.
+pub fn run_ok<S: AsRef<OsStr>>(args: &[S]) -> String {
+    succeeded(args, &run(args))
+}
+
+/// Asserts that `out`, from `mrdrive ARGS`, succeeded and returns its
+/// standard output.
+pub fn succeeded<S: AsRef<OsStr>>(args: &[S], out: &Output) -> String {
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    let shown: Vec<_> = args.iter().map(|a| a.as_ref().to_string_lossy()).collect();
+    assert!(
+        out.status.success(),
+        "mrdrive {} failed ({}):\n{stdout}\n{}",
+        shown.join(" "),
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    stdout
+}
