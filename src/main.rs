@@ -36,6 +36,10 @@ enum Command {
     Train(cli::policy::TrainArgs),
     /// Benchmarks that print figures.
     Bench(cli::bench::BenchArgs),
+    /// Collect driving data: the expert with noise drives planned episodes.
+    Collect(cli::collect::CollectArgs),
+    /// Compute world-on-rails action values for a collected dataset.
+    Label(cli::collect::LabelArgs),
     /// Run logs (MCAP): summary.
     #[command(subcommand)]
     Log(cli::log::LogCommand),
@@ -70,5 +74,7 @@ fn run() -> anyhow::Result<()> {
         Command::Train(a) => cli::policy::run_train(a),
         Command::Bench(a) => cli::bench::run(a),
         Command::Log(c) => cli::log::run(c),
+        Command::Collect(a) => cli::collect::collect(a),
+        Command::Label(a) => cli::collect::label(a),
     }
 }

@@ -1,12 +1,12 @@
 //! The policy as a `Driver`: the image at the selector's scale in, a control out.
 
-use crate::action::{NUM_ACTIONS, NUM_SPEED_BINS};
 use crate::checkpoint::{self, CheckpointError, ModelCard};
-use crate::decode::{Decoded, decode, interpolate_speed};
 use crate::device::{DeviceError, DeviceKind};
 use crate::fused::FusedPolicy;
 use crate::model::PolicyNet;
 use burn::prelude::*;
+use dataset::action::{NUM_ACTIONS, NUM_SPEED_BINS};
+use dataset::decode::{Decoded, decode, interpolate_speed};
 use sim::build::{DriverFactory, FactoryError};
 use sim::driver::{Driver, DriverNeeds, Observation, VehicleControl};
 use sim::runner::Prepared;

@@ -19,13 +19,13 @@
 //! Convolutions run in fixed-size tiles of output pixels on rayon's pool, so
 //! the logits are bit-identical for any thread count (tested).
 
-use crate::action::{NUM_ACTIONS, NUM_STEERS, NUM_THROTTLES};
 use crate::backbone::BasicBlock;
 use crate::bn_bank::BnBank;
 use crate::model::{PolicyConfig, PolicyNet};
 use burn::nn::conv::Conv2d;
 use burn::nn::{Linear, PaddingConfig2d};
 use burn::prelude::*;
+use dataset::action::{NUM_ACTIONS, NUM_STEERS, NUM_THROTTLES};
 use rayon::prelude::*;
 
 /// A feature map of one image, channels last: `data[(y * w + x) * c + ch]`.

@@ -1,12 +1,12 @@
 //! The two heads on the backbone: WoR's action head and the segmentation decoder.
 
-use crate::action::{NUM_ACTIONS, NUM_STEERS, NUM_THROTTLES};
 use crate::bn_bank::{BnBank, BnBankConfig};
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig, ConvTranspose2d, ConvTranspose2dConfig};
 use burn::nn::{Linear, LinearConfig};
 use burn::prelude::*;
 use burn::tensor::activation::relu;
+use dataset::action::{NUM_ACTIONS, NUM_STEERS, NUM_THROTTLES};
 
 /// Configuration of the action head.
 #[derive(Config, Debug)]
@@ -173,7 +173,7 @@ impl SegHead {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::action::{BRAKE, index};
+    use dataset::action::{BRAKE, index};
 
     #[test]
     fn factorised_logits_are_steer_plus_throttle() {

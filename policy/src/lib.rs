@@ -5,14 +5,13 @@
 //! The resolution selectors that pick the scale live in `sim::selector`.
 //!
 //! Read in this order: [`bn_bank`], [`backbone`], [`heads`], [`model`],
-//! [`action`], [`decode`], [`device`], [`checkpoint`], [`fused`], [`driver`], [`train`], [`bench`].
+//! `dataset::action` and `dataset::decode` (the 28 actions and WoR's decoding, shared with the labels), [`device`], [`checkpoint`], [`fused`], [`driver`], [`train`], [`bench`].
 
-pub mod action;
 pub mod backbone;
 pub mod bench;
 pub mod bn_bank;
 pub mod checkpoint;
-pub mod decode;
+
 pub mod device;
 pub mod driver;
 pub mod fused;

@@ -54,9 +54,9 @@ use crate::selector::{ResolutionSelector, SelectorInput};
 const TIMEOUT_S_PER_M: f64 = 0.8;
 const TIMEOUT_EXTRA_S: f64 = 30.0;
 /// How far ahead along the route the expert looks for actors (metres).
-pub(crate) const AHEAD_RANGE_M: f32 = 40.0;
+pub const AHEAD_RANGE_M: f32 = 40.0;
 /// Half-width of the corridor around the route for "ahead" (metres).
-pub(crate) const AHEAD_CORRIDOR_M: f32 = 1.4;
+pub const AHEAD_CORRIDOR_M: f32 = 1.4;
 
 /// A run could not be set up or carried out.
 #[derive(Debug, thiserror::Error)]

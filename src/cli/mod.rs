@@ -1,6 +1,7 @@
 //! Subcommands of the `mrdrive` program, one file each.
 
 pub mod bench;
+pub mod collect;
 pub mod log;
 pub mod map;
 pub mod policy;

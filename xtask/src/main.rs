@@ -7,6 +7,7 @@
 //! | `test [ARGS]` | `setup`, then the whole test suite in release mode; ends with the count of skipped tests and why |
 //! | `ci` | what `.ci/run` runs: formatting, then `test` with every skip turned into a failure |
 //! | `lint` | `cargo fmt --check` and `cargo clippy --all-targets -- -D warnings` (run before committing; kept out of CI because it needs a second, check-mode build of every dependency) |
+//! | `data [--quick]` | collects and labels the two datasets of the study into `data/original` and `data/retarget` (resumable; regenerates them bit for bit; `--quick`: 2 short episodes each, for a smoke run) |
 //! | `bless` | rewrites the regression suite's golden files after a deliberate change |
 //! | `gpu-test [FEATURES]` | the policy crate's tests built with burn's GPU backends (default `wgpu`; `wgpu,cuda` for both), in `target/gpu` so the main build is kept; lavapipe is enough for `wgpu`, CUDA needs an NVIDIA GPU |
 //!
@@ -47,10 +48,11 @@ fn main() -> ExitCode {
         Some("ci") => ci(&root),
         Some("lint") => lint(&root),
         Some("bless") => bless(&root),
+        Some("data") => setup(&root).and_then(|env| data(&root, &env, &args[1..])),
         Some("gpu-test") => setup(&root).and_then(|env| gpu_test(&root, &env, &args[1..])),
         _ => {
             eprintln!(
-                "usage: cargo xtask <setup|run|test|ci|lint|bless|gpu-test> [ARGS]\n\nSee xtask/src/main.rs for what each task does."
+                "usage: cargo xtask <setup|run|test|ci|lint|bless|data|gpu-test> [ARGS]\n\nSee xtask/src/main.rs for what each task does."
             );
             return ExitCode::from(2);
         }
@@ -276,6 +278,50 @@ fn gpu_test(root: &Path, env: &Env, args: &[String]) -> Result<(), String> {
         ],
         &vars,
     )
+}
+
+/// The datasets of the study: (preset, directory, episodes). Sized for the
+/// training issue: see docs/dataset.md for frames, hours and disk size.
+const DATASETS: &[(&str, &str, &str)] = &[
+    ("original", "data/original", "60"),
+    ("retarget", "data/retarget", "40"),
+];
+
+fn data(root: &Path, env: &Env, args: &[String]) -> Result<(), String> {
+    let quick = args.iter().any(|a| a == "--quick");
+    let vars = borrow(env);
+    status_in(root, &["cargo", "build", "--release"], &vars)?;
+    let bin = root.join("target/release/mrdrive");
+    let bin = bin.to_str().ok_or("the target path is not UTF-8")?;
+    for &(preset, dir, episodes) in DATASETS {
+        let dir = if quick {
+            format!("{dir}-quick")
+        } else {
+            dir.to_string()
+        };
+        let (episodes, max_s) = if quick { ("2", "20") } else { (episodes, "90") };
+        status_in(
+            root,
+            &[
+                bin,
+                "collect",
+                "--preset",
+                preset,
+                "--out",
+                &dir,
+                "--episodes",
+                episodes,
+                "--max-s",
+                max_s,
+            ],
+            &vars,
+        )?;
+        status_in(root, &[bin, "label", &dir], &vars)?;
+        status_in(root, &[bin, "data", "info", &dir], &vars).unwrap_or_else(|e| {
+            eprintln!("xtask: {e}");
+        });
+    }
+    Ok(())
 }
 
 fn bless(root: &Path) -> Result<(), String> {

@@ -3,9 +3,9 @@
 //! (`mrdrive train --synthetic`): a fresh network must fit one toy batch.
 
 use super::multires::{Batch, MultiResTrainer, StepReport, TrainConfig};
-use crate::action::NUM_ACTIONS;
 use crate::model::{ConfigError, PolicyConfig};
 use burn::prelude::*;
+use dataset::action::NUM_ACTIONS;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

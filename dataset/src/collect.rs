@@ -1,0 +1,722 @@
+//! Collection: the expert drives planned episodes with noise while an
+//! observer of the run keeps a frame every `frame_every_ticks` ticks.
+//!
+//! A frame holds the rig image at S0 from each camera view (WoR's three yaws:
+//! the rig as mounted, and yawed +-30 deg), their WoR class images, the ego's
+//! pose, speed, route command and progress, every other actor and every
+//! light's state. Consecutive frames are 0.25 s apart, so the labeller reads
+//! each frame's "on rails" future from the frames after it.
+//!
+//! An episode is written when it ends (shard, then index, each by rename),
+//! so a killed collection loses only the episode in progress; run it again
+//! and it skips the finished ones. The same plan, build and render backend
+//! give the same bytes.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use sim::expert::{Expert, ExpertParams};
+use sim::render::classes::to_wor;
+use sim::render::{EgoPose, Renderer, RigConfig};
+use sim::runner::{Prepared, RunInputs};
+use sim::scenario::{MapSpec, RouteSpec as ScenarioRoute, Scenario};
+use sim::selector::Fixed;
+use world::planner::{DenseRoute, PlannerConfig, plan_route};
+use world::route::{Route, RouteFile, RouteWaypoint};
+use world::xodr_map::{LoadOptions, UnsignalledJunctions, load_xodr_file};
+use world::{ActorKind, ActorSnapshot, LightState, Town, Vec2, Vec3};
+
+use crate::format::{
+    ActorRow, DataError, EgoRow, Episode, Index, RouteSpec, Shard, light_code, write_atomic,
+};
+use crate::noise::{NoiseParams, NoisyDriver};
+
+/// Where an episode's route comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RouteChoice {
+    /// A route of a route file (CARLA XML or our TOML).
+    File {
+        /// The route file.
+        file: PathBuf,
+        /// The route's id.
+        id: String,
+    },
+    /// A random route through the town: two lane points far apart, planned
+    /// over the lane graph, drawn from `seed`.
+    Random {
+        /// The seed of the draw.
+        seed: u64,
+    },
+}
+
+/// One episode of a collection plan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EpisodeSpec {
+    /// Its index in the plan (and in the shard's name).
+    pub id: u32,
+    /// The OpenDRIVE map.
+    pub map: PathBuf,
+    /// Generate lights at unsignalled junctions (our generated towns).
+    pub generate_lights: bool,
+    /// The route.
+    pub route: RouteChoice,
+    /// The traffic seed (also seeds the lights' phases).
+    pub seed: u64,
+    /// Target NPC vehicles.
+    pub vehicles: u32,
+    /// Target pedestrians.
+    pub pedestrians: u32,
+}
+
+/// How a collection records.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CollectConfig {
+    /// The dataset's name.
+    pub name: String,
+    /// The camera rig (its S0 is the dataset's).
+    pub rig: RigConfig,
+    /// Camera view yaws (degrees, counter-clockwise; the first 0).
+    pub view_yaws_deg: Vec<f32>,
+    /// Loop ticks between frames (10 at 40 Hz: WoR's 4 Hz).
+    pub frame_every_ticks: u32,
+    /// Longest episode (seconds simulated).
+    pub max_s: f64,
+    /// The expert's noise.
+    pub noise: NoiseParams,
+}
+
+impl CollectConfig {
+    /// The CPU default: S0 = 240 x 96, WoR's three views, 4 Hz, 90 s episodes.
+    pub fn cpu_default(name: &str) -> CollectConfig {
+        CollectConfig {
+            name: name.to_string(),
+            rig: RigConfig::cpu_default(),
+            view_yaws_deg: vec![0.0, 30.0, -30.0],
+            frame_every_ticks: 10,
+            max_s: 90.0,
+            noise: NoiseParams::default(),
+        }
+    }
+
+    /// The index a dataset of this configuration starts from.
+    pub fn empty_index(&self, tick_s: f64) -> Index {
+        let (w, h) = self.rig.base_size();
+        Index::new(
+            &self.name,
+            [w, h],
+            self.view_yaws_deg.clone(),
+            self.frame_every_ticks,
+            tick_s,
+        )
+    }
+}
+
+/// The two datasets of the study.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Preset {
+    /// The original model's data: Town01 routes 2-9 and random Town01 routes.
+    Original,
+    /// The retargeting data, disjoint from it: the generated towns' routes
+    /// and other random Town01 routes.
+    Retarget,
+}
+
+impl Preset {
+    /// The preset's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Preset::Original => "original",
+            Preset::Retarget => "retarget",
+        }
+    }
+}
+
+/// Traffic densities the plans cycle through: the paper's three.
+pub const DENSITIES: [(u32, u32); 3] = [(0, 0), (5, 10), (20, 40)];
+
+/// Town01 routes kept for evaluation (PROTOCOL §2): never collected.
+pub const EVALUATION_ROUTES: [&str; 2] = ["0", "1"];
+
+/// The plan of a preset: `episodes` episodes. `carla` is the folder with
+/// CARLA's Town01 and its routes, `repo` the project's root (for our towns).
+pub fn plan(preset: Preset, episodes: usize, carla: &Path, repo: &Path) -> Vec<EpisodeSpec> {
+    let town01 = carla.join("Town01.xodr");
+    let routes01 = carla.join("routes_town01.xml");
+    let ours = [
+        (repo.join("maps/gen01.xodr"), repo.join("routes/gen01.toml")),
+        (repo.join("maps/gen02.xodr"), repo.join("routes/gen02.toml")),
+    ];
+    (0..episodes)
+        .map(|i| {
+            let id = i as u32;
+            let (vehicles, pedestrians) = DENSITIES[i % DENSITIES.len()];
+            let base = EpisodeSpec {
+                id,
+                map: town01.clone(),
+                generate_lights: false,
+                route: RouteChoice::Random { seed: 0 },
+                seed: 1000 * (preset as u64 + 1) + id as u64,
+                vehicles,
+                pedestrians,
+            };
+            match preset {
+                // First the training routes at every density, then random routes.
+                Preset::Original if i < 24 => EpisodeSpec {
+                    route: RouteChoice::File {
+                        file: routes01.clone(),
+                        id: (2 + (i / 3) % 8).to_string(),
+                    },
+                    ..base
+                },
+                Preset::Original => EpisodeSpec {
+                    route: RouteChoice::Random { seed: id as u64 },
+                    ..base
+                },
+                // Our towns' routes 0-2 and Town01 random routes alternate;
+                // random seeds from 1e6 on never meet the original set's.
+                Preset::Retarget if i % 2 == 0 => {
+                    let (map, routes) = &ours[(i / 2) % 2];
+                    EpisodeSpec {
+                        map: map.clone(),
+                        generate_lights: true,
+                        route: RouteChoice::File {
+                            file: routes.clone(),
+                            id: ((i / 4) % 3).to_string(),
+                        },
+                        ..base
+                    }
+                }
+                Preset::Retarget => EpisodeSpec {
+                    route: RouteChoice::Random {
+                        seed: 1_000_000 + id as u64,
+                    },
+                    ..base
+                },
+            }
+        })
+        .collect()
+}
+
+/// A random route: start and end on non-junction lanes of one strongly
+/// connected part of the lane graph, 300-900 m apart along the planned route.
+pub fn random_route(town: &Town, seed: u64) -> Result<(Route, DenseRoute), String> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x726f_7574_65);
+    let comps = town.lane_components();
+    let biggest = comps
+        .iter()
+        .max_by_key(|c| c.len())
+        .ok_or("the town has no lanes")?;
+    let candidates: Vec<_> = biggest
+        .iter()
+        .copied()
+        .filter(|&l| town.lane(l).junction.is_none() && town.lane(l).length_m() > 20.0)
+        .collect();
+    if candidates.len() < 2 {
+        return Err(format!(
+            "town {} has too few lanes for a random route",
+            town.name
+        ));
+    }
+    for _ in 0..200 {
+        let a = candidates[rng.random_range(0..candidates.len())];
+        let b = candidates[rng.random_range(0..candidates.len())];
+        let point = |l: world::LaneIdx, rng: &mut ChaCha8Rng| {
+            let lane = town.lane(l);
+            let s = rng.random_range(5.0..lane.length_m() - 5.0);
+            let p = lane.point_at(s);
+            RouteWaypoint {
+                position: p,
+                yaw_rad: Some(lane.heading_at(s)),
+            }
+        };
+        let route = Route {
+            id: format!("random-{seed}"),
+            town: Some(town.name.clone()),
+            waypoints: vec![point(a, &mut rng), point(b, &mut rng)],
+            source: PathBuf::from(format!("random route, seed {seed}")),
+        };
+        if let Ok(dense) = plan_route(town, &route, &PlannerConfig::default())
+            && (300.0..900.0).contains(&dense.length_m)
+        {
+            return Ok((route, dense));
+        }
+    }
+    Err(format!(
+        "no random route of 300-900 m found in town {} for seed {seed}",
+        town.name
+    ))
+}
+
+/// Loads towns once per map file.
+#[derive(Default)]
+pub struct TownCache {
+    towns: HashMap<(PathBuf, bool), Arc<Town>>,
+}
+
+impl TownCache {
+    /// The town of `map` (loaded on first use).
+    pub fn get(&mut self, map: &Path, generate_lights: bool) -> Result<Arc<Town>, String> {
+        let key = (map.to_path_buf(), generate_lights);
+        if let Some(t) = self.towns.get(&key) {
+            return Ok(t.clone());
+        }
+        let opts = LoadOptions {
+            unsignalled: if generate_lights {
+                UnsignalledJunctions::GenerateLights
+            } else {
+                UnsignalledJunctions::NoLights
+            },
+        };
+        let (town, _) = load_xodr_file(map, &opts).map_err(|e| e.to_string())?;
+        let town = Arc::new(town);
+        self.towns.insert(key, town.clone());
+        Ok(town)
+    }
+}
+
+/// The town and the planned route of an episode, and its route as stored.
+pub fn prepare(spec: &EpisodeSpec, towns: &mut TownCache) -> Result<(Prepared, RouteSpec), String> {
+    if let RouteChoice::File { file, id } = &spec.route
+        && file.file_name().is_some_and(|f| f == "routes_town01.xml")
+        && EVALUATION_ROUTES.contains(&id.as_str())
+    {
+        return Err(format!(
+            "{} route {id} is an evaluation route: never collect on it",
+            file.display()
+        ));
+    }
+    let town = towns.get(&spec.map, spec.generate_lights)?;
+    let (route, route_file) = match &spec.route {
+        RouteChoice::File { file, id } => {
+            let routes = RouteFile::load(file).map_err(|e| e.to_string())?;
+            (
+                routes.route(id).map_err(|e| e.to_string())?.clone(),
+                Some(file.clone()),
+            )
+        }
+        RouteChoice::Random { seed } => (random_route(&town, *seed)?.0, None),
+    };
+    let dense = plan_route(&town, &route, &PlannerConfig::default()).map_err(|e| e.to_string())?;
+    let stored = RouteSpec {
+        file: route_file.as_ref().map(|f| f.display().to_string()),
+        id: route.id.clone(),
+        waypoints: route
+            .waypoints
+            .iter()
+            .map(|w| {
+                [
+                    w.position.x,
+                    w.position.y,
+                    w.yaw_rad.unwrap_or(0.0).to_degrees(),
+                ]
+            })
+            .collect(),
+    };
+    Ok((
+        Prepared {
+            town,
+            route: dense,
+            route_file: route_file.unwrap_or_else(|| PathBuf::from(route.source.clone())),
+        },
+        stored,
+    ))
+}
+
+/// The route a stored episode drove, planned again (deterministically) on its town.
+pub fn replan(town: &Town, route: &RouteSpec) -> Result<DenseRoute, String> {
+    let r = Route {
+        id: route.id.clone(),
+        town: Some(town.name.clone()),
+        waypoints: route
+            .waypoints
+            .iter()
+            .map(|w| RouteWaypoint {
+                position: Vec3::new(w[0], w[1], 0.0),
+                yaw_rad: Some(w[2].to_radians()),
+            })
+            .collect(),
+        source: PathBuf::from(route.file.clone().unwrap_or_default()),
+    };
+    plan_route(town, &r, &PlannerConfig::default()).map_err(|e| e.to_string())
+}
+
+/// The frames of one episode as the run goes: renders each view and keeps the state.
+pub struct EpisodeRecorder {
+    renderer: Renderer,
+    view_yaws_rad: Vec<f32>,
+    frame_every_ticks: u64,
+    /// The frames so far.
+    pub shard: Shard,
+}
+
+/// What the recorder needs to know of a tick besides the world.
+#[derive(Debug, Clone, Copy)]
+pub struct RouteState {
+    /// The route point reached.
+    pub index: usize,
+    /// The ego's distance along the route (metres).
+    pub route_s: f32,
+    /// The route command at the ego.
+    pub command: world::Command,
+}
+
+impl EpisodeRecorder {
+    /// A recorder with its own renderer for `town`.
+    pub fn new(town: &Town, cfg: &CollectConfig, seed: u64) -> Result<EpisodeRecorder, String> {
+        let renderer = Renderer::new(town, cfg.rig, seed).map_err(|e| e.to_string())?;
+        Ok(EpisodeRecorder {
+            renderer,
+            view_yaws_rad: cfg.view_yaws_deg.iter().map(|d| d.to_radians()).collect(),
+            frame_every_ticks: u64::from(cfg.frame_every_ticks),
+            shard: Shard::new(cfg.rig.base_size(), cfg.view_yaws_deg.len()),
+        })
+    }
+
+    /// Looks at one tick: every `frame_every_ticks`-th becomes a frame.
+    pub fn observe(
+        &mut self,
+        tick: u64,
+        actors: &[ActorSnapshot],
+        lights: &[LightState],
+        route: RouteState,
+    ) -> Result<(), String> {
+        if !tick.is_multiple_of(self.frame_every_ticks) {
+            return Ok(());
+        }
+        let ego = actors.first().ok_or("no ego")?;
+        for &yaw in &self.view_yaws_rad {
+            let pose = EgoPose {
+                position: ego.position,
+                heading: ego.heading + yaw,
+            };
+            let (rgb, classes) = self
+                .renderer
+                .render_rig(&pose, actors, lights, 1.0)
+                .map_err(|e| e.to_string())?;
+            self.shard.rgb.extend_from_slice(&rgb.data);
+            self.shard
+                .classes
+                .extend(classes.data.iter().map(|&c| to_wor(c) as u8));
+        }
+        self.shard.ego.push(EgoRow {
+            x: ego.position.x,
+            y: ego.position.y,
+            yaw: ego.heading,
+            speed: ego.speed_mps,
+        });
+        self.shard.command.push(route.command as u8);
+        self.shard.route.push([route.index as f32, route.route_s]);
+        self.shard.tick.push(tick as u32);
+        self.shard.actors.push(
+            actors
+                .iter()
+                .filter(|a| a.kind != ActorKind::Ego)
+                .map(|a| ActorRow {
+                    kind: if a.kind == ActorKind::Pedestrian {
+                        ActorRow::PEDESTRIAN
+                    } else {
+                        ActorRow::VEHICLE
+                    },
+                    id: a.id,
+                    x: a.position.x,
+                    y: a.position.y,
+                    yaw: a.heading,
+                    length: a.extent.x,
+                    width: a.extent.y,
+                    speed: a.speed_mps,
+                })
+                .collect(),
+        );
+        self.shard
+            .lights
+            .push(lights.iter().map(|&s| light_code(s)).collect());
+        Ok(())
+    }
+}
+
+/// The shard's file name of episode `id`.
+pub fn shard_name(id: u32) -> String {
+    format!("episode-{id:05}.safetensors")
+}
+
+/// The scenario an episode runs: the expert, no delay, the default timing.
+fn scenario_of(spec: &EpisodeSpec, prepared: &Prepared) -> Scenario {
+    let mut s = Scenario::from_toml_str(
+        "[map]\nfile = \"x\"\n[route]\nfile = \"x\"\nid = \"x\"\n",
+        Path::new("collect.toml"),
+    )
+    .expect("the built-in scenario parses");
+    s.name = format!("collect-{:05}", spec.id);
+    s.map = MapSpec {
+        file: spec.map.clone(),
+        generate_lights: spec.generate_lights,
+    };
+    s.route = ScenarioRoute {
+        file: prepared.route_file.clone(),
+        id: prepared.route.id.clone(),
+    };
+    s.traffic.vehicles = spec.vehicles;
+    s.traffic.pedestrians = spec.pedestrians;
+    s.traffic.seed = spec.seed;
+    s
+}
+
+/// How one episode went.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EpisodeReport {
+    /// The index entry written.
+    pub episode: Episode,
+    /// Wall time (seconds).
+    pub wall_s: f64,
+    /// Whether the route was completed.
+    pub success: bool,
+}
+
+/// Drives one episode and returns its frames and index entry (not yet written).
+pub fn drive(
+    spec: &EpisodeSpec,
+    cfg: &CollectConfig,
+    towns: &mut TownCache,
+) -> Result<(Shard, Episode, bool), String> {
+    let (prepared, stored) = prepare(spec, towns)?;
+    let scenario = scenario_of(spec, &prepared);
+    let town = prepared.town.clone();
+    let expert = Expert::new(ExpertParams::default());
+    let mut driver = NoisyDriver::new(expert, cfg.noise, spec.seed ^ 0x6e6f_6973_65);
+    let mut selector = Fixed { scale: 1.0 };
+    let mut recorder = EpisodeRecorder::new(&town, cfg, spec.seed)?;
+    let mut tracker = RouteTracker::new(&prepared.route);
+    let mut failed: Option<String> = None;
+    let tick_s = scenario.timing.tick_s;
+    let max_ticks = (cfg.max_s / tick_s).round() as u64;
+    let mut observer = |tick: u64, actors: &[ActorSnapshot], lights: &[LightState]| {
+        if failed.is_some() {
+            return;
+        }
+        let Some(ego) = actors.first() else { return };
+        let route = tracker.update(&prepared.route, ego.position.truncate());
+        if let Err(e) = recorder.observe(tick, actors, lights, route) {
+            failed = Some(e);
+        }
+    };
+    let record = sim::runner::run(
+        &scenario,
+        Path::new("collect.toml"),
+        RunInputs {
+            prepared: &prepared,
+            driver: &mut driver,
+            selector: &mut selector,
+            camera: None,
+            recorder: None,
+            progress: &mut |_| {},
+            max_ticks: Some(max_ticks),
+            observer: Some(&mut observer),
+            render_every_frame: false,
+        },
+    )
+    .map_err(|e| e.to_string())?;
+    if let Some(e) = failed {
+        return Err(e);
+    }
+    let episode = Episode {
+        id: spec.id,
+        shard: shard_name(spec.id),
+        frames: recorder.shard.len() as u32,
+        town: town.name.clone(),
+        map: spec.map.display().to_string(),
+        generate_lights: spec.generate_lights,
+        route: stored,
+        seed: spec.seed,
+        vehicles: spec.vehicles,
+        pedestrians: spec.pedestrians,
+        sim_time_s: record.result.sim_time_s,
+        labels: None,
+    };
+    Ok((recorder.shard, episode, record.result.success))
+}
+
+/// Collects every episode of `plan` not yet in `dir`'s index; calls `report`
+/// after each. Returns the index.
+pub fn collect(
+    plan: &[EpisodeSpec],
+    cfg: &CollectConfig,
+    dir: &Path,
+    report: &mut dyn FnMut(&EpisodeReport, &Index),
+) -> Result<Index, DataError> {
+    std::fs::create_dir_all(dir).map_err(|e| DataError::Io {
+        path: dir.to_path_buf(),
+        source: e,
+    })?;
+    let tick_s = sim::scenario::TimingSpec::default().tick_s;
+    let mut index = match Index::load(dir) {
+        Ok(existing) => {
+            let want = cfg.empty_index(tick_s);
+            if (
+                &existing.name,
+                existing.s0,
+                &existing.view_yaws_deg,
+                existing.frame_every_ticks,
+            ) != (
+                &want.name,
+                want.s0,
+                &want.view_yaws_deg,
+                want.frame_every_ticks,
+            ) {
+                return Err(DataError::Index {
+                    path: dir.join(crate::format::INDEX_FILE),
+                    msg: format!(
+                        "this directory holds dataset {:?} at S0 {:?} with views {:?}, not {:?} at {:?} with {:?}: collect into another directory",
+                        existing.name,
+                        existing.s0,
+                        existing.view_yaws_deg,
+                        want.name,
+                        want.s0,
+                        want.view_yaws_deg
+                    ),
+                });
+            }
+            existing
+        }
+        Err(_) if !dir.join(crate::format::INDEX_FILE).exists() => cfg.empty_index(tick_s),
+        Err(e) => return Err(e),
+    };
+    let mut towns = TownCache::default();
+    for spec in plan {
+        if index.episodes.iter().any(|e| e.id == spec.id) {
+            continue;
+        }
+        let started = std::time::Instant::now();
+        let (shard, episode, success) =
+            drive(spec, cfg, &mut towns).map_err(|msg| DataError::Index {
+                path: dir.join(shard_name(spec.id)),
+                msg: format!("episode {} ({}): {msg}", spec.id, spec.map.display()),
+            })?;
+        let metadata = HashMap::from([
+            ("town".to_string(), episode.town.clone()),
+            ("route".to_string(), episode.route.id.clone()),
+        ]);
+        write_atomic(&dir.join(&episode.shard), &shard.to_bytes(&metadata))?;
+        index.episodes.push(episode.clone());
+        index.episodes.sort_by_key(|e| e.id);
+        index.save(dir)?;
+        report(
+            &EpisodeReport {
+                episode,
+                wall_s: started.elapsed().as_secs_f64(),
+                success,
+            },
+            &index,
+        );
+    }
+    Ok(index)
+}
+
+/// Follows the ego along the route with the rule book's route rules (the
+/// route monitor's window search and route distance).
+struct RouteTracker {
+    index: usize,
+}
+
+impl RouteTracker {
+    fn new(_route: &DenseRoute) -> RouteTracker {
+        RouteTracker { index: 0 }
+    }
+
+    fn update(&mut self, route: &DenseRoute, p: Vec2) -> RouteState {
+        if let Some((i, _)) = world::rules::nearest_route_point(route, p, self.index, 40) {
+            self.index = i;
+        }
+        RouteState {
+            index: self.index,
+            route_s: world::rules::route_s_at(route, self.index, p),
+            command: route.command_ahead(self.index, 0.0),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn no_plan_drives_an_evaluation_route_or_town02_and_the_sets_are_disjoint() {
+        let (carla, repo) = (Path::new("/carla"), Path::new("/repo"));
+        let original = plan(Preset::Original, 500, carla, repo);
+        let retarget = plan(Preset::Retarget, 500, carla, repo);
+        for spec in original.iter().chain(&retarget) {
+            assert!(!spec.map.to_string_lossy().contains("Town02"), "{spec:?}");
+            if let RouteChoice::File { file, id } = &spec.route {
+                let town01 = file.ends_with("routes_town01.xml");
+                assert!(
+                    !(town01 && EVALUATION_ROUTES.contains(&id.as_str())),
+                    "{spec:?}"
+                );
+            }
+        }
+        // The retargeting set shares no route with the original set.
+        let routes = |p: &[EpisodeSpec]| {
+            p.iter()
+                .map(|s| format!("{:?}", s.route))
+                .collect::<std::collections::HashSet<_>>()
+        };
+        assert!(routes(&original).is_disjoint(&routes(&retarget)));
+        // Every training route of Town01 (2-9) at every density is in the original set.
+        for id in 2..=9 {
+            for &(v, p) in &DENSITIES {
+                assert!(original.iter().any(|s| s.route
+                    == RouteChoice::File {
+                        file: carla.join("routes_town01.xml"),
+                        id: id.to_string()
+                    }
+                    && (s.vehicles, s.pedestrians) == (v, p)));
+            }
+        }
+    }
+
+    #[test]
+    fn an_evaluation_route_is_refused_by_name() {
+        let spec = EpisodeSpec {
+            id: 0,
+            map: PathBuf::from("Town01.xodr"),
+            generate_lights: false,
+            route: RouteChoice::File {
+                file: PathBuf::from("../shared/carla/routes_town01.xml"),
+                id: "1".into(),
+            },
+            seed: 0,
+            vehicles: 0,
+            pedestrians: 0,
+        };
+        let err = match prepare(&spec, &mut TownCache::default()) {
+            Err(e) => e,
+            Ok(_) => panic!("an evaluation route was prepared"),
+        };
+        assert!(err.contains("evaluation route"), "{err}");
+    }
+
+    #[test]
+    fn random_routes_are_deterministic_and_long_enough() {
+        let town = world::testtown::grid(4, 4, 100.0);
+        let (a, da) = random_route(&town, 7).unwrap();
+        let (b, _) = random_route(&town, 7).unwrap();
+        assert_eq!(format!("{a:?}"), format!("{b:?}"));
+        assert!((300.0..900.0).contains(&da.length_m));
+        let replanned = replan(
+            &town,
+            &RouteSpec {
+                file: None,
+                id: a.id.clone(),
+                waypoints: a
+                    .waypoints
+                    .iter()
+                    .map(|w| [w.position.x, w.position.y, w.yaw_rad.unwrap().to_degrees()])
+                    .collect(),
+            },
+        )
+        .unwrap();
+        assert_eq!(replanned.length_m, da.length_m);
+    }
+}

@@ -1,0 +1,840 @@
+//! The on-disk dataset: a JSON index and one safetensors shard per episode.
+//!
+//! ```text
+//! DIR/dataset.json                 the index (format, S0, views, episodes)
+//! DIR/episode-00000.safetensors    one driven episode: images, classes, state
+//! DIR/labels-00000.safetensors     its action values (written by the labeller)
+//! ```
+//!
+//! Shard tensors, N frames, V camera views, S0 = W x H pixels, A actor rows:
+//!
+//! | name | dtype | shape | what |
+//! | --- | --- | --- | --- |
+//! | `rgb` | U8 | N x V x H x W x 3 | the stitched rig image at S0, sRGB |
+//! | `classes` | U8 | N x V x H x W | WoR class ids 0-5 (`sim::render::classes::WorClass`) |
+//! | `ego` | F32 | N x 4 | x, y (metres, OpenDRIVE frame), yaw (radians), speed (m/s) |
+//! | `command` | U8 | N | the route command (`world::Command` as u8) |
+//! | `route` | F32 | N x 2 | route index reached, route distance of the ego (metres) |
+//! | `tick` | U32 | N | the loop tick of the frame |
+//! | `actors` | F32 | N x A x 8 | kind (0 padding, 1 vehicle, 2 pedestrian), id, x, y, yaw, length, width, speed |
+//! | `lights` | U8 | N x L | every light's state (0 red, 1 yellow, 2 green), by `LightIdx` |
+//!
+//! Frames are `frame_every_ticks` apart (10 ticks = 0.25 s at 40 Hz), so the
+//! world state of frame `i + k` is the "on rails" future of frame `i` at
+//! `k x 0.25 s`: the labeller reads it from the same shard.
+//!
+//! Label tensors (`labels-*.safetensors`): `q` F32 N x V x 6 x 4 x 28 (raw
+//! action values per command, speed bin and action) and `valid` U8 N (0 for
+//! the last frames, whose future was not driven). Its metadata names the
+//! label version; a label file of another version is refused.
+//!
+//! Files are written under a temporary name and renamed, and the index is
+//! rewritten (also by rename) only after an episode is complete, so a killed
+//! collection loses at most the episode in progress. See `docs/dataset.md`
+//! for reading a dataset from NumPy.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use safetensors::tensor::{Dtype, SafeTensors, TensorView};
+use serde::{Deserialize, Serialize};
+
+/// The format tag in the index and in every shard's metadata.
+pub const FORMAT: &str = "mrdrive-dataset/1";
+/// The index file's name inside a dataset directory.
+pub const INDEX_FILE: &str = "dataset.json";
+/// Numbers per actor row in the `actors` tensor.
+pub const ACTOR_FIELDS: usize = 8;
+
+/// A dataset could not be read or written.
+#[derive(Debug, thiserror::Error)]
+pub enum DataError {
+    /// A file could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The index is missing or malformed.
+    #[error("{path}: {msg}")]
+    Index {
+        /// The index file.
+        path: PathBuf,
+        /// What is wrong and how to fix it.
+        msg: String,
+    },
+    /// A shard or label file is malformed or does not match the index.
+    #[error("{path}: {field}: {msg}")]
+    Shard {
+        /// The shard file.
+        path: PathBuf,
+        /// The tensor or metadata field.
+        field: String,
+        /// What is wrong and how to fix it.
+        msg: String,
+    },
+}
+
+impl DataError {
+    fn io(path: &Path, source: std::io::Error) -> DataError {
+        DataError::Io {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+
+    fn shard(path: &Path, field: &str, msg: impl Into<String>) -> DataError {
+        DataError::Shard {
+            path: path.to_path_buf(),
+            field: field.to_string(),
+            msg: msg.into(),
+        }
+    }
+}
+
+/// The route an episode drove: a file and id, or explicit waypoints (random routes).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RouteSpec {
+    /// The route file, if the route came from one.
+    pub file: Option<String>,
+    /// The route's id.
+    pub id: String,
+    /// The waypoints as driven: x, y (metres, OpenDRIVE frame), heading (degrees).
+    pub waypoints: Vec<[f32; 3]>,
+}
+
+/// One driven episode in the index.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Episode {
+    /// The index of the episode in the collection plan.
+    pub id: u32,
+    /// The shard's file name inside the dataset directory.
+    pub shard: String,
+    /// Frames in the shard.
+    pub frames: u32,
+    /// The town's name.
+    pub town: String,
+    /// The map file the episode drove (as given to the collector).
+    pub map: String,
+    /// Whether unsignalled junctions got generated lights.
+    pub generate_lights: bool,
+    /// The route.
+    pub route: RouteSpec,
+    /// The traffic seed.
+    pub seed: u64,
+    /// Target NPC vehicles.
+    pub vehicles: u32,
+    /// Target pedestrians.
+    pub pedestrians: u32,
+    /// Simulated time driven (seconds).
+    pub sim_time_s: f64,
+    /// The label file's name, once labelled.
+    pub labels: Option<String>,
+}
+
+/// The dataset index (`dataset.json`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Index {
+    /// Always [`FORMAT`].
+    pub format: String,
+    /// The dataset's name (for example `original` or `retarget`).
+    pub name: String,
+    /// Image size S0: width, height (pixels).
+    pub s0: [u32; 2],
+    /// Camera view yaw offsets (degrees, counter-clockwise: positive looks
+    /// left); the first is 0 (the rig as mounted).
+    pub view_yaws_deg: Vec<f32>,
+    /// Loop ticks between frames.
+    pub frame_every_ticks: u32,
+    /// The loop's tick (seconds).
+    pub tick_s: f64,
+    /// Finished episodes, in plan order.
+    pub episodes: Vec<Episode>,
+}
+
+impl Index {
+    /// An empty index.
+    pub fn new(
+        name: &str,
+        s0: [u32; 2],
+        view_yaws_deg: Vec<f32>,
+        frame_every_ticks: u32,
+        tick_s: f64,
+    ) -> Index {
+        Index {
+            format: FORMAT.to_string(),
+            name: name.to_string(),
+            s0,
+            view_yaws_deg,
+            frame_every_ticks,
+            tick_s,
+            episodes: Vec::new(),
+        }
+    }
+
+    /// Seconds between frames.
+    pub fn frame_s(&self) -> f64 {
+        f64::from(self.frame_every_ticks) * self.tick_s
+    }
+
+    /// Reads `DIR/dataset.json`.
+    pub fn load(dir: &Path) -> Result<Index, DataError> {
+        let path = dir.join(INDEX_FILE);
+        if !dir.is_dir() {
+            return Err(DataError::Index {
+                path,
+                msg: format!(
+                    "no dataset directory {}; make one with `mrdrive collect` (or `cargo xtask data`)",
+                    dir.display()
+                ),
+            });
+        }
+        let text = std::fs::read_to_string(&path).map_err(|e| DataError::Index {
+            path: path.clone(),
+            msg: format!(
+                "cannot read the index ({e}); a dataset directory needs the {INDEX_FILE} that `mrdrive collect` writes: collect again into this directory to rebuild it"
+            ),
+        })?;
+        let index: Index = serde_json::from_str(&text).map_err(|e| DataError::Index {
+            path: path.clone(),
+            msg: format!("not a dataset index ({e}); collect again into a new directory"),
+        })?;
+        if index.format != FORMAT {
+            return Err(DataError::Index {
+                path,
+                msg: format!(
+                    "format is {:?}, this build reads {FORMAT:?}; collect the data again with this build",
+                    index.format
+                ),
+            });
+        }
+        let bad_size = index.s0[0] < 3 || index.s0[1] < 1;
+        if bad_size || index.view_yaws_deg.is_empty() || index.frame_every_ticks == 0 {
+            return Err(DataError::Index {
+                path,
+                msg: "s0, view_yaws_deg or frame_every_ticks is empty or zero; collect again"
+                    .into(),
+            });
+        }
+        Ok(index)
+    }
+
+    /// Writes `DIR/dataset.json` atomically (temporary file, then rename).
+    pub fn save(&self, dir: &Path) -> Result<(), DataError> {
+        let path = dir.join(INDEX_FILE);
+        let text = serde_json::to_string_pretty(self).expect("the index serialises");
+        write_atomic(&path, text.as_bytes())
+    }
+
+    /// Total frames over every episode.
+    pub fn frames(&self) -> u64 {
+        self.episodes.iter().map(|e| u64::from(e.frames)).sum()
+    }
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same directory.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), DataError> {
+    let tmp = path.with_extension("tmp");
+    std::fs::write(&tmp, bytes).map_err(|e| DataError::io(&tmp, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| DataError::io(path, e))
+}
+
+/// A light state as a shard stores it: 0 red, 1 yellow, 2 green.
+pub fn light_code(s: world::LightState) -> u8 {
+    match s {
+        world::LightState::Red => 0,
+        world::LightState::Yellow => 1,
+        world::LightState::Green => 2,
+    }
+}
+
+/// The light state of a shard's code (anything but 0 and 1 reads as green).
+pub fn light_of_code(code: u8) -> world::LightState {
+    match code {
+        0 => world::LightState::Red,
+        1 => world::LightState::Yellow,
+        _ => world::LightState::Green,
+    }
+}
+
+/// One actor in a frame.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ActorRow {
+    /// 1 vehicle, 2 pedestrian (0 is padding in the file, never returned).
+    pub kind: u8,
+    /// The actor's id in its run.
+    pub id: u32,
+    /// Centre (metres, OpenDRIVE frame).
+    pub x: f32,
+    /// Centre (metres, OpenDRIVE frame).
+    pub y: f32,
+    /// Heading (radians, counter-clockwise from +x).
+    pub yaw: f32,
+    /// Length (metres).
+    pub length: f32,
+    /// Width (metres).
+    pub width: f32,
+    /// Speed (metres per second).
+    pub speed: f32,
+}
+
+impl ActorRow {
+    /// A vehicle.
+    pub const VEHICLE: u8 = 1;
+    /// A pedestrian.
+    pub const PEDESTRIAN: u8 = 2;
+}
+
+/// The ego's state in a frame.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct EgoRow {
+    /// Centre x (metres).
+    pub x: f32,
+    /// Centre y (metres).
+    pub y: f32,
+    /// Heading (radians, counter-clockwise from +x).
+    pub yaw: f32,
+    /// Speed (metres per second).
+    pub speed: f32,
+}
+
+/// One episode in memory: what a shard holds.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Shard {
+    /// S0 width and height (pixels).
+    pub size: (u32, u32),
+    /// Camera views per frame.
+    pub views: usize,
+    /// `N x V x H x W x 3` bytes.
+    pub rgb: Vec<u8>,
+    /// `N x V x H x W` WoR class ids.
+    pub classes: Vec<u8>,
+    /// The ego per frame.
+    pub ego: Vec<EgoRow>,
+    /// The route command per frame.
+    pub command: Vec<u8>,
+    /// Route index reached and route distance (metres) per frame.
+    pub route: Vec<[f32; 2]>,
+    /// The loop tick per frame.
+    pub tick: Vec<u32>,
+    /// Every other actor per frame.
+    pub actors: Vec<Vec<ActorRow>>,
+    /// Every light's state per frame (0 red, 1 yellow, 2 green).
+    pub lights: Vec<Vec<u8>>,
+}
+
+impl Shard {
+    /// An empty shard for images of `size` with `views` views.
+    pub fn new(size: (u32, u32), views: usize) -> Shard {
+        Shard {
+            size,
+            views,
+            ..Shard::default()
+        }
+    }
+
+    /// Frames held.
+    pub fn len(&self) -> usize {
+        self.ego.len()
+    }
+
+    /// Whether it holds no frame.
+    pub fn is_empty(&self) -> bool {
+        self.ego.is_empty()
+    }
+
+    /// Bytes of one RGB view.
+    pub fn rgb_len(&self) -> usize {
+        self.size.0 as usize * self.size.1 as usize * 3
+    }
+
+    /// Bytes of one class view.
+    pub fn class_len(&self) -> usize {
+        self.size.0 as usize * self.size.1 as usize
+    }
+
+    /// The RGB image of `frame` seen from `view` (`H x W x 3`).
+    pub fn rgb(&self, frame: usize, view: usize) -> &[u8] {
+        let n = self.rgb_len();
+        let at = (frame * self.views + view) * n;
+        &self.rgb[at..at + n]
+    }
+
+    /// The class image of `frame` seen from `view` (`H x W`).
+    pub fn classes(&self, frame: usize, view: usize) -> &[u8] {
+        let n = self.class_len();
+        let at = (frame * self.views + view) * n;
+        &self.classes[at..at + n]
+    }
+
+    /// The safetensors bytes of this shard.
+    pub fn to_bytes(&self, metadata: &HashMap<String, String>) -> Vec<u8> {
+        let n = self.len();
+        let (w, h) = (self.size.0 as usize, self.size.1 as usize);
+        let a = self.actors.iter().map(Vec::len).max().unwrap_or(0);
+        let l = self.lights.first().map_or(0, Vec::len);
+        let mut actors = vec![0f32; n * a * ACTOR_FIELDS];
+        for (f, rows) in self.actors.iter().enumerate() {
+            for (i, r) in rows.iter().enumerate() {
+                let at = (f * a + i) * ACTOR_FIELDS;
+                actors[at..at + ACTOR_FIELDS].copy_from_slice(&[
+                    f32::from(r.kind),
+                    r.id as f32,
+                    r.x,
+                    r.y,
+                    r.yaw,
+                    r.length,
+                    r.width,
+                    r.speed,
+                ]);
+            }
+        }
+        let ego: Vec<f32> = self
+            .ego
+            .iter()
+            .flat_map(|e| [e.x, e.y, e.yaw, e.speed])
+            .collect();
+        let route: Vec<f32> = self.route.iter().flatten().copied().collect();
+        let lights: Vec<u8> = self.lights.iter().flatten().copied().collect();
+        let tensors: Vec<(&str, Dtype, Vec<usize>, &[u8])> = vec![
+            ("rgb", Dtype::U8, vec![n, self.views, h, w, 3], &self.rgb),
+            (
+                "classes",
+                Dtype::U8,
+                vec![n, self.views, h, w],
+                &self.classes,
+            ),
+            ("ego", Dtype::F32, vec![n, 4], bytes_of(&ego)),
+            ("command", Dtype::U8, vec![n], &self.command),
+            ("route", Dtype::F32, vec![n, 2], bytes_of(&route)),
+            ("tick", Dtype::U32, vec![n], bytes_of(&self.tick)),
+            (
+                "actors",
+                Dtype::F32,
+                vec![n, a, ACTOR_FIELDS],
+                bytes_of(&actors),
+            ),
+            ("lights", Dtype::U8, vec![n, l], &lights),
+        ];
+        serialize(tensors, metadata)
+    }
+
+    /// Reads and checks a shard written by [`Shard::to_bytes`]; `s0` and
+    /// `views` are what the index says.
+    pub fn read(path: &Path, s0: [u32; 2], views: usize) -> Result<Shard, DataError> {
+        let bytes = std::fs::read(path).map_err(|e| DataError::io(path, e))?;
+        let st = parse(path, &bytes)?;
+        check_format(path, &st_metadata(path, &bytes)?)?;
+        let n = tensor(path, &st, "ego", Dtype::F32)?.shape()[0];
+        let (w, h) = (s0[0] as usize, s0[1] as usize);
+        let rgb = tensor(path, &st, "rgb", Dtype::U8)?;
+        expect_shape(
+            path,
+            "rgb",
+            rgb.shape(),
+            &[n, views, h, w, 3],
+            "S0 and views",
+        )?;
+        let classes = tensor(path, &st, "classes", Dtype::U8)?;
+        expect_shape(
+            path,
+            "classes",
+            classes.shape(),
+            &[n, views, h, w],
+            "S0 and views",
+        )?;
+        let ego = tensor(path, &st, "ego", Dtype::F32)?;
+        expect_shape(path, "ego", ego.shape(), &[n, 4], "frames")?;
+        let command = tensor(path, &st, "command", Dtype::U8)?;
+        expect_shape(path, "command", command.shape(), &[n], "frames")?;
+        if let Some(c) = command.data().iter().find(|&&c| c > 5) {
+            return Err(DataError::shard(
+                path,
+                "command",
+                format!("command {c} is not 0-5; collect again"),
+            ));
+        }
+        let route = tensor(path, &st, "route", Dtype::F32)?;
+        expect_shape(path, "route", route.shape(), &[n, 2], "frames")?;
+        let tick = tensor(path, &st, "tick", Dtype::U32)?;
+        expect_shape(path, "tick", tick.shape(), &[n], "frames")?;
+        let actors = tensor(path, &st, "actors", Dtype::F32)?;
+        let a = actors.shape().get(1).copied().unwrap_or(0);
+        expect_shape(
+            path,
+            "actors",
+            actors.shape(),
+            &[n, a, ACTOR_FIELDS],
+            "frames",
+        )?;
+        let lights = tensor(path, &st, "lights", Dtype::U8)?;
+        let l = lights.shape().get(1).copied().unwrap_or(0);
+        expect_shape(path, "lights", lights.shape(), &[n, l], "frames")?;
+
+        let ego_f = f32s(ego.data());
+        let route_f = f32s(route.data());
+        let actor_f = f32s(actors.data());
+        let mut shard = Shard::new((s0[0], s0[1]), views);
+        shard.rgb = rgb.data().to_vec();
+        shard.classes = classes.data().to_vec();
+        shard.command = command.data().to_vec();
+        shard.tick = tick
+            .data()
+            .chunks_exact(4)
+            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect();
+        shard.ego = ego_f
+            .chunks_exact(4)
+            .map(|e| EgoRow {
+                x: e[0],
+                y: e[1],
+                yaw: e[2],
+                speed: e[3],
+            })
+            .collect();
+        if shard.ego.iter().any(|e| {
+            !(e.x.is_finite() && e.y.is_finite() && e.yaw.is_finite() && e.speed.is_finite())
+        }) {
+            return Err(DataError::shard(
+                path,
+                "ego",
+                "non-finite values; collect this episode again",
+            ));
+        }
+        shard.route = route_f.chunks_exact(2).map(|r| [r[0], r[1]]).collect();
+        shard.actors = actor_f
+            .chunks_exact(a.max(1) * ACTOR_FIELDS)
+            .take(n)
+            .map(|rows| {
+                rows.chunks_exact(ACTOR_FIELDS)
+                    .filter(|r| r[0] != 0.0)
+                    .map(|r| ActorRow {
+                        kind: r[0] as u8,
+                        id: r[1] as u32,
+                        x: r[2],
+                        y: r[3],
+                        yaw: r[4],
+                        length: r[5],
+                        width: r[6],
+                        speed: r[7],
+                    })
+                    .collect()
+            })
+            .collect();
+        if a == 0 {
+            shard.actors = vec![Vec::new(); n];
+        }
+        shard.lights = if l == 0 {
+            vec![Vec::new(); n]
+        } else {
+            lights.data().chunks_exact(l).map(<[u8]>::to_vec).collect()
+        };
+        Ok(shard)
+    }
+}
+
+/// Action values of one episode: what a label file holds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Labels {
+    /// Views per frame.
+    pub views: usize,
+    /// `N x V x 6 x 4 x 28` raw action values.
+    pub q: Vec<f32>,
+    /// Whether each frame has a label (its whole future was driven).
+    pub valid: Vec<bool>,
+}
+
+/// Commands, speed bins and actions of one label: 6 x 4 x 28.
+pub const Q_PER_VIEW: usize = 6 * 4 * 28;
+
+impl Labels {
+    /// The label of `frame` seen from `view`: `[6][4][28]` flattened.
+    pub fn q(&self, frame: usize, view: usize) -> &[f32] {
+        let at = (frame * self.views + view) * Q_PER_VIEW;
+        &self.q[at..at + Q_PER_VIEW]
+    }
+
+    /// The safetensors bytes, with the label version in the metadata.
+    pub fn to_bytes(&self, label_version: u32, shard: &str) -> Vec<u8> {
+        let n = self.valid.len();
+        let valid: Vec<u8> = self.valid.iter().map(|&v| u8::from(v)).collect();
+        let metadata = HashMap::from([
+            ("format".to_string(), FORMAT.to_string()),
+            ("label_version".to_string(), label_version.to_string()),
+            ("shard".to_string(), shard.to_string()),
+        ]);
+        serialize(
+            vec![
+                (
+                    "q",
+                    Dtype::F32,
+                    vec![n, self.views, 6, 4, 28],
+                    bytes_of(&self.q),
+                ),
+                ("valid", Dtype::U8, vec![n], &valid),
+            ],
+            &metadata,
+        )
+    }
+
+    /// Reads a label file, refusing another label version or frame count.
+    pub fn read(
+        path: &Path,
+        label_version: u32,
+        frames: usize,
+        views: usize,
+    ) -> Result<Labels, DataError> {
+        let bytes = std::fs::read(path).map_err(|e| DataError::io(path, e))?;
+        let st = parse(path, &bytes)?;
+        let meta = st_metadata(path, &bytes)?;
+        check_format(path, &meta)?;
+        let version = meta
+            .get("label_version")
+            .map(String::as_str)
+            .unwrap_or("none");
+        if version != label_version.to_string() {
+            return Err(DataError::shard(
+                path,
+                "label_version",
+                format!(
+                    "labels are version {version}, this build makes version {label_version}; run `mrdrive label` on the dataset again"
+                ),
+            ));
+        }
+        let q = tensor(path, &st, "q", Dtype::F32)?;
+        expect_shape(
+            path,
+            "q",
+            q.shape(),
+            &[frames, views, 6, 4, 28],
+            "frames and views (label again)",
+        )?;
+        let valid = tensor(path, &st, "valid", Dtype::U8)?;
+        expect_shape(
+            path,
+            "valid",
+            valid.shape(),
+            &[frames],
+            "frames (label again)",
+        )?;
+        let q = f32s(q.data());
+        if q.iter().any(|v| !v.is_finite()) {
+            return Err(DataError::shard(
+                path,
+                "q",
+                "non-finite action values; run `mrdrive label` again",
+            ));
+        }
+        Ok(Labels {
+            views,
+            q,
+            valid: valid.data().iter().map(|&v| v != 0).collect(),
+        })
+    }
+}
+
+fn serialize(
+    tensors: Vec<(&str, Dtype, Vec<usize>, &[u8])>,
+    metadata: &HashMap<String, String>,
+) -> Vec<u8> {
+    let views: Vec<(String, TensorView<'_>)> = tensors
+        .into_iter()
+        .map(|(name, dtype, shape, data)| {
+            (
+                name.to_string(),
+                TensorView::new(dtype, shape, data).expect("shapes match the data by construction"),
+            )
+        })
+        .collect();
+    let mut meta = metadata.clone();
+    meta.entry("format".into())
+        .or_insert_with(|| FORMAT.to_string());
+    safetensors::serialize(views, Some(meta)).expect("in-memory serialisation cannot fail")
+}
+
+fn parse<'a>(path: &Path, bytes: &'a [u8]) -> Result<SafeTensors<'a>, DataError> {
+    SafeTensors::deserialize(bytes).map_err(|e| {
+        DataError::shard(
+            path,
+            "header",
+            format!("not a readable safetensors file ({e}); it may be truncated: delete it and collect (or label) again"),
+        )
+    })
+}
+
+fn st_metadata(path: &Path, bytes: &[u8]) -> Result<HashMap<String, String>, DataError> {
+    let (_, meta) = SafeTensors::read_metadata(bytes)
+        .map_err(|e| DataError::shard(path, "header", format!("unreadable header ({e})")))?;
+    Ok(meta.metadata().clone().unwrap_or_default())
+}
+
+fn check_format(path: &Path, meta: &HashMap<String, String>) -> Result<(), DataError> {
+    match meta.get("format") {
+        Some(f) if f == FORMAT => Ok(()),
+        other => Err(DataError::shard(
+            path,
+            "format",
+            format!(
+                "format is {other:?}, this build reads {FORMAT:?}; collect again with this build"
+            ),
+        )),
+    }
+}
+
+fn tensor<'a>(
+    path: &Path,
+    st: &'a SafeTensors<'a>,
+    name: &str,
+    dtype: Dtype,
+) -> Result<TensorView<'a>, DataError> {
+    let t = st.tensor(name).map_err(|_| {
+        DataError::shard(
+            path,
+            name,
+            "missing; this is not a complete mrdrive shard: collect this episode again",
+        )
+    })?;
+    if t.dtype() != dtype {
+        return Err(DataError::shard(
+            path,
+            name,
+            format!("dtype {:?}, expected {dtype:?}", t.dtype()),
+        ));
+    }
+    Ok(t)
+}
+
+fn expect_shape(
+    path: &Path,
+    name: &str,
+    got: &[usize],
+    want: &[usize],
+    what: &str,
+) -> Result<(), DataError> {
+    if got == want {
+        Ok(())
+    } else {
+        Err(DataError::shard(
+            path,
+            name,
+            format!(
+                "shape {got:?}, expected {want:?} from the index's {what}: this shard belongs to another dataset or S0; collect it again"
+            ),
+        ))
+    }
+}
+
+fn bytes_of<T: Copy>(v: &[T]) -> &[u8] {
+    // f32 and u32 have no padding and any bit pattern is a valid u8.
+    unsafe { std::slice::from_raw_parts(v.as_ptr().cast::<u8>(), std::mem::size_of_val(v)) }
+}
+
+fn f32s(bytes: &[u8]) -> Vec<f32> {
+    bytes
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> Shard {
+        let mut s = Shard::new((6, 2), 2);
+        for f in 0..3u32 {
+            s.rgb
+                .extend((0..2 * 6 * 2 * 3).map(|i| (i as u32 + f) as u8));
+            s.classes
+                .extend((0..2 * 6 * 2).map(|i| ((i as u32 + f) % 6) as u8));
+            s.ego.push(EgoRow {
+                x: f as f32,
+                y: 2.0,
+                yaw: 0.5,
+                speed: 3.0,
+            });
+            s.command.push(3);
+            s.route.push([f as f32, 1.5 * f as f32]);
+            s.tick.push(f * 10);
+            s.actors.push(
+                (0..f)
+                    .map(|i| ActorRow {
+                        kind: 1 + (i % 2) as u8,
+                        id: i + 1,
+                        x: 1.0,
+                        y: 2.0,
+                        yaw: 0.1,
+                        length: 4.0,
+                        width: 2.0,
+                        speed: 1.0,
+                    })
+                    .collect(),
+            );
+            s.lights.push(vec![0, 1, 2]);
+        }
+        s
+    }
+
+    #[test]
+    fn a_shard_reads_back_as_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("episode-00000.safetensors");
+        let s = sample();
+        std::fs::write(&path, s.to_bytes(&HashMap::new())).unwrap();
+        let back = Shard::read(&path, [6, 2], 2).unwrap();
+        assert_eq!(back, s);
+        assert_eq!(back.rgb(2, 1), s.rgb(2, 1));
+    }
+
+    #[test]
+    fn a_truncated_or_foreign_shard_is_refused_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("episode-00000.safetensors");
+        let bytes = sample().to_bytes(&HashMap::new());
+        std::fs::write(&path, &bytes[..bytes.len() - 10]).unwrap();
+        let err = Shard::read(&path, [6, 2], 2).unwrap_err().to_string();
+        assert!(
+            err.contains("episode-00000") && err.contains("truncated"),
+            "{err}"
+        );
+        std::fs::write(&path, &bytes).unwrap();
+        let err = Shard::read(&path, [12, 4], 2).unwrap_err().to_string();
+        assert!(
+            err.contains("rgb") && err.contains("another dataset or S0"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn labels_of_another_version_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("labels-00000.safetensors");
+        let labels = Labels {
+            views: 1,
+            q: vec![0.5; 2 * Q_PER_VIEW],
+            valid: vec![true, false],
+        };
+        std::fs::write(&path, labels.to_bytes(1, "episode-00000.safetensors")).unwrap();
+        assert_eq!(Labels::read(&path, 1, 2, 1).unwrap(), labels);
+        let err = Labels::read(&path, 2, 2, 1).unwrap_err().to_string();
+        assert!(
+            err.contains("label_version") && err.contains("mrdrive label"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn a_missing_index_says_how_to_make_one() {
+        let dir = tempfile::tempdir().unwrap();
+        let err = Index::load(dir.path()).unwrap_err().to_string();
+        assert!(
+            err.contains(INDEX_FILE) && err.contains("mrdrive collect"),
+            "{err}"
+        );
+        let idx = Index::new("t", [6, 2], vec![0.0], 10, 0.025);
+        idx.save(dir.path()).unwrap();
+        assert_eq!(Index::load(dir.path()).unwrap(), idx);
+    }
+}

@@ -1,0 +1,139 @@
+//! `mrdrive collect` and `mrdrive label`: driving data and its action values.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use clap::{Args, ValueEnum};
+use dataset::collect::{self, CollectConfig, Preset};
+use dataset::labels::episode::label_dataset;
+
+/// Which dataset to collect.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum PresetArg {
+    /// The original model's data: Town01 routes 2-9, random Town01 routes.
+    Original,
+    /// The retargeting data: our generated towns and other random Town01 routes.
+    Retarget,
+}
+
+/// `collect` arguments.
+#[derive(Args)]
+pub struct CollectArgs {
+    /// Which dataset.
+    #[arg(long, value_enum)]
+    pub preset: PresetArg,
+    /// The dataset directory (made if missing; a finished episode is kept and skipped).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Episodes in the plan.
+    #[arg(long, default_value_t = 40)]
+    pub episodes: usize,
+    /// Longest episode (seconds simulated).
+    #[arg(long, default_value_t = 90.0)]
+    pub max_s: f64,
+    /// Mean seconds between two perturbations of the expert (0: no noise).
+    #[arg(long, default_value_t = 4.0)]
+    pub noise_gap_s: f64,
+    /// CARLA's maps and routes (Town01.xodr, routes_town01.xml).
+    #[arg(long, default_value = "../shared/carla")]
+    pub carla: PathBuf,
+    /// No progress lines.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// `label` arguments.
+#[derive(Args)]
+pub struct LabelArgs {
+    /// The dataset directory (`mrdrive collect --out`).
+    pub dir: PathBuf,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Runs `collect`.
+pub fn collect(a: CollectArgs) -> anyhow::Result<()> {
+    let preset = match a.preset {
+        PresetArg::Original => Preset::Original,
+        PresetArg::Retarget => Preset::Retarget,
+    };
+    anyhow::ensure!(
+        a.carla.join("Town01.xodr").is_file(),
+        "--carla {}: no Town01.xodr there; point --carla at the folder with CARLA's Town01.xodr and routes_town01.xml",
+        a.carla.display()
+    );
+    let repo = std::env::current_dir()?;
+    let plan = collect::plan(preset, a.episodes, &a.carla, &repo);
+    let mut cfg = CollectConfig::cpu_default(preset.name());
+    cfg.max_s = a.max_s;
+    cfg.noise.mean_gap_s = a.noise_gap_s;
+    let started = std::time::Instant::now();
+    let quiet = a.quiet;
+    let index = collect::collect(&plan, &cfg, &a.out, &mut |r, index| {
+        if !quiet {
+            let e = &r.episode;
+            println!(
+                "episode {:>3}/{} {} route {:<12} traffic {:>2}+{:<2} {:>4} frames in {:>5.1} s ({:.0} frames/s){}",
+                e.id + 1,
+                plan.len(),
+                e.town,
+                e.route.id,
+                e.vehicles,
+                e.pedestrians,
+                e.frames,
+                r.wall_s,
+                f64::from(e.frames) / r.wall_s.max(1e-9),
+                if r.success { "" } else { "  (route not completed)" }
+            );
+            let _ = index;
+        }
+    })
+    .with_context(|| format!("collecting into {}", a.out.display()))?;
+    let wall = started.elapsed().as_secs_f64();
+    println!(
+        "{}: {} episodes, {} frames ({:.2} h driven) in {}; this run {:.0} s",
+        a.out.display(),
+        index.episodes.len(),
+        index.frames(),
+        index.frames() as f64 * index.frame_s() / 3600.0,
+        index.name,
+        wall
+    );
+    Ok(())
+}
+
+/// Runs `label`.
+pub fn label(a: LabelArgs) -> anyhow::Result<()> {
+    let started = std::time::Instant::now();
+    let quiet = a.quiet;
+    let report = label_dataset(&a.dir, &mut |done, total| {
+        if !quiet {
+            eprint!("\rlabelled {done}/{total} episodes");
+        }
+    })
+    .with_context(|| format!("labelling {}", a.dir.display()))?;
+    if !quiet {
+        eprintln!();
+    }
+    let wall = started.elapsed().as_secs_f64();
+    println!(
+        "{}: labelled {} episodes ({} frames) in {:.1} s ({:.1} frames/s, {} threads); {} already labelled",
+        a.dir.display(),
+        report.episodes,
+        report.frames,
+        wall,
+        report.frames as f64 / wall.max(1e-9),
+        rayon::current_num_threads(),
+        report.skipped
+    );
+    for (path, why) in &report.failed {
+        eprintln!("warning: skipped {}: {why}", path.display());
+    }
+    anyhow::ensure!(
+        report.failed.is_empty(),
+        "{} episodes could not be labelled (above); the others were",
+        report.failed.len()
+    );
+    Ok(())
+}
