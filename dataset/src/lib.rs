@@ -11,6 +11,8 @@ pub mod action;
 pub mod collect;
 pub mod decode;
 pub mod format;
+pub mod info;
 pub mod label_driver;
 pub mod labels;
 pub mod noise;
+pub mod synthetic;
