@@ -15,4 +15,5 @@ pub mod info;
 pub mod label_driver;
 pub mod labels;
 pub mod noise;
+pub mod show;
 pub mod synthetic;
