@@ -35,11 +35,13 @@ use crate::action::{
     Action, BRAKE, NUM_ACTIONS, NUM_SPEED_BINS, NUM_STEERS, NUM_THROTTLES, action,
 };
 use crate::collect::{light_code, replan};
+use crate::decode::{SPEED_BIN_CENTRES_MPS, softmax};
 use crate::format::{
     ActorRow, DataError, INDEX_FILE, Index, MappedLabels, MappedShard, Q_PER_VIEW,
 };
 use crate::info::TownSource;
-use crate::labels::{LABEL_VERSION, SPEED_BINS_MPS};
+use crate::label_driver::TEMPERATURE;
+use crate::labels::LABEL_VERSION;
 
 /// Margin around and between panels (pixels).
 pub const MARGIN_PX: u32 = 8;
@@ -51,8 +53,6 @@ pub const BEV_M: f32 = 40.0;
 pub const CELL_PX: u32 = 20;
 /// Width of the text and heatmap panel (pixels).
 pub const PANEL_PX: u32 = 312;
-/// Temperature of the soft target drawn (WoR's, and the trainer's default).
-pub const SOFT_TARGET_TEMPERATURE: f32 = 0.01;
 
 const GLYPH_PX: u32 = 8;
 const LINE_PX: u32 = 11;
@@ -181,7 +181,7 @@ pub fn show(
                 let best = (0..NUM_ACTIONS).fold(0, |b, a| if q[a] > q[b] { a } else { b });
                 Ok(Shown {
                     q,
-                    soft: softmax(&q, SOFT_TARGET_TEMPERATURE),
+                    soft: soft_target(&q),
                     best,
                 })
             } else {
@@ -230,7 +230,7 @@ pub fn show(
         format!("command {name}"),
         format!(
             "speed {:.2} m/s: bin {bin} ({} m/s)",
-            ego.speed, SPEED_BINS_MPS[bin]
+            ego.speed, SPEED_BIN_CENTRES_MPS[bin]
         ),
     ];
     match &label {
@@ -245,7 +245,11 @@ pub fn show(
         }
         Err(why) => lines.push(why.clone()),
     }
-    for (k, line) in lines.iter().enumerate() {
+    let wrapped: Vec<String> = lines
+        .iter()
+        .flat_map(|l| wrap(l, PANEL_PX / GLYPH_PX))
+        .collect();
+    for (k, line) in wrapped.iter().take(6).enumerate() {
         text(&mut img, px, lower + k as u32 * LINE_PX, line);
     }
     if let Ok(s) = &label {
@@ -262,7 +266,7 @@ pub fn show(
             &mut img,
             px,
             y0 + HEATMAP_PX,
-            &format!("softmax(Q / {SOFT_TARGET_TEMPERATURE})"),
+            &format!("softmax(Q / {TEMPERATURE})"),
             &s.soft,
             s.best,
         );
@@ -274,19 +278,16 @@ pub fn show(
 fn nearest_bin(speed_mps: f32) -> usize {
     (0..NUM_SPEED_BINS)
         .min_by(|&a, &b| {
-            let da = (SPEED_BINS_MPS[a] - speed_mps).abs();
-            let db = (SPEED_BINS_MPS[b] - speed_mps).abs();
+            let da = (SPEED_BIN_CENTRES_MPS[a] - speed_mps).abs();
+            let db = (SPEED_BIN_CENTRES_MPS[b] - speed_mps).abs();
             da.total_cmp(&db)
         })
         .unwrap_or(0)
 }
 
-/// `softmax(q / t)`.
-fn softmax(q: &[f32; NUM_ACTIONS], t: f32) -> [f32; NUM_ACTIONS] {
-    let (_, hi) = min_max(q);
-    let e: [f32; NUM_ACTIONS] = std::array::from_fn(|a| ((q[a] - hi) / t).exp());
-    let sum: f32 = e.iter().sum();
-    std::array::from_fn(|a| e[a] / sum)
+/// The soft target `softmax(q / TEMPERATURE)`.
+fn soft_target(q: &[f32; NUM_ACTIONS]) -> [f32; NUM_ACTIONS] {
+    softmax(&q.map(|v| v / TEMPERATURE))
 }
 
 fn min_max(v: &[f32]) -> (f32, f32) {
@@ -298,9 +299,9 @@ fn min_max(v: &[f32]) -> (f32, f32) {
 
 fn describe(a: usize) -> String {
     match action(a) {
-        Action::Brake => format!("brake (action {a})"),
+        Action::Brake => format!("a{a} = brake"),
         Action::Drive { steer, throttle } => {
-            format!("steer {steer:+.2} throttle {throttle:.1} (action {a})")
+            format!("a{a} = steer {steer:+.2}, throttle {throttle:.1}")
         }
     }
 }
@@ -427,6 +428,23 @@ fn put(img: &mut RgbImage, x: u32, y: u32, c: [u8; 3]) {
     }
 }
 
+/// `s` broken at spaces into lines of at most `width` characters (longer words stay whole).
+fn wrap(s: &str, width: u32) -> Vec<String> {
+    let mut lines = vec![String::new()];
+    for word in s.split(' ') {
+        let last = lines.last_mut().expect("one line at least");
+        if !last.is_empty() && last.len() + 1 + word.len() > width as usize {
+            lines.push(word.to_string());
+        } else {
+            if !last.is_empty() {
+                last.push(' ');
+            }
+            last.push_str(word);
+        }
+    }
+    lines
+}
+
 /// Draws `s` with the 8 x 8 font (ASCII; other characters as `?`), top-left at `(x, y)`.
 fn text(img: &mut RgbImage, x: u32, y: u32, s: &str) {
     for (k, ch) in s.chars().enumerate() {
@@ -509,12 +527,13 @@ mod tests {
         // Frame 3 (LANEFOLLOW, 6 m/s: bin 2 (5 m/s) and 3 (7 m/s) tie; the
         // first wins), view 2: best action (3 + 2 + 3 + 2) mod 28 = 10.
         let q: [f32; NUM_ACTIONS] = std::array::from_fn(|a| synthetic::q_value(3, 2, 3, 2, a));
-        let soft = softmax(&q, SOFT_TARGET_TEMPERATURE);
+        let soft = soft_target(&q);
         assert_eq!(nearest_bin(6.0), 2);
         assert!(soft[10] > 0.999, "{soft:?}");
         assert!((soft.iter().sum::<f32>() - 1.0).abs() < 1e-5);
-        assert_eq!(describe(10), "steer -0.75 throttle 0.5 (action 10)");
-        assert_eq!(describe(BRAKE), "brake (action 27)");
+        assert_eq!(describe(10), "a10 = steer -0.75, throttle 0.5");
+        assert_eq!(describe(BRAKE), "a27 = brake");
+        assert_eq!(wrap("ab cd ef", 5), ["ab cd", "ef"]);
         let dir = tempfile::tempdir().unwrap();
         synthetic::write(dir.path(), &SyntheticSpec::tiny(1, 10)).unwrap();
         let img = show(dir.path(), 3, 2, &mut towns()).unwrap();
