@@ -2,23 +2,23 @@
 //! shards' state tensors (no image is read).
 //!
 //! "Approaching a red light" is a statistic of the data, not a rule of the
-//! road: a frame approaches one when the next stop line on its route (from
-//! `sim::expert::stops_on_route` on the episode's route planned again with
-//! `collect::replan`) lies 0 to [`RED_LIGHT_RANGE_M`] metres ahead of the
-//! ego's centre along the route, and that stop line's light says stop
-//! (red or yellow: `labels::maps::light_stops`).
+//! road: a frame approaches one when the next stop line on its route (the
+//! rule book's `StopLines::on_route` on the episode's route planned again
+//! with `collect::replan`) lies up to [`RED_LIGHT_RANGE_M`] metres ahead of
+//! the ego's centre along the route, and that stop line's light says stop
+//! (red or yellow, as in the labels: `labels::maps::light_stops`).
 
 use std::collections::BTreeMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use sim::expert::{RouteStop, stops_on_route};
+use world::rules::{RouteStops, StopLines};
 use world::{Command, Town};
 
 use crate::action::NUM_COMMANDS;
 use crate::collect::{TownCache, replan};
-use crate::format::{DataError, Episode, FORMAT, Index, MappedShard, file_metadata};
+use crate::format::{DataError, Episode, FORMAT, Index, MappedShard, file_metadata, light_of_code};
 use crate::labels::LABEL_VERSION;
 use crate::labels::maps::light_stops;
 
@@ -56,12 +56,14 @@ pub fn speed_bin(speed_mps: f32) -> usize {
 }
 
 /// Whether an ego at route distance `ego_s` (metres) approaches a red
-/// light, given the route's stop lines and the frame's light states (see
+/// light, given the route's stop lines and the frame's light codes (see
 /// the module docs).
-pub fn approaching_red(stops: &[RouteStop], ego_s: f32, lights: &[u8]) -> bool {
-    stops.iter().find(|s| s.route_s >= ego_s).is_some_and(|s| {
+pub fn approaching_red(stops: &RouteStops, ego_s: f32, lights: &[u8]) -> bool {
+    stops.next_after(ego_s).is_some_and(|s| {
         s.route_s - ego_s <= RED_LIGHT_RANGE_M
-            && lights.get(s.light).is_some_and(|&state| light_stops(state))
+            && lights
+                .get(s.light.0 as usize)
+                .is_some_and(|&code| light_stops(light_of_code(code)))
     })
 }
 
@@ -163,7 +165,7 @@ impl Summary {
             *s.routes.entry(route).or_default() += n;
             match towns(e).and_then(|town| replan(&town, &e.route).map(|r| (town, r))) {
                 Ok((town, route)) => {
-                    let stops = stops_on_route(&town, &route);
+                    let stops = StopLines::new(&town).on_route(&route);
                     s.red_light_known += n;
                     s.red_light += (0..shard.len())
                         .filter(|&i| approaching_red(&stops, shard.route[i][1], &shard.lights[i]))
@@ -358,24 +360,28 @@ mod tests {
 
     #[test]
     fn a_stop_line_behind_or_too_far_or_green_is_not_approached() {
-        let stops = [
-            RouteStop {
-                route_s: 50.0,
-                light: 0,
-            },
-            RouteStop {
-                route_s: 70.0,
-                light: 1,
-            },
-        ];
-        let (red, green) = (0u8, 2u8);
-        assert!(approaching_red(&stops, 20.0, &[red, green]));
-        assert!(approaching_red(&stops, 50.0, &[1, green]), "yellow stops");
-        assert!(!approaching_red(&stops, 19.0, &[red, red]), "31 m away");
-        assert!(!approaching_red(&stops, 30.0, &[green, red]), "green");
-        // Past the first line the next one counts.
-        assert!(approaching_red(&stops, 51.0, &[red, red]));
-        assert!(!approaching_red(&stops, 71.0, &[red, red]));
+        let town = synthetic::town();
+        let stops = StopLines::new(&town).on_route(&synthetic::dense_route(&town));
+        // One stop line on the route: x = 86, 66 m from the route's start at x = 20.
+        assert_eq!(stops.all().len(), 1);
+        let line = stops.all()[0].route_s;
+        assert!((line - 66.0).abs() < 0.01, "{line}");
+        let (red, yellow, green) = (0u8, 1u8, 2u8);
+        let lights = |code| vec![code; town.lights.len()];
+        assert!(approaching_red(&stops, line - 30.0, &lights(red)));
+        assert!(
+            approaching_red(&stops, line - 1.0, &lights(yellow)),
+            "yellow stops"
+        );
+        assert!(
+            !approaching_red(&stops, line - 30.5, &lights(red)),
+            "30.5 m away"
+        );
+        assert!(
+            !approaching_red(&stops, line - 10.0, &lights(green)),
+            "green"
+        );
+        assert!(!approaching_red(&stops, line + 1.0, &lights(red)), "passed");
     }
 
     #[test]

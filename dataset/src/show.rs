@@ -34,10 +34,10 @@ use world::{Command, LightState, Vec2};
 use crate::action::{
     Action, BRAKE, NUM_ACTIONS, NUM_SPEED_BINS, NUM_STEERS, NUM_THROTTLES, action,
 };
-use crate::collect::{light_code, replan};
+use crate::collect::replan;
 use crate::decode::{SPEED_BIN_CENTRES_MPS, softmax};
 use crate::format::{
-    ActorRow, DataError, INDEX_FILE, Index, MappedLabels, MappedShard, Q_PER_VIEW,
+    ActorRow, DataError, INDEX_FILE, Index, MappedLabels, MappedShard, Q_PER_VIEW, light_of_code,
 };
 use crate::info::TownSource;
 use crate::label_driver::TEMPERATURE;
@@ -306,14 +306,6 @@ fn describe(a: usize) -> String {
     }
 }
 
-/// The light state a shard's code stands for (the inverse of `collect::light_code`).
-fn light_state(code: u8) -> LightState {
-    [LightState::Red, LightState::Yellow, LightState::Green]
-        .into_iter()
-        .find(|&s| light_code(s) == code)
-        .unwrap_or_default()
-}
-
 /// A box `length x width` at `centre`, turned by `yaw`.
 fn footprint(centre: Vec2, yaw: f32, length: f32, width: f32) -> [Vec2; 4] {
     let (f, l) = (
@@ -343,7 +335,7 @@ fn bird_eye(
         let pts: Vec<Vec2> = r.points.iter().map(|p| p.position.truncate()).collect();
         cv.polyline(&pts, 0.4, ROUTE);
     }
-    let states: Vec<LightState> = state.lights[i].iter().map(|&c| light_state(c)).collect();
+    let states: Vec<LightState> = state.lights[i].iter().map(|&c| light_of_code(c)).collect();
     cv.stop_lines(town, &states, 0.6);
     for a in &state.actors[i] {
         let colour = if a.kind == ActorRow::PEDESTRIAN {

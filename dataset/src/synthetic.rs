@@ -20,11 +20,10 @@
 //! | q (labels) | [`q_value`]; valid for all but the last 5 frames |
 
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use world::Town;
-use world::planner::{DenseRoute, PlannerConfig, plan_route};
-use world::route::{Route, RouteWaypoint};
+use world::planner::DenseRoute;
 use world::testtown::LANE_WIDTH_M;
 
 use crate::action::{NUM_ACTIONS, NUM_COMMANDS, NUM_SPEED_BINS};
@@ -93,21 +92,7 @@ pub fn route_spec() -> RouteSpec {
 
 /// The route planned on [`town`].
 pub fn dense_route(town: &Town) -> DenseRoute {
-    let r = route_spec();
-    let route = Route {
-        id: r.id.clone(),
-        town: Some(town.name.clone()),
-        waypoints: r
-            .waypoints
-            .iter()
-            .map(|w| RouteWaypoint {
-                position: world::Vec3::new(w[0], w[1], 0.0),
-                yaw_rad: Some(w[2].to_radians()),
-            })
-            .collect(),
-        source: PathBuf::from("synthetic"),
-    };
-    plan_route(town, &route, &PlannerConfig::default()).expect("the synthetic route plans")
+    crate::collect::replan(town, &route_spec()).expect("the synthetic route plans")
 }
 
 /// The ego of frame `i`.
