@@ -223,20 +223,25 @@ pub struct LoaderBench {
     pub fed: Option<FedTraining>,
 }
 
-/// The loader against the training step of `config` (multi-resolution, segmentation on)
-/// on the CPU: `batches` timed loader batches each way, `train_steps` timed steps alone and
-/// fed by the loader (0 skips training).
+/// The loader (with `workers` threads) against the training step of `config`
+/// (multi-resolution, segmentation on) on the CPU: `batches` timed loader batches each way,
+/// `train_steps` timed steps alone and fed by the loader (0 skips training).
 pub fn loader_bench(
     set: Arc<TrainSet>,
     config: &PolicyConfig,
     batch: usize,
+    workers: usize,
     batches: usize,
     train_steps: usize,
 ) -> LoaderBench {
+    let loader = LoaderConfig {
+        workers,
+        ..LoaderConfig::new(batch, 0)
+    };
     let rate = |augment| {
         let cfg = LoaderConfig {
             augment,
-            ..LoaderConfig::new(batch, 0)
+            ..loader.clone()
         };
         loader_throughput(set.clone(), config, cfg, batches)
     };
@@ -257,7 +262,7 @@ pub fn loader_bench(
             set.clone(),
             config,
             TrainConfig::new(),
-            LoaderConfig::new(batch, 0),
+            loader.clone(),
             &device,
             train_steps,
         ));

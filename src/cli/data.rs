@@ -79,6 +79,9 @@ pub enum BenchCommand {
         /// Batch size.
         #[arg(long, default_value_t = 32)]
         batch: usize,
+        /// Loader worker threads.
+        #[arg(long, default_value_t = 1)]
+        workers: usize,
         /// Timed loader batches (after 1 untimed).
         #[arg(long, default_value_t = 20)]
         batches: usize,
@@ -93,6 +96,7 @@ pub fn run_bench(c: BenchCommand) -> anyhow::Result<()> {
     let BenchCommand::Loader {
         dataset,
         batch,
+        workers,
         batches,
         train_steps,
     } = c;
@@ -114,7 +118,7 @@ pub fn run_bench(c: BenchCommand) -> anyhow::Result<()> {
         eprintln!("warning: skipped {}: {}", s.path.display(), s.why);
     }
     println!(
-        "loader benchmark: {} ({} samples), batch {batch}, S0 {} x {}, a worker thread + {} rayon threads; load average {}",
+        "loader benchmark: {} ({} samples), batch {batch}, S0 {} x {}, {workers} loader thread(s) + {} rayon threads; load average {}",
         dir.display(),
         set.samples.len(),
         config.input_width,
@@ -124,7 +128,7 @@ pub fn run_bench(c: BenchCommand) -> anyhow::Result<()> {
             .unwrap_or_default()
             .trim()
     );
-    let r = bench::loader_bench(set, &config, batch, batches, train_steps);
+    let r = bench::loader_bench(set, &config, batch, workers, batches, train_steps);
     let per_s = |bps: f64| format!("{bps:.2} batches/s = {:.0} samples/s", bps * batch as f64);
     println!(
         "loader alone, augmented:     {} ({batches} batches)",

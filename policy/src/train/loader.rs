@@ -16,10 +16,11 @@
 //!   policy's input (`PolicyConfig::normalize_rgb8`: RGB / 255, ImageNet
 //!   mean and std) into `[3, H0, W0]`; `q` `[6, 4, 28]` from the label file;
 //!   `seg` `[H0, W0]` the WoR class ids (warped with the image).
-//! - A worker thread reads, augments and normalises, and hands batches over a
-//!   bounded channel; the training step converts them to tensors. Every
-//!   number depends only on the dataset, the seed and the configuration, not
-//!   on the thread's timing.
+//! - Worker threads (one by default) read, augment and normalise, and hand
+//!   batches over bounded channels, batch `g` from worker `g mod workers`;
+//!   the training step converts them to tensors. Every number depends only
+//!   on the dataset, the seed and the configuration, not on the number of
+//!   workers or their timing.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -51,13 +52,17 @@ pub struct LoaderConfig {
     pub first_epoch: u64,
     /// Epochs to stream; `None` streams until the loader is dropped.
     pub epochs: Option<u64>,
-    /// Batches prepared ahead of the training step.
+    /// Batches prepared ahead of the training step (over all workers).
     pub queue: usize,
+    /// Worker threads (1 keeps one core for the loader on a 2-core CPU;
+    /// more for a GPU step, which wants more samples per second). The
+    /// batches are the same for any number.
+    pub workers: usize,
 }
 
 impl LoaderConfig {
     /// Batches of `batch`, seed `seed`, WoR's augmentations, every sample
-    /// once per epoch, forever, 4 batches ahead.
+    /// once per epoch, forever, 4 batches ahead, one worker thread.
     pub fn new(batch: usize, seed: u64) -> LoaderConfig {
         LoaderConfig {
             batch,
@@ -67,6 +72,7 @@ impl LoaderConfig {
             first_epoch: 0,
             epochs: None,
             queue: 4,
+            workers: 1,
         }
     }
 }
@@ -382,35 +388,48 @@ impl HostBatch {
     }
 }
 
-/// Streams batches of a [`TrainSet`] from a worker thread.
+/// Streams batches of a [`TrainSet`] from worker threads.
 pub struct Loader {
-    rx: Option<Receiver<HostBatch>>,
-    worker: Option<JoinHandle<()>>,
+    /// One channel per worker; batch `g` comes from worker `g mod workers`.
+    rx: Vec<Receiver<HostBatch>>,
+    workers: Vec<JoinHandle<()>>,
+    next: usize,
     /// Batches per epoch.
     pub batches_per_epoch: usize,
 }
 
 impl Loader {
-    /// Starts the worker. `set` is shared with it; `config` says how to normalise.
+    /// Starts the workers. `set` is shared with them; `config` says how to normalise.
     pub fn start(set: Arc<TrainSet>, config: &PolicyConfig, cfg: LoaderConfig) -> Loader {
         let batch = cfg.batch.max(1);
         let batches_per_epoch = set.samples.len() / batch;
-        let (tx, rx) = sync_channel(cfg.queue.max(1));
-        let config = config.clone();
-        let worker = std::thread::Builder::new()
-            .name("mrdrive-loader".into())
-            .spawn(move || produce(&set, &config, &cfg, batch, &tx))
-            .expect("the loader thread starts");
+        let n = cfg.workers.max(1);
+        let mut rx = Vec::with_capacity(n);
+        let mut workers = Vec::with_capacity(n);
+        for w in 0..n {
+            let (tx, r) = sync_channel(cfg.queue.div_ceil(n).max(1));
+            let (set, config, cfg) = (set.clone(), config.clone(), cfg.clone());
+            let worker = std::thread::Builder::new()
+                .name(format!("mrdrive-loader-{w}"))
+                .spawn(move || produce(&set, &config, &cfg, batch, (w, n), &tx))
+                .expect("a loader thread starts");
+            rx.push(r);
+            workers.push(worker);
+        }
         Loader {
-            rx: Some(rx),
-            worker: Some(worker),
+            rx,
+            workers,
+            next: 0,
             batches_per_epoch,
         }
     }
 
     /// The next batch on the host, or `None` after the last epoch.
     pub fn next_host(&mut self) -> Option<HostBatch> {
-        self.rx.as_ref()?.recv().ok()
+        let n = self.rx.len();
+        let b = self.rx.get(self.next % n.max(1))?.recv().ok()?;
+        self.next += 1;
+        Some(b)
     }
 
     /// The next batch as tensors on `device`, or `None` after the last epoch.
@@ -419,24 +438,30 @@ impl Loader {
     }
 }
 
+/// Worker `w` of `n`: makes every batch `g` of the stream with `g mod n = w`.
 fn produce(
     set: &TrainSet,
     config: &PolicyConfig,
     cfg: &LoaderConfig,
     batch: usize,
+    (w, n): (usize, usize),
     tx: &SyncSender<HostBatch>,
 ) {
     let mut epoch = cfg.first_epoch;
+    let mut g = 0usize;
     loop {
-        if cfg.epochs.is_some_and(|n| epoch >= cfg.first_epoch + n) {
+        if cfg.epochs.is_some_and(|e| epoch >= cfg.first_epoch + e) {
             return;
         }
         let order = set.epoch_order(cfg, epoch);
         for (b, at) in order.chunks_exact(batch).enumerate() {
-            let hb = set.host_batch(config, cfg, epoch, (b * batch) as u64, at);
-            if tx.send(hb).is_err() {
-                return; // the loader was dropped
+            if g % n == w {
+                let hb = set.host_batch(config, cfg, epoch, (b * batch) as u64, at);
+                if tx.send(hb).is_err() {
+                    return; // the loader was dropped
+                }
             }
+            g += 1;
         }
         if order.len() < batch {
             return; // not one whole batch: nothing to stream
@@ -447,9 +472,9 @@ fn produce(
 
 impl Drop for Loader {
     fn drop(&mut self) {
-        // Closing the channel makes the worker's next send fail, so it ends.
-        drop(self.rx.take());
-        if let Some(w) = self.worker.take() {
+        // Closing the channels makes each worker's next send fail, so it ends.
+        self.rx.clear();
+        for w in self.workers.drain(..) {
             let _ = w.join();
         }
     }
@@ -538,6 +563,15 @@ mod tests {
         assert_eq!(a, b);
         let c = all(open(), cfg(8));
         assert_ne!(a[0].samples, c[0].samples);
+        let three = all(
+            open(),
+            LoaderConfig {
+                workers: 3,
+                queue: 5,
+                ..cfg(7)
+            },
+        );
+        assert_eq!(three, a, "three workers give the same stream");
         // Each epoch visits each sample at most once, and the epochs differ.
         let first: Vec<SampleRef> = a[..8].iter().flat_map(|b| b.samples.clone()).collect();
         let mut dedup = first.clone();
