@@ -787,7 +787,37 @@ fn serialize(
     let mut meta = metadata.clone();
     meta.entry("format".into())
         .or_insert_with(|| FORMAT.to_string());
-    safetensors::serialize(views, Some(meta)).expect("in-memory serialisation cannot fail")
+    let bytes =
+        safetensors::serialize(views, Some(meta)).expect("in-memory serialisation cannot fail");
+    canonical_header(bytes)
+}
+
+/// The same file with its JSON header's keys in sorted order: safetensors
+/// writes the metadata map in hash order, which differs from map to map, and
+/// a dataset must be the same bytes for the same plan. The sorted header has
+/// the same length, so the data offsets stay as they are.
+fn canonical_header(mut bytes: Vec<u8>) -> Vec<u8> {
+    fn sorted(v: serde_json::Value) -> serde_json::Value {
+        match v {
+            serde_json::Value::Object(m) => {
+                let tree: std::collections::BTreeMap<String, serde_json::Value> =
+                    m.into_iter().map(|(k, v)| (k, sorted(v))).collect();
+                serde_json::to_value(tree).expect("a map of JSON values")
+            }
+            other => other,
+        }
+    }
+    let n = u64::from_le_bytes(bytes[..8].try_into().expect("8 bytes")) as usize;
+    let header: serde_json::Value =
+        serde_json::from_slice(&bytes[8..8 + n]).expect("safetensors wrote JSON");
+    let mut text = serde_json::to_vec(&sorted(header)).expect("JSON serialises");
+    assert!(
+        text.len() <= n,
+        "a sorted header is no longer than the original"
+    );
+    text.resize(n, b' ');
+    bytes[8..8 + n].copy_from_slice(&text);
+    bytes
 }
 
 fn parse<'a>(path: &Path, bytes: &'a [u8]) -> Result<SafeTensors<'a>, DataError> {
