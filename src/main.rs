@@ -40,6 +40,9 @@ enum Command {
     Collect(cli::collect::CollectArgs),
     /// Compute world-on-rails action values for a collected dataset.
     Label(cli::collect::LabelArgs),
+    /// Datasets: summary, a frame and its label as a picture.
+    #[command(subcommand)]
+    Data(cli::data::DataCommand),
     /// Run logs (MCAP): summary.
     #[command(subcommand)]
     Log(cli::log::LogCommand),
@@ -73,6 +76,7 @@ fn run() -> anyhow::Result<()> {
         Command::Policy(a) => cli::policy::run_policy(a),
         Command::Train(a) => cli::policy::run_train(a),
         Command::Bench(a) => cli::bench::run(a),
+        Command::Data(c) => cli::data::run(c),
         Command::Log(c) => cli::log::run(c),
         Command::Collect(a) => cli::collect::collect(a),
         Command::Label(a) => cli::collect::label(a),

@@ -18,16 +18,18 @@ use std::sync::Arc;
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use sim::camera::Camera;
 use sim::expert::{Expert, ExpertParams};
+use sim::observe::{RunObserver, TickView};
 use sim::render::classes::to_wor;
 use sim::render::{EgoPose, Renderer, RigConfig};
-use sim::runner::{Prepared, RunInputs};
+use sim::runner::{Prepared, RunError, RunInputs};
 use sim::scenario::{MapSpec, RouteSpec as ScenarioRoute, Scenario};
 use sim::selector::Fixed;
 use world::planner::{DenseRoute, PlannerConfig, plan_route};
 use world::route::{Route, RouteFile, RouteWaypoint};
 use world::xodr_map::{LoadOptions, UnsignalledJunctions, load_xodr_file};
-use world::{ActorKind, ActorSnapshot, LightState, Town, Vec2, Vec3};
+use world::{ActorKind, Town, Vec3};
 
 use crate::format::{
     ActorRow, DataError, EgoRow, Episode, Index, RouteSpec, Shard, light_code, write_atomic,
@@ -352,17 +354,6 @@ pub struct EpisodeRecorder {
     pub shard: Shard,
 }
 
-/// What the recorder needs to know of a tick besides the world.
-#[derive(Debug, Clone, Copy)]
-pub struct RouteState {
-    /// The route point reached.
-    pub index: usize,
-    /// The ego's distance along the route (metres).
-    pub route_s: f32,
-    /// The route command at the ego.
-    pub command: world::Command,
-}
-
 impl EpisodeRecorder {
     /// A recorder with its own renderer for `town`.
     pub fn new(town: &Town, cfg: &CollectConfig, seed: u64) -> Result<EpisodeRecorder, String> {
@@ -374,19 +365,21 @@ impl EpisodeRecorder {
             shard: Shard::new(cfg.rig.base_size(), cfg.view_yaws_deg.len()),
         })
     }
+}
 
-    /// Looks at one tick: every `frame_every_ticks`-th becomes a frame.
-    pub fn observe(
+impl RunObserver for EpisodeRecorder {
+    /// Every `frame_every_ticks`-th tick becomes a frame: each view
+    /// rendered at S0 by the recorder's own renderer, and the state.
+    fn on_tick(
         &mut self,
-        tick: u64,
-        actors: &[ActorSnapshot],
-        lights: &[LightState],
-        route: RouteState,
-    ) -> Result<(), String> {
-        if !tick.is_multiple_of(self.frame_every_ticks) {
+        v: &TickView<'_>,
+        _camera: Option<&mut dyn Camera>,
+    ) -> Result<(), RunError> {
+        if !v.tick.is_multiple_of(self.frame_every_ticks) {
             return Ok(());
         }
-        let ego = actors.first().ok_or("no ego")?;
+        let (tick, actors, lights) = (v.tick, v.actors, v.lights);
+        let ego = v.ego();
         for &yaw in &self.view_yaws_rad {
             let pose = EgoPose {
                 position: ego.position,
@@ -395,7 +388,7 @@ impl EpisodeRecorder {
             let (rgb, classes) = self
                 .renderer
                 .render_rig(&pose, actors, lights, 1.0)
-                .map_err(|e| e.to_string())?;
+                .map_err(|e| RunError::Camera(e.to_string()))?;
             self.shard.rgb.extend_from_slice(&rgb.data);
             self.shard
                 .classes
@@ -407,8 +400,8 @@ impl EpisodeRecorder {
             yaw: ego.heading,
             speed: ego.speed_mps,
         });
-        self.shard.command.push(route.command as u8);
-        self.shard.route.push([route.index as f32, route.route_s]);
+        self.shard.command.push(v.command as u8);
+        self.shard.route.push([v.route_index as f32, v.route_s]);
         self.shard.tick.push(tick as u32);
         self.shard.actors.push(
             actors
@@ -488,20 +481,8 @@ pub fn drive(
     let mut driver = NoisyDriver::new(expert, cfg.noise, spec.seed ^ 0x6e6f_6973_65);
     let mut selector = Fixed { scale: 1.0 };
     let mut recorder = EpisodeRecorder::new(&town, cfg, spec.seed)?;
-    let mut tracker = RouteTracker::new(&prepared.route);
-    let mut failed: Option<String> = None;
     let tick_s = scenario.timing.tick_s;
     let max_ticks = (cfg.max_s / tick_s).round() as u64;
-    let mut observer = |tick: u64, actors: &[ActorSnapshot], lights: &[LightState]| {
-        if failed.is_some() {
-            return;
-        }
-        let Some(ego) = actors.first() else { return };
-        let route = tracker.update(&prepared.route, ego.position.truncate());
-        if let Err(e) = recorder.observe(tick, actors, lights, route) {
-            failed = Some(e);
-        }
-    };
     let record = sim::runner::run(
         &scenario,
         Path::new("collect.toml"),
@@ -510,17 +491,11 @@ pub fn drive(
             driver: &mut driver,
             selector: &mut selector,
             camera: None,
-            recorder: None,
-            progress: &mut |_| {},
+            observers: vec![&mut recorder],
             max_ticks: Some(max_ticks),
-            observer: Some(&mut observer),
-            render_every_frame: false,
         },
     )
     .map_err(|e| e.to_string())?;
-    if let Some(e) = failed {
-        return Err(e);
-    }
     let episode = Episode {
         id: spec.id,
         shard: shard_name(spec.id),
@@ -612,29 +587,6 @@ pub fn collect(
         );
     }
     Ok(index)
-}
-
-/// Follows the ego along the route with the rule book's route rules (the
-/// route monitor's window search and route distance).
-struct RouteTracker {
-    index: usize,
-}
-
-impl RouteTracker {
-    fn new(_route: &DenseRoute) -> RouteTracker {
-        RouteTracker { index: 0 }
-    }
-
-    fn update(&mut self, route: &DenseRoute, p: Vec2) -> RouteState {
-        if let Some((i, _)) = world::rules::nearest_route_point(route, p, self.index, 40) {
-            self.index = i;
-        }
-        RouteState {
-            index: self.index,
-            route_s: world::rules::route_s_at(route, self.index, p),
-            command: route.command_ahead(self.index, 0.0),
-        }
-    }
 }
 
 #[cfg(test)]

@@ -36,6 +36,7 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
+use memmap2::Mmap;
 use safetensors::tensor::{Dtype, SafeTensors, TensorView};
 use serde::{Deserialize, Serialize};
 
@@ -421,12 +422,36 @@ impl Shard {
         serialize(tensors, metadata)
     }
 
-    /// Reads and checks a shard written by [`Shard::to_bytes`]; `s0` and
-    /// `views` are what the index says.
+    /// Reads and checks a shard written by [`Shard::to_bytes`], images
+    /// included; `s0` and `views` are what the index says.
     pub fn read(path: &Path, s0: [u32; 2], views: usize) -> Result<Shard, DataError> {
-        let bytes = std::fs::read(path).map_err(|e| DataError::io(path, e))?;
-        let st = parse(path, &bytes)?;
-        check_format(path, &st_metadata(path, &bytes)?)?;
+        MappedShard::open(path, s0, views).map(MappedShard::into_shard)
+    }
+}
+
+/// A shard opened by memory map: its state (everything but the images) is
+/// read and checked at once; the images stay in the file, and only the
+/// pages of the frames asked for are read.
+///
+/// Dataset files are written under a temporary name and renamed, never
+/// changed in place, so the mapped bytes do not change under the map.
+#[derive(Debug)]
+pub struct MappedShard {
+    path: PathBuf,
+    map: Mmap,
+    rgb_at: usize,
+    classes_at: usize,
+    /// The state of every frame; its `rgb` and `classes` are empty.
+    pub state: Shard,
+}
+
+impl MappedShard {
+    /// Maps and checks a shard written by [`Shard::to_bytes`]; `s0` and
+    /// `views` are what the index says.
+    pub fn open(path: &Path, s0: [u32; 2], views: usize) -> Result<MappedShard, DataError> {
+        let map = map_file(path)?;
+        let st = parse(path, &map)?;
+        check_format(path, &st_metadata(path, &map)?)?;
         let n = tensor(path, &st, "ego", Dtype::F32)?.shape()[0];
         let (w, h) = (s0[0] as usize, s0[1] as usize);
         let rgb = tensor(path, &st, "rgb", Dtype::U8)?;
@@ -477,8 +502,6 @@ impl Shard {
         let route_f = f32s(route.data());
         let actor_f = f32s(actors.data());
         let mut shard = Shard::new((s0[0], s0[1]), views);
-        shard.rgb = rgb.data().to_vec();
-        shard.classes = classes.data().to_vec();
         shard.command = command.data().to_vec();
         shard.tick = tick
             .data()
@@ -531,7 +554,53 @@ impl Shard {
         } else {
             lights.data().chunks_exact(l).map(<[u8]>::to_vec).collect()
         };
-        Ok(shard)
+        let (rgb_at, classes_at) = (offset_in(&map, rgb.data()), offset_in(&map, classes.data()));
+        Ok(MappedShard {
+            path: path.to_path_buf(),
+            map,
+            rgb_at,
+            classes_at,
+            state: shard,
+        })
+    }
+
+    /// The shard's file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Frames held.
+    pub fn len(&self) -> usize {
+        self.state.len()
+    }
+
+    /// Whether it holds no frame.
+    pub fn is_empty(&self) -> bool {
+        self.state.is_empty()
+    }
+
+    /// The RGB image of `frame` seen from `view` (`H x W x 3`), from the file.
+    pub fn rgb(&self, frame: usize, view: usize) -> &[u8] {
+        let n = self.state.rgb_len();
+        let at = self.rgb_at + (frame * self.state.views + view) * n;
+        &self.map[at..at + n]
+    }
+
+    /// The class image of `frame` seen from `view` (`H x W`), from the file.
+    pub fn classes(&self, frame: usize, view: usize) -> &[u8] {
+        let n = self.state.class_len();
+        let at = self.classes_at + (frame * self.state.views + view) * n;
+        &self.map[at..at + n]
+    }
+
+    /// The whole shard in memory, images copied from the file.
+    pub fn into_shard(self) -> Shard {
+        let n = self.len() * self.state.views;
+        let (rgb, classes) = (n * self.state.rgb_len(), n * self.state.class_len());
+        let mut shard = self.state;
+        shard.rgb = self.map[self.rgb_at..self.rgb_at + rgb].to_vec();
+        shard.classes = self.map[self.classes_at..self.classes_at + classes].to_vec();
+        shard
     }
 }
 
@@ -586,9 +655,32 @@ impl Labels {
         frames: usize,
         views: usize,
     ) -> Result<Labels, DataError> {
-        let bytes = std::fs::read(path).map_err(|e| DataError::io(path, e))?;
-        let st = parse(path, &bytes)?;
-        let meta = st_metadata(path, &bytes)?;
+        MappedLabels::open(path, label_version, frames, views).map(|m| m.to_labels())
+    }
+}
+
+/// A label file opened by memory map: checked once when opened (version,
+/// shapes, finite values), then read one label at a time.
+#[derive(Debug)]
+pub struct MappedLabels {
+    map: Mmap,
+    q_at: usize,
+    views: usize,
+    /// Whether each frame has a label (its whole future was driven).
+    pub valid: Vec<bool>,
+}
+
+impl MappedLabels {
+    /// Maps a label file, refusing another label version, frame or view count.
+    pub fn open(
+        path: &Path,
+        label_version: u32,
+        frames: usize,
+        views: usize,
+    ) -> Result<MappedLabels, DataError> {
+        let map = map_file(path)?;
+        let st = parse(path, &map)?;
+        let meta = st_metadata(path, &map)?;
         check_format(path, &meta)?;
         let version = meta
             .get("label_version")
@@ -619,20 +711,64 @@ impl Labels {
             &[frames],
             "frames (label again)",
         )?;
-        let q = f32s(q.data());
-        if q.iter().any(|v| !v.is_finite()) {
+        if q.data()
+            .chunks_exact(4)
+            .any(|b| !f32::from_le_bytes([b[0], b[1], b[2], b[3]]).is_finite())
+        {
             return Err(DataError::shard(
                 path,
                 "q",
                 "non-finite action values; run `mrdrive label` again",
             ));
         }
-        Ok(Labels {
+        let valid = valid.data().iter().map(|&v| v != 0).collect();
+        let q_at = offset_in(&map, q.data());
+        Ok(MappedLabels {
+            map,
+            q_at,
             views,
-            q,
-            valid: valid.data().iter().map(|&v| v != 0).collect(),
+            valid,
         })
     }
+
+    /// Writes the label of `frame` seen from `view` (`[6][4][28]` flattened) into `out`.
+    pub fn q_into(&self, frame: usize, view: usize, out: &mut [f32]) {
+        let at = self.q_at + (frame * self.views + view) * Q_PER_VIEW * 4;
+        let bytes = &self.map[at..at + Q_PER_VIEW * 4];
+        for (o, b) in out[..Q_PER_VIEW].iter_mut().zip(bytes.chunks_exact(4)) {
+            *o = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+        }
+    }
+
+    /// The whole label file in memory.
+    pub fn to_labels(&self) -> Labels {
+        let n = self.valid.len() * self.views * Q_PER_VIEW * 4;
+        Labels {
+            views: self.views,
+            q: f32s(&self.map[self.q_at..self.q_at + n]),
+            valid: self.valid.clone(),
+        }
+    }
+}
+
+/// The metadata in a dataset file's header (the format tag, the label
+/// version of a label file), read without reading its tensors.
+pub fn file_metadata(path: &Path) -> Result<HashMap<String, String>, DataError> {
+    let map = map_file(path)?;
+    st_metadata(path, &map)
+}
+
+/// Maps a whole file read-only.
+fn map_file(path: &Path) -> Result<Mmap, DataError> {
+    let file = std::fs::File::open(path).map_err(|e| DataError::io(path, e))?;
+    // SAFETY: dataset files are replaced by rename, never written in place
+    // (`write_atomic`), so the mapped bytes stay as they are while mapped.
+    unsafe { Mmap::map(&file) }.map_err(|e| DataError::io(path, e))
+}
+
+/// Where `part` (a slice of `whole`) starts in `whole` (bytes).
+fn offset_in(whole: &[u8], part: &[u8]) -> usize {
+    part.as_ptr() as usize - whole.as_ptr() as usize
 }
 
 fn serialize(
@@ -651,7 +787,37 @@ fn serialize(
     let mut meta = metadata.clone();
     meta.entry("format".into())
         .or_insert_with(|| FORMAT.to_string());
-    safetensors::serialize(views, Some(meta)).expect("in-memory serialisation cannot fail")
+    let bytes =
+        safetensors::serialize(views, Some(meta)).expect("in-memory serialisation cannot fail");
+    canonical_header(bytes)
+}
+
+/// The same file with its JSON header's keys in sorted order: safetensors
+/// writes the metadata map in hash order, which differs from map to map, and
+/// a dataset must be the same bytes for the same plan. The sorted header has
+/// the same length, so the data offsets stay as they are.
+fn canonical_header(mut bytes: Vec<u8>) -> Vec<u8> {
+    fn sorted(v: serde_json::Value) -> serde_json::Value {
+        match v {
+            serde_json::Value::Object(m) => {
+                let tree: std::collections::BTreeMap<String, serde_json::Value> =
+                    m.into_iter().map(|(k, v)| (k, sorted(v))).collect();
+                serde_json::to_value(tree).expect("a map of JSON values")
+            }
+            other => other,
+        }
+    }
+    let n = u64::from_le_bytes(bytes[..8].try_into().expect("8 bytes")) as usize;
+    let header: serde_json::Value =
+        serde_json::from_slice(&bytes[8..8 + n]).expect("safetensors wrote JSON");
+    let mut text = serde_json::to_vec(&sorted(header)).expect("JSON serialises");
+    assert!(
+        text.len() <= n,
+        "a sorted header is no longer than the original"
+    );
+    text.resize(n, b' ');
+    bytes[8..8 + n].copy_from_slice(&text);
+    bytes
 }
 
 fn parse<'a>(path: &Path, bytes: &'a [u8]) -> Result<SafeTensors<'a>, DataError> {
@@ -665,8 +831,13 @@ fn parse<'a>(path: &Path, bytes: &'a [u8]) -> Result<SafeTensors<'a>, DataError>
 }
 
 fn st_metadata(path: &Path, bytes: &[u8]) -> Result<HashMap<String, String>, DataError> {
-    let (_, meta) = SafeTensors::read_metadata(bytes)
-        .map_err(|e| DataError::shard(path, "header", format!("unreadable header ({e})")))?;
+    let (_, meta) = SafeTensors::read_metadata(bytes).map_err(|e| {
+        DataError::shard(
+            path,
+            "header",
+            format!("unreadable header ({e}); it may be truncated: delete it and collect (or label) again"),
+        )
+    })?;
     Ok(meta.metadata().clone().unwrap_or_default())
 }
 
@@ -786,6 +957,42 @@ mod tests {
         let back = Shard::read(&path, [6, 2], 2).unwrap();
         assert_eq!(back, s);
         assert_eq!(back.rgb(2, 1), s.rgb(2, 1));
+    }
+
+    #[test]
+    fn a_mapped_shard_reads_the_state_and_each_image_from_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("episode-00000.safetensors");
+        let s = sample();
+        std::fs::write(&path, s.to_bytes(&HashMap::new())).unwrap();
+        let mapped = MappedShard::open(&path, [6, 2], 2).unwrap();
+        assert!(mapped.state.rgb.is_empty() && mapped.state.classes.is_empty());
+        assert_eq!(mapped.state.ego, s.ego);
+        assert_eq!(mapped.state.actors, s.actors);
+        for f in 0..3 {
+            for v in 0..2 {
+                assert_eq!(mapped.rgb(f, v), s.rgb(f, v), "rgb {f} {v}");
+                assert_eq!(mapped.classes(f, v), s.classes(f, v), "classes {f} {v}");
+            }
+        }
+    }
+
+    #[test]
+    fn mapped_labels_give_each_label_as_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("labels-00000.safetensors");
+        let labels = Labels {
+            views: 2,
+            q: (0..3 * 2 * Q_PER_VIEW).map(|i| i as f32 * 0.5).collect(),
+            valid: vec![true, true, false],
+        };
+        std::fs::write(&path, labels.to_bytes(4, "episode-00000.safetensors")).unwrap();
+        let mapped = MappedLabels::open(&path, 4, 3, 2).unwrap();
+        let mut out = vec![0.0; Q_PER_VIEW];
+        mapped.q_into(2, 1, &mut out);
+        assert_eq!(out, labels.q(2, 1));
+        assert_eq!(mapped.valid, labels.valid);
+        assert_eq!(file_metadata(&path).unwrap()["label_version"], "4");
     }
 
     #[test]

@@ -28,11 +28,8 @@ fn the_label_driver_completes_the_default_route_without_running_a_red_light() {
             driver: &mut driver,
             selector: &mut selector,
             camera: None,
-            recorder: None,
-            progress: &mut |_| {},
+            observers: Vec::new(),
             max_ticks: None,
-            observer: None,
-            render_every_frame: false,
         },
     )
     .unwrap();

@@ -2,11 +2,13 @@
 //! Called by `mrdrive bench policy`; never asserted in tests.
 
 use crate::model::{ParamCounts, PolicyConfig};
+use crate::train::loader::{Loader, LoaderConfig, TrainSet};
 use crate::train::presets::Preset;
 use crate::train::synthetic::toy_batch;
 use crate::train::{MultiResTrainer, TrainConfig};
 use burn::prelude::*;
 use sim::render::image::test_pattern;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Latency statistics of repeated runs (milliseconds).
@@ -142,6 +144,136 @@ pub fn train_throughput(
         trainer.step(&data);
     }
     (batch * steps) as f64 / t0.elapsed().as_secs_f64()
+}
+
+/// The training loader's rate alone: `batches` batches drawn from a fresh
+/// [`Loader`] over `set` (after one untimed batch), in batches per second.
+pub fn loader_throughput(
+    set: Arc<TrainSet>,
+    config: &PolicyConfig,
+    cfg: LoaderConfig,
+    batches: usize,
+) -> f64 {
+    let mut loader = Loader::start(set, config, cfg);
+    let _ = loader.next_host();
+    let t0 = Instant::now();
+    let mut got = 0;
+    while got < batches && loader.next_host().is_some() {
+        got += 1;
+    }
+    got as f64 / t0.elapsed().as_secs_f64()
+}
+
+/// The multi-resolution step fed by the loader (worker thread and step
+/// running together, as in training).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FedTraining {
+    /// Samples per second trained.
+    pub samples_per_s: f64,
+    /// Share of the time the step waited for the loader's next batch.
+    pub waiting: f64,
+}
+
+/// Trains `steps` steps (after one warm-up) of `config` with `train` on
+/// `device` (autodiff), each on the loader's next batch.
+pub fn fed_training(
+    set: Arc<TrainSet>,
+    config: &PolicyConfig,
+    train: TrainConfig,
+    cfg: LoaderConfig,
+    device: &Device,
+    steps: usize,
+) -> FedTraining {
+    device.seed(0);
+    let batch = cfg.batch;
+    let mut loader = Loader::start(set, config, cfg);
+    let mut trainer = MultiResTrainer::new(config.init(device), None, train, device);
+    let first = loader.next_batch(device).expect("the loader streams");
+    trainer.step(&first);
+    let (mut waited, mut done) = (0.0, 0);
+    let t0 = Instant::now();
+    for _ in 0..steps {
+        let w0 = Instant::now();
+        let Some(b) = loader.next_batch(device) else {
+            break;
+        };
+        waited += w0.elapsed().as_secs_f64();
+        trainer.step(&b);
+        done += 1;
+    }
+    let total = t0.elapsed().as_secs_f64();
+    FedTraining {
+        samples_per_s: (done * batch) as f64 / total,
+        waiting: waited / total,
+    }
+}
+
+/// The loader benchmark's figures.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoaderBench {
+    /// Samples in the dataset.
+    pub samples: usize,
+    /// Loader alone, WoR's augmentations on (batches per second).
+    pub augmented_batches_per_s: f64,
+    /// Loader alone, no augmentation (batches per second).
+    pub plain_batches_per_s: f64,
+    /// The training step alone on a toy batch (samples per second), if trained.
+    pub train_samples_per_s: Option<f64>,
+    /// The training step fed by the (augmenting) loader, if trained.
+    pub fed: Option<FedTraining>,
+}
+
+/// The loader (with `workers` threads) against the training step of `config`
+/// (multi-resolution, segmentation on) on the CPU: `batches` timed loader batches each way,
+/// `train_steps` timed steps alone and fed by the loader (0 skips training).
+pub fn loader_bench(
+    set: Arc<TrainSet>,
+    config: &PolicyConfig,
+    batch: usize,
+    workers: usize,
+    batches: usize,
+    train_steps: usize,
+) -> LoaderBench {
+    let loader = LoaderConfig {
+        workers,
+        ..LoaderConfig::new(batch, 0)
+    };
+    let rate = |augment| {
+        let cfg = LoaderConfig {
+            augment,
+            ..loader.clone()
+        };
+        loader_throughput(set.clone(), config, cfg, batches)
+    };
+    let augmented_batches_per_s = rate(Some(Default::default()));
+    let plain_batches_per_s = rate(None);
+    let (mut train_samples_per_s, mut fed) = (None, None);
+    if train_steps > 0 {
+        let device = Device::flex().autodiff();
+        train_samples_per_s = Some(train_throughput(
+            config,
+            TrainConfig::new(),
+            &device,
+            batch,
+            1,
+            train_steps,
+        ));
+        fed = Some(fed_training(
+            set.clone(),
+            config,
+            TrainConfig::new(),
+            loader.clone(),
+            &device,
+            train_steps,
+        ));
+    }
+    LoaderBench {
+        samples: set.samples.len(),
+        augmented_batches_per_s,
+        plain_batches_per_s,
+        train_samples_per_s,
+        fed,
+    }
 }
 
 /// One row of the BN-bank overhead table.

@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 use crate::camera::Camera;
 use crate::driver::Driver;
 use crate::expert::{Expert, ExpertParams};
+use crate::observe::{Progress, RenderEveryFrame, RunObserver};
 use crate::record::RunRecord;
 use crate::recorder::{RecordError, RecordOptions, Recorder};
 use crate::render::{RenderError, Renderer, RigConfig};
@@ -451,6 +452,14 @@ pub fn run_scenario(
         )?),
         _ => None,
     };
+    let mut watch_progress = Progress::new(&mut *progress);
+    let mut render_every_frame = RenderEveryFrame;
+    let mut observers: Vec<&mut dyn RunObserver> = vec![&mut watch_progress];
+    if let Some(rec) = recorder.as_mut() {
+        observers.push(rec);
+    } else if request.render_every_frame {
+        observers.push(&mut render_every_frame);
+    }
     let record = runner::run(
         &scenario,
         path,
@@ -459,17 +468,15 @@ pub fn run_scenario(
             driver: driver.as_mut(),
             selector: selector.as_mut(),
             camera: camera.as_mut().map(|c| c as &mut dyn Camera),
-            recorder: recorder.as_mut(),
-            progress,
+            observers,
             max_ticks: None,
-            observer: None,
-            render_every_frame: request.render_every_frame,
         },
     )
     .map_err(|source| BuildError::Run {
         path: path.to_path_buf(),
         source,
     })?;
+    progress(record.result.completion_pct);
     if let (Some(rec), Some((p, _))) = (recorder, &record_path) {
         rec.finish(&record.result)
             .map_err(|source| BuildError::Record {

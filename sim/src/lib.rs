@@ -13,6 +13,7 @@ pub mod delay;
 pub mod driver;
 pub mod expert;
 pub mod monitors;
+pub mod observe;
 pub mod record;
 pub mod recorder;
 pub mod render;

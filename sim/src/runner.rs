@@ -16,6 +16,7 @@
 //! end), when a terminating event happens (deviation, stuck, low speed, route
 //! timeout), or at the tick limit.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
@@ -33,19 +34,15 @@ use world::{ActorKind, ActorSnapshot, LightIdx, LightState, Town, Vec2};
 
 use crate::camera::{Camera, CameraFrame};
 use crate::delay::{DelayLine, DelayTiming};
-use crate::driver::{Driver, Observation, Privileged, RgbImage, VehicleControl};
-use crate::monitors::blocked::BlockedMonitor;
-use crate::monitors::collision::CollisionMonitor;
-use crate::monitors::lane_crossing::LaneCrossingMonitor;
-use crate::monitors::outside_lane::OutsideLaneMonitor;
-use crate::monitors::red_light::RedLightMonitor;
-use crate::monitors::route::RouteMonitor;
+use crate::driver::{Driver, Observation, Privileged, VehicleControl};
 use crate::monitors::score::driving_score;
-use crate::monitors::{ContactKind, EgoContact, EgoPose, EgoTick, Infraction, InfractionKind};
+use crate::monitors::{
+    ContactKind, EgoContact, EgoPose, EgoTick, Infraction, InfractionKind, Monitors,
+};
+use crate::observe::{RunObserver, TickView, TimedCamera};
 use crate::record::{
     Provenance, RealisedTraffic, RunPerf, RunRecord, RunResult, RunSettings, count_by_kind,
 };
-use crate::recorder::{BEV_EXTENT_M, BEV_SIZE_PX, Recorder, tick_ns};
 use crate::scenario::{LatencyModel, Scenario};
 use crate::selector::{ResolutionSelector, SelectorInput};
 
@@ -142,10 +139,6 @@ impl Overrides {
     }
 }
 
-/// A callback given every tick: the tick, every actor (ego first) and the
-/// light states.
-pub type TickObserver<'a> = dyn FnMut(u64, &[ActorSnapshot], &[LightState]) + 'a;
-
 /// Everything a run is given besides the scenario.
 pub struct RunInputs<'a> {
     /// The loaded town and planned route.
@@ -154,20 +147,13 @@ pub struct RunInputs<'a> {
     pub driver: &'a mut dyn Driver,
     /// Who picks the scale.
     pub selector: &'a mut dyn ResolutionSelector,
-    /// The camera, if anything needs images.
+    /// The camera, if the driver or an observer needs images.
     pub camera: Option<&'a mut dyn Camera>,
-    /// The log, if recording.
-    pub recorder: Option<&'a mut Recorder>,
-    /// Called now and then with the route completion (percent).
-    pub progress: &'a mut dyn FnMut(f64),
+    /// Everything that watches the run (recorder, progress, moments, data
+    /// collection), called in this order after each tick's monitors.
+    pub observers: Vec<&'a mut dyn RunObserver>,
     /// Stop after this many ticks at the latest (for short tests).
     pub max_ticks: Option<u64>,
-    /// Called after every tick with the tick, every actor (ego first) and
-    /// the light states: for data collection and snapshots.
-    pub observer: Option<&'a mut TickObserver<'a>>,
-    /// Render the rig at every camera tick even when nothing consumes it
-    /// (what data collection costs; for timing).
-    pub render_every_frame: bool,
 }
 
 /// The git commit and version this binary was built from.
@@ -248,7 +234,115 @@ fn selector_input(
     }
 }
 
+/// The control side of the loop: the scale in force, the delay line and
+/// the latencies seen.
+struct Controls {
+    scale: f64,
+    latency_ms: f64,
+    max_latency_ms: f64,
+    delay: DelayLine,
+    /// Boundaries at each scale (keyed by the scale's bits).
+    scale_counts: BTreeMap<u64, u64>,
+}
+
+impl Controls {
+    fn new(scenario: &Scenario, selector: &mut dyn ResolutionSelector) -> Controls {
+        selector.reset();
+        let scale = f64::from(selector.select(&SelectorInput::default()));
+        let (timing, latency_ms) = timing_at(scenario, scale);
+        Controls {
+            scale,
+            latency_ms,
+            max_latency_ms: latency_ms,
+            delay: DelayLine::new(timing),
+            scale_counts: BTreeMap::new(),
+        }
+    }
+
+    /// Puts `latency_ms` in force (from the next boundary on).
+    fn set_latency(&mut self, timing: DelayTiming, latency_ms: f64) {
+        self.delay.set_timing(timing);
+        self.latency_ms = latency_ms;
+        self.max_latency_ms = self.max_latency_ms.max(latency_ms);
+    }
+
+    /// The share of the boundaries at each scale.
+    fn scale_share(&self) -> BTreeMap<String, f64> {
+        let total: u64 = self.scale_counts.values().sum();
+        self.scale_counts
+            .iter()
+            .map(|(bits, n)| {
+                (
+                    format!("{}", f64::from_bits(*bits)),
+                    *n as f64 / total.max(1) as f64,
+                )
+            })
+            .collect()
+    }
+}
+
+/// The world of a run: traffic with the ego, and the lights.
+struct World {
+    traffic: Traffic,
+    lights: LightController,
+    /// Every light's state during the coming step.
+    light_states: Vec<LightState>,
+}
+
+impl World {
+    fn new(scenario: &Scenario, prepared: &Prepared) -> Result<World, RunError> {
+        let defaults = TrafficConfig::default();
+        let seed = scenario.traffic.seed;
+        let cfg = TrafficConfig {
+            vehicles: scenario.traffic.vehicles as usize,
+            pedestrians: scenario.traffic.pedestrians as usize,
+            seed,
+            tick_s: scenario.timing.tick_s as f32,
+            pedestrian: PedestrianParams {
+                cross_factor: scenario.traffic.cross_factor,
+                ..defaults.pedestrian
+            },
+            ..defaults
+        };
+        let town = prepared.town.clone();
+        let traffic = Traffic::new(town.clone(), cfg, Some(ego_start(&prepared.route)?));
+        let lights = LightController::new(&town, LightTiming::default(), seed ^ 0x6c69_6768_7473);
+        let mut world = World {
+            traffic,
+            lights,
+            light_states: vec![LightState::Red; town.lights.len()],
+        };
+        world.read_lights();
+        Ok(world)
+    }
+
+    fn read_lights(&mut self) {
+        for (i, s) in self.light_states.iter_mut().enumerate() {
+            *s = self.lights.state(LightIdx(i as u32));
+        }
+    }
+
+    /// NPCs, pedestrians and physics for one tick; the ego's contacts.
+    fn step(&mut self, contacts: &mut Vec<EgoContact>) {
+        let events = self.traffic.step(&self.light_states);
+        contacts.clear();
+        contacts.extend(events.iter().filter_map(|e| ego_contact(e.a, e.b)));
+    }
+
+    /// The lights advance by one tick.
+    fn step_lights(&mut self, tick_s: f64) {
+        self.lights.step(tick_s);
+        self.read_lights();
+    }
+}
+
 /// Drives one scenario; returns its record.
+///
+/// Each tick reads as DESIGN.md's data flow: at a control boundary the
+/// selector picks the scale, the camera renders, the driver acts and its
+/// control enters the zero-order hold; the latched control drives the ego;
+/// NPCs, pedestrians and physics step; the monitors count; the observers
+/// watch; the lights advance.
 pub fn run(
     scenario: &Scenario,
     scenario_file: &Path,
@@ -258,12 +352,9 @@ pub fn run(
         prepared,
         driver,
         selector,
-        mut camera,
-        mut recorder,
-        progress,
+        camera,
+        mut observers,
         max_ticks,
-        mut observer,
-        render_every_frame,
     } = inputs;
     let wall = Instant::now();
     let mut perf = RunPerf::default();
@@ -276,133 +367,99 @@ pub fn run(
             driver.name()
         )));
     }
+    let mut camera = camera.map(TimedCamera::new);
     let tick_s = scenario.timing.tick_s;
     let ticks_per_frame = u64::from(scenario.ticks_per_frame());
-    let seed = scenario.traffic.seed;
 
-    // The world.
-    let defaults = TrafficConfig::default();
-    let cfg = TrafficConfig {
-        vehicles: scenario.traffic.vehicles as usize,
-        pedestrians: scenario.traffic.pedestrians as usize,
-        seed,
-        tick_s: tick_s as f32,
-        pedestrian: PedestrianParams {
-            cross_factor: scenario.traffic.cross_factor,
-            ..defaults.pedestrian
-        },
-        ..defaults
-    };
-    let vehicle = cfg.vehicle;
-    let mut traffic = Traffic::new(town.clone(), cfg, Some(ego_start(route)?));
-    let mut lights = LightController::new(&town, LightTiming::default(), seed ^ 0x6c69_6768_7473);
-    let mut light_states: Vec<LightState> = vec![LightState::Red; town.lights.len()];
-    let fill_states = |lc: &LightController, out: &mut Vec<LightState>| {
-        for (i, s) in out.iter_mut().enumerate() {
-            *s = lc.state(LightIdx(i as u32));
-        }
-    };
-    fill_states(&lights, &mut light_states);
-
-    // The monitors.
-    let mut route_monitor = RouteMonitor::new(route, scenario.termination.deviation_m as f32);
-    let mut collisions = CollisionMonitor::default();
-    let mut lane_crossings = LaneCrossingMonitor::new(&town);
-    let mut red_lights = RedLightMonitor::new(traffic.rules().clone());
-    let mut outside_lane = OutsideLaneMonitor::default();
+    let mut world = World::new(scenario, prepared)?;
+    let vehicle = world.traffic.config().vehicle;
+    let rules = world.traffic.rules().clone();
+    let stops: RouteStops = rules.stop_lines.on_route(route);
     let timeout_s = scenario
         .termination
         .timeout_s
         .unwrap_or(f64::from(route.length_m) * TIMEOUT_S_PER_M + TIMEOUT_EXTRA_S);
-    let mut blocked = BlockedMonitor::new(
-        scenario.termination.stuck_s,
-        scenario.termination.low_speed_s,
-        timeout_s,
+    let t = &scenario.termination;
+    let mut monitors = Monitors::new(
+        &town,
+        rules,
+        route,
+        t.deviation_m as f32,
+        (t.stuck_s, t.low_speed_s, timeout_s),
     );
-    let stops: RouteStops = traffic.rules().stop_lines.on_route(route);
+    let mut controls = Controls::new(scenario, selector);
+
     let mut infractions: Vec<Infraction> = Vec::new();
     let mut new_infractions: Vec<Infraction> = Vec::new();
-
-    // Timing.
-    selector.reset();
-    let mut scale = f64::from(selector.select(&SelectorInput::default()));
-    let (timing, mut latency_ms) = timing_at(scenario, scale);
-    let mut delay = DelayLine::new(timing);
-    let mut max_latency_ms = latency_ms;
-    let mut scale_counts: std::collections::BTreeMap<u64, u64> = Default::default();
-
     let mut snapshots: Vec<ActorSnapshot> = Vec::new();
     let mut ahead_path: Vec<Vec2> = Vec::with_capacity(64);
     let mut contacts: Vec<EgoContact> = Vec::new();
-    let mut label_image = RgbImage::default();
     let max_ticks = max_ticks
         .unwrap_or(u64::MAX)
         .min((timeout_s / tick_s).ceil() as u64 + 1);
     let mut termination: Option<InfractionKind> = None;
     let mut tick: u64 = 0;
-    let mut last_progress = -1.0;
 
     while tick < max_ticks {
-        traffic.snapshots(&mut snapshots);
+        world.traffic.snapshots(&mut snapshots);
         let ego = *snapshots
             .first()
             .ok_or_else(|| RunError::Setup("the ego was not spawned".into()))?;
+        let route_index = monitors.route.index();
 
-        // 1. A control boundary.
+        // 1. A control boundary: the scale, the observation, the control.
         let mut computed = None;
-        if delay.is_boundary(tick) {
-            let input = selector_input(route, route_monitor.index(), &ego, &stops);
+        if controls.delay.is_boundary(tick) {
+            let input = selector_input(route, route_index, &ego, &stops);
             let new_scale = f64::from(selector.select(&input));
-            if new_scale != scale {
-                scale = new_scale;
-                let (t, l) = timing_at(scenario, scale);
-                delay.set_timing(t);
-                latency_ms = l;
-                max_latency_ms = max_latency_ms.max(l);
+            if new_scale != controls.scale {
+                controls.scale = new_scale;
+                let (t, l) = timing_at(scenario, new_scale);
+                controls.set_latency(t, l);
             }
-            *scale_counts.entry(scale.to_bits()).or_default() += 1;
-            let image = if needs.camera {
-                let started = Instant::now();
-                let frame = CameraFrame {
-                    ego: &ego,
-                    actors: &snapshots,
-                    lights: &light_states,
-                };
-                let cam = camera.as_deref_mut().expect("checked above");
-                // Borrowed from the camera until the driver has acted: no copy.
-                let image = cam.render(&frame, scale).map_err(RunError::Camera)?;
-                perf.render_s += started.elapsed().as_secs_f64();
-                Some(image)
-            } else {
-                None
+            let scale = controls.scale;
+            *controls.scale_counts.entry(scale.to_bits()).or_default() += 1;
+            let image = match camera.as_mut() {
+                Some(cam) if needs.camera => {
+                    let frame = CameraFrame {
+                        ego: &ego,
+                        actors: &snapshots,
+                        lights: &world.light_states,
+                    };
+                    // Borrowed from the camera until the driver has acted: no copy.
+                    Some(cam.render(&frame, scale).map_err(RunError::Camera)?)
+                }
+                _ => None,
             };
-            let ahead: Option<Ahead> = if needs.privileged {
-                route_ahead(
-                    route,
-                    route_monitor.index(),
-                    ego.position.truncate(),
-                    AHEAD_RANGE_M,
-                    &mut ahead_path,
-                );
-                traffic.nearest_ahead_of_ego(&ahead_path, AHEAD_CORRIDOR_M, AHEAD_RANGE_M)
-            } else {
-                None
-            };
+            let ahead: Option<Ahead> = needs
+                .privileged
+                .then(|| {
+                    route_ahead(
+                        route,
+                        route_index,
+                        ego.position.truncate(),
+                        AHEAD_RANGE_M,
+                        &mut ahead_path,
+                    );
+                    world
+                        .traffic
+                        .nearest_ahead_of_ego(&ahead_path, AHEAD_CORRIDOR_M, AHEAD_RANGE_M)
+                })
+                .flatten();
             let privileged = Privileged {
                 town: &town,
                 route,
-                route_index: route_monitor.index(),
+                route_index,
                 ego,
-                lights: &light_states,
+                lights: &world.light_states,
                 stops: &stops,
                 ahead,
                 vehicle: &vehicle,
             };
-            let command = route.command_ahead(route_monitor.index(), 0.0);
             let obs = Observation {
                 time_s: tick as f64 * tick_s,
                 speed_mps: ego.speed_mps,
-                command,
+                command: route.command_ahead(route_index, 0.0),
                 scale: scale as f32,
                 image,
                 privileged: needs.privileged.then_some(&privileged),
@@ -414,35 +471,33 @@ pub fn run(
             if scenario.timing.latency == LatencyModel::Measured {
                 // The control lands after the time it really took (at least D).
                 let l = scenario.timing.delay_ms.max(compute_s * 1000.0);
-                delay.set_timing(DelayTiming::from_period_and_latency(
+                let t = DelayTiming::from_period_and_latency(
                     scenario.timing.control_period_ms,
                     l,
                     tick_s,
-                ));
-                latency_ms = l;
-                max_latency_ms = max_latency_ms.max(l);
+                );
+                controls.set_latency(t, l);
             }
-            delay.submit(tick, control);
+            controls.delay.submit(tick, control);
             computed = Some(control);
         }
 
-        // 2. Latch the control in force.
-        let control: VehicleControl = delay.control_for_step(tick);
-        traffic.set_ego_control(control);
+        // 2. The control in force for this step drives the ego.
+        let control: VehicleControl = controls.delay.control_for_step(tick);
+        world.traffic.set_ego_control(control);
 
-        // 3. Traffic and physics.
+        // 3. NPCs, pedestrians and physics.
         let prev = EgoPose::from(&ego);
         let started = Instant::now();
-        let events = traffic.step(&light_states);
-        contacts.clear();
-        contacts.extend(events.iter().filter_map(|e| ego_contact(e.a, e.b)));
+        world.step(&mut contacts);
         perf.traffic_s += started.elapsed().as_secs_f64();
         tick += 1;
 
-        // 4. Monitors.
+        // 4. The monitors count.
         let started = Instant::now();
-        let render_before = perf.render_s;
-        let e = traffic
+        let render_before = camera.as_ref().map_or(0.0, |c| c.spent_s);
+        let e = world
+            .traffic
             .ego()
             .ok_or_else(|| RunError::Setup("the ego vanished".into()))?;
         let now = EgoPose {
@@ -458,123 +513,58 @@ pub fn run(
             size_m: (vehicle.length_m, vehicle.width_m),
             throttle: control.throttle,
             contacts: &contacts,
-            lights: &light_states,
+            lights: &world.light_states,
+            dt_s: tick_s,
+            on_lane: e.lane.is_some(),
         };
         new_infractions.clear();
-        route_monitor.observe(&ego_tick, &mut new_infractions);
-        let before = new_infractions.len();
-        collisions.observe(&ego_tick, &mut new_infractions);
-        if new_infractions.len() > before {
-            blocked.collided();
-        }
-        lane_crossings.observe(&ego_tick, &mut new_infractions);
-        red_lights.observe(&ego_tick, &mut new_infractions);
-        outside_lane.observe(&ego_tick, e.lane.is_some());
-        blocked.observe(&ego_tick, tick_s, &mut new_infractions);
-
-        if let Some(rec) = recorder.as_deref_mut() {
-            let t_ns = tick_ns(tick, tick_s);
-            for i in &new_infractions {
-                rec.infraction(t_ns, i)?;
-            }
-            rec.control(t_ns, computed, control)?;
-            if tick.is_multiple_of(ticks_per_frame) {
-                traffic.snapshots(&mut snapshots);
-                let ego_now = snapshots[0];
-                rec.ego_transform(t_ns, &ego_now)?;
-                rec.actors(t_ns, &snapshots, &town, &light_states)?;
-                let command = route.command_ahead(route_monitor.index(), 0.0);
-                rec.ego_state(t_ns, &ego_now, command, scale, latency_ms)?;
-                if let Some(cam) = camera.as_deref_mut() {
-                    // Rendering counts as render time; encoding and writing
-                    // the images as other time.
-                    let frame = CameraFrame {
-                        ego: &ego_now,
-                        actors: &snapshots,
-                        lights: &light_states,
-                    };
-                    let opts = rec.options();
-                    let started = Instant::now();
-                    let labelled = if opts.labels {
-                        cam.render_labelled(&frame, scale, &mut label_image)
-                    } else {
-                        None
-                    };
-                    if let Some(image) = labelled {
-                        let image = image.map_err(RunError::Camera)?;
-                        perf.render_s += started.elapsed().as_secs_f64();
-                        rec.camera(t_ns, image)?;
-                        rec.labels(t_ns, &label_image)?;
-                    } else if opts.camera {
-                        let image = cam.render(&frame, scale).map_err(RunError::Camera)?;
-                        perf.render_s += started.elapsed().as_secs_f64();
-                        rec.camera(t_ns, image)?;
-                    }
-                    let started = Instant::now();
-                    if opts.bev
-                        && let Some(image) =
-                            cam.render_bev(&frame, BEV_SIZE_PX, BEV_SIZE_PX, BEV_EXTENT_M)
-                    {
-                        let image = image.map_err(RunError::Camera)?;
-                        perf.render_s += started.elapsed().as_secs_f64();
-                        rec.bev(t_ns, image)?;
-                    }
-                }
-            }
-        }
+        monitors.observe(&ego_tick, &mut new_infractions);
         if let Some(end) = new_infractions.iter().find(|i| i.kind.terminates()) {
             termination = Some(end.kind);
         }
-        infractions.append(&mut new_infractions);
-        perf.other_s += started.elapsed().as_secs_f64() - (perf.render_s - render_before);
 
-        if render_every_frame
-            && recorder.is_none()
-            && tick.is_multiple_of(ticks_per_frame)
-            && let Some(cam) = camera.as_deref_mut()
-        {
-            traffic.snapshots(&mut snapshots);
-            let started = Instant::now();
-            let frame = CameraFrame {
-                ego: &snapshots[0],
+        // 5. The observers watch.
+        if !observers.is_empty() {
+            world.traffic.snapshots(&mut snapshots);
+            let route_index = monitors.route.index();
+            let view = TickView {
+                tick,
+                time_s: tick as f64 * tick_s,
+                camera_frame: tick.is_multiple_of(ticks_per_frame),
+                town: &town,
+                route,
+                route_index,
+                route_s: route_s_at(route, route_index, now.ground()),
+                command: route.command_ahead(route_index, 0.0),
+                completion_pct: monitors.route.completion_pct(),
                 actors: &snapshots,
-                lights: &light_states,
+                lights: &world.light_states,
+                scale: controls.scale,
+                latency_ms: controls.latency_ms,
+                control,
+                computed,
+                infractions: &new_infractions,
             };
-            cam.render(&frame, scale).map_err(RunError::Camera)?;
-            perf.render_s += started.elapsed().as_secs_f64();
+            for o in observers.iter_mut() {
+                o.on_tick(&view, camera.as_mut().map(|c| c as &mut dyn Camera))?;
+            }
         }
-        if let Some(obs) = observer.as_deref_mut() {
-            traffic.snapshots(&mut snapshots);
-            obs(tick, &snapshots, &light_states);
-        }
+        infractions.append(&mut new_infractions);
+        let render_in_observers = camera.as_ref().map_or(0.0, |c| c.spent_s) - render_before;
+        perf.other_s += started.elapsed().as_secs_f64() - render_in_observers;
 
-        // 5. Lights.
-        lights.step(tick_s);
-        fill_states(&lights, &mut light_states);
+        // 6. The lights advance.
+        world.step_lights(tick_s);
 
-        let completion = route_monitor.completion_pct();
-        if completion - last_progress >= 1.0 {
-            progress(completion);
-            last_progress = completion;
-        }
-        if termination.is_some() || route_monitor.succeeded(now.ground()) {
+        if termination.is_some() || monitors.route.succeeded(now.ground()) {
             break;
         }
     }
 
-    let final_position = traffic.ego().map_or(Vec2::ZERO, |e| e.state.position);
-    let completion_pct = route_monitor.completion_pct();
-    let success = route_monitor.succeeded(final_position) && termination.is_none();
-    let total_boundaries: u64 = scale_counts.values().sum();
-    let scale_share = scale_counts
-        .into_iter()
-        .map(|(bits, n)| {
-            (
-                format!("{}", f64::from_bits(bits)),
-                n as f64 / total_boundaries.max(1) as f64,
-            )
-        })
-        .collect();
+    let final_position = world.traffic.ego().map_or(Vec2::ZERO, |e| e.state.position);
+    let completion_pct = monitors.route.completion_pct();
+    let success = monitors.route.succeeded(final_position) && termination.is_none();
+    perf.render_s = camera.as_ref().map_or(0.0, |c| c.spent_s);
     let result = RunResult {
         provenance: Provenance {
             scenario: scenario.name.clone(),
@@ -586,7 +576,7 @@ pub fn run(
             render_backend: camera.as_ref().map_or("none".to_string(), |c| c.backend()),
         },
         settings: RunSettings {
-            seed,
+            seed: scenario.traffic.seed,
             delay_ms: scenario.timing.delay_ms,
             control_period_ms: scenario.timing.control_period_ms,
             resolution: selector.name(),
@@ -594,24 +584,23 @@ pub fn run(
             pedestrians: scenario.traffic.pedestrians,
         },
         traffic: RealisedTraffic {
-            vehicles: traffic.realised_vehicles() as u32,
-            pedestrians: traffic.realised_pedestrians() as u32,
+            vehicles: world.traffic.realised_vehicles() as u32,
+            pedestrians: world.traffic.realised_pedestrians() as u32,
         },
         completion_pct,
         success,
         driving_score: driving_score(completion_pct, infractions.iter().map(|i| i.kind)),
-        outside_lane_pct: outside_lane.outside_pct(),
+        outside_lane_pct: monitors.outside_lane.outside_pct(),
         counts: count_by_kind(&infractions),
         termination,
         route_length_m: f64::from(route.length_m),
         sim_time_s: tick as f64 * tick_s,
         ticks: tick,
-        scale_share,
-        max_latency_ms,
+        scale_share: controls.scale_share(),
+        max_latency_ms: controls.max_latency_ms,
         infractions,
     };
     perf.wall_s = wall.elapsed().as_secs_f64();
     perf.real_time_factor = result.sim_time_s / perf.wall_s.max(1e-9);
-    progress(completion_pct);
     Ok(RunRecord { result, perf })
 }

@@ -106,11 +106,8 @@ fn python_mcap_reads_and_validates_a_log_of_the_real_loop() {
             driver: &mut driver,
             selector: &mut selector,
             camera: camera.as_mut().map(|c| c as &mut dyn sim::camera::Camera),
-            recorder: Some(&mut rec),
-            progress: &mut |_| {},
+            observers: vec![&mut rec],
             max_ticks: None,
-            observer: None,
-            render_every_frame: false,
         },
     )
     .unwrap();

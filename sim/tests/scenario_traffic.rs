@@ -3,9 +3,10 @@
 use std::path::{Path, PathBuf};
 
 use sim::build::{self, Drivers};
+use sim::observe::Moments;
 use sim::runner::{self, RunInputs};
 use sim::scenario::Scenario;
-use world::{ActorKind, ActorSnapshot, LightState};
+use world::ActorKind;
 
 fn default_scenario() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/default.toml")
@@ -25,18 +26,7 @@ fn pedestrian_track(cross_factor: f32, seconds: u64) -> Vec<Vec<[f32; 2]>> {
     let mut driver = Drivers::new().driver(&scenario, &prepared).unwrap();
     let mut selector = build::selector_for(&scenario, None).unwrap();
     let ticks_per_s = (1.0 / scenario.timing.tick_s).round() as u64;
-    let mut track = Vec::new();
-    let mut keep = |tick: u64, actors: &[ActorSnapshot], _: &[LightState]| {
-        if tick.is_multiple_of(ticks_per_s) {
-            track.push(
-                actors
-                    .iter()
-                    .filter(|a| a.kind == ActorKind::Pedestrian)
-                    .map(|a| [a.position.x, a.position.y])
-                    .collect(),
-            );
-        }
-    };
+    let mut moments = Moments::every(ticks_per_s);
     runner::run(
         &scenario,
         &path,
@@ -45,15 +35,22 @@ fn pedestrian_track(cross_factor: f32, seconds: u64) -> Vec<Vec<[f32; 2]>> {
             driver: driver.as_mut(),
             selector: selector.as_mut(),
             camera: None,
-            recorder: None,
-            progress: &mut |_| {},
+            observers: vec![&mut moments],
             max_ticks: Some(seconds * ticks_per_s),
-            observer: Some(&mut keep),
-            render_every_frame: false,
         },
     )
     .unwrap();
-    track
+    moments
+        .kept
+        .iter()
+        .map(|m| {
+            m.actors
+                .iter()
+                .filter(|a| a.kind == ActorKind::Pedestrian)
+                .map(|a| [a.position.x, a.position.y])
+                .collect()
+        })
+        .collect()
 }
 
 #[test]

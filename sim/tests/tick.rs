@@ -4,10 +4,11 @@
 use std::path::Path;
 
 use sim::expert::{Expert, ExpertParams};
+use sim::observe::Moments;
 use sim::runner::{self, RunInputs};
 use sim::scenario::Scenario;
 use sim::selector::Fixed;
-use world::{ActorSnapshot, LightState, Vec2};
+use world::Vec2;
 
 /// Where the ego is after `seconds` of the default scenario (no traffic),
 /// stepping `tick_s`; and the simulated time the run reports.
@@ -21,10 +22,7 @@ fn ego_after(tick_s: f64, seconds: f64) -> (Vec2, f64) {
     let prepared = runner::prepare(&scenario).unwrap();
     let mut driver = Expert::new(ExpertParams::default());
     let mut selector = Fixed { scale: 1.0 };
-    let mut last = Vec2::ZERO;
-    let mut keep = |_: u64, actors: &[ActorSnapshot], _: &[LightState]| {
-        last = actors[0].position.truncate();
-    };
+    let mut last = Moments::last();
     let record = runner::run(
         &scenario,
         &file,
@@ -33,14 +31,12 @@ fn ego_after(tick_s: f64, seconds: f64) -> (Vec2, f64) {
             driver: &mut driver,
             selector: &mut selector,
             camera: None,
-            recorder: None,
-            progress: &mut |_| {},
+            observers: vec![&mut last],
             max_ticks: Some((seconds / tick_s).round() as u64),
-            observer: Some(&mut keep),
-            render_every_frame: false,
         },
     )
     .unwrap();
+    let last = last.kept[0].actors[0].position.truncate();
     let start = prepared.route.points[0].position.truncate();
     (last - start, record.result.sim_time_s)
 }

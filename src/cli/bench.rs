@@ -17,6 +17,8 @@ enum BenchCmd {
     Render(super::render::BenchCmd),
     #[command(flatten)]
     Policy(super::policy::BenchCommand),
+    #[command(flatten)]
+    Loader(super::data::BenchCommand),
 }
 
 /// Runs `bench`.
@@ -24,5 +26,6 @@ pub fn run(a: BenchArgs) -> Result<()> {
     match a.cmd {
         BenchCmd::Render(c) => super::render::bench_command(&c),
         BenchCmd::Policy(c) => super::policy::run_bench_command(c),
+        BenchCmd::Loader(c) => super::data::run_bench(c),
     }
 }

@@ -2,6 +2,7 @@
 
 pub mod bench;
 pub mod collect;
+pub mod data;
 pub mod log;
 pub mod map;
 pub mod policy;

@@ -7,11 +7,12 @@ use clap::{Args, Subcommand};
 use sim::build;
 use sim::camera::Camera;
 use sim::driver::RgbImage;
+use sim::observe::Moments;
 use sim::render::image::save_png;
 use sim::render::{EgoPose, RigConfig, demo, measure};
 use sim::runner::{self, RunInputs};
 use sim::scenario::Scenario;
-use world::{ActorSnapshot, LightState, rules};
+use world::{LightState, rules};
 
 /// `mrdrive render-demo`: a hand-made junction scene, rendered.
 #[derive(Debug, Args)]
@@ -142,14 +143,6 @@ pub fn render(a: &RenderArgs) -> Result<()> {
     }
 }
 
-/// The last tick's actors (ego first) and light states.
-#[derive(Default)]
-struct Moment {
-    tick: Option<u64>,
-    actors: Vec<ActorSnapshot>,
-    lights: Vec<LightState>,
-}
-
 /// Runs `render SCENARIO --at SECONDS`.
 fn render_at(a: &RenderAtArgs) -> Result<()> {
     let (Some(path), Some(out)) = (&a.scenario, &a.out) else {
@@ -183,14 +176,7 @@ fn render_at(a: &RenderAtArgs) -> Result<()> {
     let mut driver = drivers.driver(&scenario, &prepared)?;
     let mut selector = build::selector_for(&scenario, None)?;
     let mut camera = build::camera_for(&scenario, &prepared, &drivers)?;
-    let mut moment = Moment::default();
-    let mut keep = |tick: u64, actors: &[ActorSnapshot], lights: &[LightState]| {
-        moment.tick = Some(tick);
-        moment.actors.clear();
-        moment.actors.extend_from_slice(actors);
-        moment.lights.clear();
-        moment.lights.extend_from_slice(lights);
-    };
+    let mut last = Moments::last();
     let needs_camera = driver.needs().camera;
     let record = runner::run(
         &scenario,
@@ -200,14 +186,15 @@ fn render_at(a: &RenderAtArgs) -> Result<()> {
             driver: driver.as_mut(),
             selector: selector.as_mut(),
             camera: needs_camera.then_some(&mut camera as &mut dyn Camera),
-            recorder: None,
-            progress: &mut |_| {},
+            observers: vec![&mut last],
             max_ticks: Some(ticks),
-            observer: Some(&mut keep),
-            render_every_frame: false,
         },
     )?;
-    let (tick, ego) = match (moment.tick, moment.actors.first()) {
+    let moment = last.kept.pop().unwrap_or_default();
+    let (tick, ego) = match (
+        moment.actors.first().map(|_| moment.tick),
+        moment.actors.first(),
+    ) {
         (Some(t), Some(e)) => (t, EgoPose::from(e)),
         _ => {
             // --at 0 (or a run that ended before its first tick): the start.

@@ -2,7 +2,7 @@
 //! markings, buildings, traffic lights coloured by state and optionally a
 //! route, rasterised with supersampling (antialiased) into an RGB image.
 
-use glam::{Vec2, Vec3};
+use glam::{Mat2, Vec2, Vec3};
 use image::RgbImage;
 
 use crate::town::{LightState, MarkColor, MarkKind, Town};
@@ -34,9 +34,11 @@ impl Default for RenderOptions {
     }
 }
 
-type Rgb = [u8; 3];
+/// An sRGB colour.
+pub type Rgb = [u8; 3];
 const BACKGROUND: Rgb = [52, 66, 50];
-const ROAD: Rgb = [72, 72, 78];
+/// The colour of the road surface.
+pub const ROAD: Rgb = [72, 72, 78];
 const SIDEWALK: Rgb = [168, 164, 156];
 const BUILDING: Rgb = [140, 112, 96];
 const BUILDING_EDGE: Rgb = [90, 70, 60];
@@ -45,25 +47,98 @@ const YELLOW: Rgb = [235, 200, 40];
 const CURB: Rgb = [120, 120, 120];
 const ROUTE: Rgb = [40, 140, 255];
 
-struct Canvas {
+/// The colour a light's stop lines and head are drawn in.
+pub fn light_rgb(state: LightState) -> Rgb {
+    match state {
+        LightState::Red => [230, 30, 30],
+        LightState::Yellow => [250, 200, 0],
+        LightState::Green => [30, 220, 60],
+    }
+}
+
+/// Where the ground lies on a canvas: an output pixel `(x, y)` (x to the
+/// right, y down) shows the world point `p` with
+/// `(x, y) = offset_px + axes * (p - origin) / metres_per_pixel`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct View {
+    /// The world point at `offset_px` (metres).
+    pub origin: Vec2,
+    /// Image directions of the world's x and y axes (columns of a rotation,
+    /// possibly with a flip: north up is `x -> (1, 0)`, `y -> (0, -1)`).
+    pub axes: Mat2,
+    /// Ground size of one output pixel (metres).
+    pub metres_per_pixel: f32,
+    /// The output pixel of `origin`.
+    pub offset_px: Vec2,
+}
+
+impl View {
+    /// North up: `top_left` at the image's top-left corner.
+    pub fn north_up(top_left: Vec2, metres_per_pixel: f32) -> View {
+        View {
+            origin: top_left,
+            axes: Mat2::from_cols(Vec2::X, Vec2::NEG_Y),
+            metres_per_pixel,
+            offset_px: Vec2::ZERO,
+        }
+    }
+
+    /// Heading up: `centre` at output pixel `at_px`, the direction `heading`
+    /// (radians, counter-clockwise from +x) pointing up the image.
+    pub fn heading_up(centre: Vec2, heading: f32, metres_per_pixel: f32, at_px: Vec2) -> View {
+        // Forward (heading) maps to (0, -1), left to (-1, 0).
+        let fwd = Vec2::from_angle(heading);
+        let left = fwd.perp();
+        // The inverse of [fwd left] is its transpose; then forward -> up, left -> left.
+        let to_local = Mat2::from_cols(fwd, left).transpose();
+        let local_to_image = Mat2::from_cols(Vec2::NEG_Y, Vec2::NEG_X);
+        View {
+            origin: centre,
+            axes: local_to_image * to_local,
+            metres_per_pixel,
+            offset_px: at_px,
+        }
+    }
+}
+
+/// An antialiased rasteriser of ground shapes: draws at `supersample` x the
+/// output resolution, then box-filters down in [`Canvas::finish`].
+pub struct Canvas {
     w: usize,
     h: usize,
+    ss: usize,
+    view: View,
     scale: f32,
-    origin: Vec2,
-    top: f32,
     buf: Vec<Rgb>,
 }
 
 impl Canvas {
+    /// A `width x height` canvas showing `view`, filled with `background`;
+    /// `supersample` samples per pixel along each axis (1 to 4).
+    pub fn new(width: u32, height: u32, supersample: u32, view: View, background: Rgb) -> Canvas {
+        let ss = supersample.clamp(1, 4) as usize;
+        let (w, h) = (width as usize * ss, height as usize * ss);
+        Canvas {
+            w,
+            h,
+            ss,
+            view,
+            scale: ss as f32 / view.metres_per_pixel.max(1e-3),
+            buf: vec![background; w * h],
+        }
+    }
+
+    /// Ground size of one output pixel (metres).
+    pub fn metres_per_pixel(&self) -> f32 {
+        self.view.metres_per_pixel
+    }
+
     fn px(&self, p: Vec2) -> Vec2 {
-        Vec2::new(
-            (p.x - self.origin.x) * self.scale,
-            (self.top - p.y) * self.scale,
-        )
+        self.view.offset_px * self.ss as f32 + self.view.axes * (p - self.view.origin) * self.scale
     }
 
     /// Fills a polygon given in world coordinates (even-odd rule).
-    fn fill(&mut self, poly: &[Vec2], c: Rgb) {
+    pub fn fill(&mut self, poly: &[Vec2], c: Rgb) {
         if poly.len() < 3 {
             return;
         }
@@ -96,8 +171,8 @@ impl Canvas {
         }
     }
 
-    /// A thick line segment in world coordinates, at least `min_px` output pixels wide.
-    fn segment(&mut self, a: Vec2, b: Vec2, width_m: f32, c: Rgb) {
+    /// A thick line segment in world coordinates, `width_m` wide.
+    pub fn segment(&mut self, a: Vec2, b: Vec2, width_m: f32, c: Rgb) {
         let d = (b - a).normalize_or_zero();
         if d == Vec2::ZERO {
             return;
@@ -106,13 +181,15 @@ impl Canvas {
         self.fill(&[a - n, b - n, b + n, a + n], c);
     }
 
-    fn polyline(&mut self, pts: &[Vec2], width_m: f32, c: Rgb) {
+    /// Thick segments through `pts` (world coordinates), `width_m` wide.
+    pub fn polyline(&mut self, pts: &[Vec2], width_m: f32, c: Rgb) {
         for w in pts.windows(2) {
             self.segment(w[0], w[1], width_m, c);
         }
     }
 
-    fn dashed(&mut self, pts: &[Vec2], width_m: f32, dash: f32, gap: f32, c: Rgb) {
+    /// A dashed polyline: `dash` metres drawn, `gap` metres left, along `pts`.
+    pub fn dashed(&mut self, pts: &[Vec2], width_m: f32, dash: f32, gap: f32, c: Rgb) {
         let period = dash + gap;
         let mut s = 0.0f32;
         for w in pts.windows(2) {
@@ -143,11 +220,73 @@ impl Canvas {
         }
     }
 
-    fn disc(&mut self, c0: Vec2, r: f32, c: Rgb) {
+    /// A filled disc of radius `r` metres around `c0`.
+    pub fn disc(&mut self, c0: Vec2, r: f32, c: Rgb) {
         let poly: Vec<Vec2> = (0..20)
             .map(|k| c0 + Vec2::from_angle(k as f32 / 20.0 * std::f32::consts::TAU) * r)
             .collect();
         self.fill(&poly, c);
+    }
+
+    /// The town's drivable lanes: one quad per centreline step, as wide as the lane.
+    pub fn lanes(&mut self, town: &Town, c: Rgb) {
+        for l in &town.lanes {
+            for i in 0..l.centerline.len().saturating_sub(1) {
+                let a = l.centerline[i].truncate();
+                let b = l.centerline[i + 1].truncate();
+                let d = (b - a).normalize_or_zero().perp();
+                let (wa, wb) = (l.width[i] * 0.5 + 0.05, l.width[i + 1] * 0.5 + 0.05);
+                // Overlap consecutive quads a little to avoid seams.
+                let e = (b - a).normalize_or_zero() * 0.05;
+                self.fill(
+                    &[
+                        a - e - d * wa,
+                        b + e - d * wb,
+                        b + e + d * wb,
+                        a - e + d * wa,
+                    ],
+                    c,
+                );
+            }
+        }
+    }
+
+    /// Every light's stop lines, coloured by `states` (indexed like
+    /// `Town::lights`; a light without a state is drawn red), `width_m` wide.
+    pub fn stop_lines(&mut self, town: &Town, states: &[LightState], width_m: f32) {
+        for (i, l) in town.lights.iter().enumerate() {
+            let col = light_rgb(states.get(i).copied().unwrap_or_default());
+            for sl in &l.stop_lines {
+                self.segment(sl.ends[0].truncate(), sl.ends[1].truncate(), width_m, col);
+            }
+        }
+    }
+
+    /// The output image: each pixel the mean of its samples.
+    pub fn finish(self) -> RgbImage {
+        let (ss, w) = (self.ss, self.w);
+        let (out_w, out_h) = (self.w / ss, self.h / ss);
+        let mut img = RgbImage::new(out_w as u32, out_h as u32);
+        let n = (ss * ss) as u32;
+        for y in 0..out_h {
+            for x in 0..out_w {
+                let mut acc = [0u32; 3];
+                for dy in 0..ss {
+                    for dx in 0..ss {
+                        let c = self.buf[(y * ss + dy) * w + x * ss + dx];
+                        for k in 0..3 {
+                            acc[k] += c[k] as u32;
+                        }
+                    }
+                }
+                img.put_pixel(
+                    x as u32,
+                    y as u32,
+                    image::Rgb([(acc[0] / n) as u8, (acc[1] / n) as u8, (acc[2] / n) as u8]),
+                );
+            }
+        }
+        img
     }
 }
 
@@ -166,15 +305,13 @@ pub fn render_town(town: &Town, opts: &RenderOptions) -> RgbImage {
     hi += Vec2::splat(opts.margin_m);
     let out_w = (((hi.x - lo.x) / mpp).ceil() as usize).clamp(1, 8192);
     let out_h = (((hi.y - lo.y) / mpp).ceil() as usize).clamp(1, 8192);
-    let (w, h) = (out_w * ss, out_h * ss);
-    let mut cv = Canvas {
-        w,
-        h,
-        scale: ss as f32 / mpp,
-        origin: lo,
-        top: hi.y,
-        buf: vec![BACKGROUND; w * h],
-    };
+    let mut cv = Canvas::new(
+        out_w as u32,
+        out_h as u32,
+        ss as u32,
+        View::north_up(Vec2::new(lo.x, hi.y), mpp),
+        BACKGROUND,
+    );
     let min_line = mpp * 1.2; // keep thin paint visible: at least ~1 output pixel
 
     for sw in &town.sidewalks {
@@ -191,25 +328,7 @@ pub fn render_town(town: &Town, opts: &RenderOptions) -> RgbImage {
     for j in &town.junctions {
         cv.fill(&j.outline, ROAD);
     }
-    for l in &town.lanes {
-        for i in 0..l.centerline.len().saturating_sub(1) {
-            let a = l.centerline[i].truncate();
-            let b = l.centerline[i + 1].truncate();
-            let d = (b - a).normalize_or_zero().perp();
-            let (wa, wb) = (l.width[i] * 0.5 + 0.05, l.width[i + 1] * 0.5 + 0.05);
-            // Overlap consecutive quads a little to avoid seams.
-            let e = (b - a).normalize_or_zero() * 0.05;
-            cv.fill(
-                &[
-                    a - e - d * wa,
-                    b + e - d * wb,
-                    b + e + d * wb,
-                    a - e + d * wa,
-                ],
-                ROAD,
-            );
-        }
-    }
+    cv.lanes(town, ROAD);
     for c in &town.crosswalks {
         let k = c.corners.map(|p| p.truncate());
         // Stripes across: split the edge k0-k1 (along the road) into bars.
@@ -258,52 +377,15 @@ pub fn render_town(town: &Town, opts: &RenderOptions) -> RgbImage {
             cv.disc(*b, 3.0, [230, 40, 40]);
         }
     }
+    let states = opts.light_states.clone().unwrap_or_default();
+    cv.stop_lines(town, &states, 0.6_f32.max(min_line));
     for (i, l) in town.lights.iter().enumerate() {
-        let state = opts
-            .light_states
-            .as_ref()
-            .and_then(|s| s.get(i).copied())
-            .unwrap_or_default();
-        let col = match state {
-            LightState::Red => [230, 30, 30],
-            LightState::Yellow => [250, 200, 0],
-            LightState::Green => [30, 220, 60],
-        };
-        for sl in &l.stop_lines {
-            cv.segment(
-                sl.ends[0].truncate(),
-                sl.ends[1].truncate(),
-                0.6_f32.max(min_line),
-                col,
-            );
-        }
+        let col = light_rgb(states.get(i).copied().unwrap_or_default());
         let p = l.position.truncate();
         cv.disc(p, 1.8, [10, 10, 10]);
         cv.disc(p, 1.3, col);
     }
-
-    // Downsample (box filter).
-    let mut img = RgbImage::new(out_w as u32, out_h as u32);
-    let n = (ss * ss) as u32;
-    for y in 0..out_h {
-        for x in 0..out_w {
-            let mut acc = [0u32; 3];
-            for dy in 0..ss {
-                for dx in 0..ss {
-                    let c = cv.buf[(y * ss + dy) * w + x * ss + dx];
-                    for k in 0..3 {
-                        acc[k] += c[k] as u32;
-                    }
-                }
-            }
-            img.put_pixel(
-                x as u32,
-                y as u32,
-                image::Rgb([(acc[0] / n) as u8, (acc[1] / n) as u8, (acc[2] / n) as u8]),
-            );
-        }
-    }
-    img
+    cv.finish()
 }
 
 #[cfg(test)]
@@ -357,5 +439,24 @@ mod tests {
         assert_eq!(at(5.0, 0.0).0, ROAD);
         assert_eq!(at(5.0, 6.0).0, BACKGROUND);
         assert_eq!(at(10.0, 8.0).0, [30, 220, 60], "green light");
+    }
+
+    #[test]
+    fn a_heading_up_view_puts_ahead_up_and_left_left() {
+        // Facing north-west: ahead is (-1, 1), left is (-1, -1).
+        let heading = 0.75 * std::f32::consts::PI;
+        let centre = Vec2::new(5.0, -3.0);
+        let v = View::heading_up(centre, heading, 0.5, Vec2::new(50.0, 80.0));
+        let mut cv = Canvas::new(100, 100, 1, v, BACKGROUND);
+        let at = |d: Vec2| cv.px(centre + d);
+        let ahead = at(Vec2::from_angle(heading) * 10.0);
+        assert!((ahead - Vec2::new(50.0, 60.0)).length() < 1e-3, "{ahead}");
+        let left = at(Vec2::from_angle(heading).perp() * 10.0);
+        assert!((left - Vec2::new(30.0, 80.0)).length() < 1e-3, "{left}");
+        // A disc 10 m ahead is drawn 20 px above the centre pixel.
+        cv.disc(centre + Vec2::from_angle(heading) * 10.0, 1.0, ROAD);
+        let img = cv.finish();
+        assert_eq!(img.get_pixel(50, 60).0, ROAD);
+        assert_eq!(img.get_pixel(50, 80).0, BACKGROUND);
     }
 }

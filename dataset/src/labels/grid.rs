@@ -195,17 +195,6 @@ impl EgoFrame {
     }
 }
 
-/// The angle `a` wrapped into (-pi, pi].
-pub fn wrap(a: f32) -> f32 {
-    let mut a = a % std::f32::consts::TAU;
-    if a > std::f32::consts::PI {
-        a -= std::f32::consts::TAU;
-    } else if a <= -std::f32::consts::PI {
-        a += std::f32::consts::TAU;
-    }
-    a
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -12,8 +12,9 @@ use world::rules::StopLines;
 use world::{Command, LightState, Town};
 
 use super::LabelParams;
-use super::grid::{EgoFrame, Grid, wrap};
+use super::grid::{EgoFrame, Grid};
 use crate::format::ActorRow;
+use world::geometry::wrap_angle;
 
 /// Commands (CARLA RoadOption - 1).
 pub const COMMANDS: usize = 6;
@@ -167,7 +168,7 @@ pub fn static_maps(
             }
             let half_w = 0.5 * lane.width.get(k).copied().unwrap_or(3.5);
             let (la, lb) = (frame.to_local(a), frame.to_local(b));
-            let heading = wrap((lb - la).to_angle());
+            let heading = wrap_angle((lb - la).to_angle());
             let pad = Vec2::splat(half_w);
             let Some((i0, i1, j0, j1)) = node_range(grid, la.min(lb) - pad, la.max(lb) + pad)
             else {
@@ -208,7 +209,7 @@ pub fn static_maps(
 /// heading profile at their difference on the circle.
 pub fn yaw_weights(yaws: &[f32], heading: f32, profile: &super::Plateau, out: &mut [f32]) {
     for (o, &y) in out.iter_mut().zip(yaws) {
-        *o = profile.at(wrap(y - heading));
+        *o = profile.at(wrap_angle(y - heading));
     }
 }
 
@@ -314,7 +315,7 @@ pub fn step_maps(
         if centre.length() > grid.spec.x_max_m + grid.spec.y_half_m + 10.0 {
             continue;
         }
-        let heading = wrap(s.heading - frame.yaw);
+        let heading = wrap_angle(s.heading - frame.yaw);
         let (fwd, left) = (Vec2::from_angle(heading), Vec2::from_angle(heading).perp());
         let r = prm.red_zone_before_m.max(cross_u + prm.red_block_m) + half_width_m;
         let Some((i0, i1, j0, j1)) =

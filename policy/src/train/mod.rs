@@ -1,8 +1,10 @@
-//! Training: the network presets, the losses, the batch resize, the
-//! multi-resolution step, BN recalibration (on batches, or on frames rendered
-//! along scenarios), and a synthetic toy batch with the smoke run that trains
-//! on it.
+//! Training: the loader over dataset shards and its augmentations, the network
+//! presets, the losses, the batch resize, the multi-resolution step, BN
+//! recalibration (on batches, or on frames rendered along scenarios), and a
+//! synthetic toy batch with the smoke run that trains on it.
 
+pub mod augment;
+pub mod loader;
 pub mod losses;
 pub mod multires;
 pub mod presets;

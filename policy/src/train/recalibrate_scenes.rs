@@ -11,10 +11,10 @@ use std::path::{Path, PathBuf};
 
 use burn::prelude::*;
 use sim::build::{self, BuildError, Drivers};
+use sim::observe::{Moment, Moments};
 use sim::render::{EgoPose, Renderer};
 use sim::runner::{self, Overrides, RunInputs};
 use sim::scenario::{DriverKind, Scenario};
-use world::{ActorSnapshot, LightState};
 
 use super::recalibrate::recalibrate_with;
 use crate::checkpoint::{self, CheckpointError, ModelCard};
@@ -111,12 +111,6 @@ pub enum SceneRecalibrationError {
     Render(String),
 }
 
-/// One kept moment of a run.
-struct Moment {
-    actors: Vec<ActorSnapshot>,
-    lights: Vec<LightState>,
-}
-
 /// Drives `path` (with `overrides`) by the expert, keeps a moment every
 /// `every_s` seconds of simulated time, and returns them with a renderer for
 /// that scenario's town on the rig of the checkpoint `weights` (an absolute
@@ -139,15 +133,7 @@ fn collect(
     let prepared = runner::prepare(&expert).map_err(failed)?;
     let mut driver = drivers.driver(&expert, &prepared)?;
     let mut selector = build::selector_for(&expert, None)?;
-    let mut moments = Vec::new();
-    let mut keep = |tick: u64, actors: &[ActorSnapshot], lights: &[LightState]| {
-        if tick.is_multiple_of(every_ticks) && !actors.is_empty() {
-            moments.push(Moment {
-                actors: actors.to_vec(),
-                lights: lights.to_vec(),
-            });
-        }
-    };
+    let mut moments = Moments::every(every_ticks);
     let record = runner::run(
         &expert,
         path,
@@ -156,17 +142,14 @@ fn collect(
             driver: driver.as_mut(),
             selector: selector.as_mut(),
             camera: None,
-            recorder: None,
-            progress: &mut |_| {},
+            observers: vec![&mut moments],
             max_ticks: None,
-            observer: Some(&mut keep),
-            render_every_frame: false,
         },
     )
     .map_err(failed)?;
     let collected = Collected {
         scenario: path.to_path_buf(),
-        frames: moments.len(),
+        frames: moments.kept.len(),
         sim_time_s: record.result.sim_time_s,
         ended: record
             .result
@@ -179,7 +162,7 @@ fn collect(
     as_policy.driver.kind = DriverKind::Policy;
     as_policy.driver.checkpoint = Some(weights.to_path_buf());
     let camera = build::camera_for(&as_policy, &prepared, drivers)?;
-    Ok((camera, moments, collected))
+    Ok((camera, moments.kept, collected))
 }
 
 /// Recalibrates the checkpoint `weights` on frames rendered along

@@ -2,7 +2,7 @@
 //! pressing the throttle, or after a collision), low speed for too long, and
 //! the route timeout.
 
-use super::{EgoTick, Infraction, InfractionKind};
+use super::{EgoTick, Infraction, InfractionKind, Monitor};
 
 /// Below this speed the ego counts as standing (metres per second).
 const STANDING_MPS: f32 = 0.2;
@@ -37,17 +37,29 @@ impl BlockedMonitor {
             fired: false,
         }
     }
+}
 
-    /// Tells the monitor a collision was counted (standing after it is stuck).
-    pub fn collided(&mut self) {
-        self.after_collision = true;
-    }
-
-    /// Pushes at most one terminating event over the whole run.
-    pub fn observe(&mut self, tick: &EgoTick<'_>, tick_s: f64, out: &mut Vec<Infraction>) {
+impl Monitor for BlockedMonitor {
+    /// Pushes at most one terminating event over the whole run. A collision
+    /// the collision monitor pushed for this tick (it observes first) makes
+    /// standing still afterwards count as stuck.
+    fn observe(&mut self, tick: &EgoTick<'_>, out: &mut Vec<Infraction>) {
+        let collided = out.iter().any(|i| {
+            i.tick == tick.tick
+                && matches!(
+                    i.kind,
+                    InfractionKind::CollisionVehicle
+                        | InfractionKind::CollisionPedestrian
+                        | InfractionKind::CollisionStatic
+                )
+        });
+        if collided {
+            self.after_collision = true;
+        }
         if self.fired {
             return;
         }
+        let tick_s = tick.dt_s;
         let standing = tick.speed_mps < STANDING_MPS;
         if !standing {
             self.after_collision = false;
@@ -103,7 +115,7 @@ mod tests {
         let poses = scripted::straight(0.0, 0.0, speed, ticks);
         scripted::drive(&poses, speed, &[], |t| {
             let tick = EgoTick { throttle, ..*t };
-            monitor.observe(&tick, 0.025, &mut out);
+            monitor.observe(&tick, &mut out);
         });
         out
     }
@@ -130,14 +142,6 @@ mod tests {
     }
 
     #[test]
-    fn standing_after_a_collision_is_stuck() {
-        let mut m = BlockedMonitor::new(8.0, 40.0, 1000.0);
-        m.collided();
-        let out = run(&mut m, 400, 0.0, 0.0);
-        assert_eq!(out[0].kind, InfractionKind::Stuck);
-    }
-
-    #[test]
     fn driving_past_the_timeout_ends_the_run() {
         let mut m = BlockedMonitor::new(8.0, 40.0, 5.0);
         let out = run(&mut m, 400, 5.0, 0.5);
@@ -145,5 +149,38 @@ mod tests {
             out.iter().map(|i| (i.kind, i.tick)).collect::<Vec<_>>(),
             vec![(InfractionKind::RouteTimeout, 200)]
         );
+    }
+}
+
+#[cfg(test)]
+mod collision_tests {
+    use super::super::scripted;
+    use super::*;
+
+    #[test]
+    fn standing_after_a_collision_counted_this_tick_is_stuck() {
+        let mut m = BlockedMonitor::new(8.0, 40.0, 1000.0);
+        let mut out = Vec::new();
+        let poses = scripted::straight(0.0, 0.0, 0.0, 400);
+        scripted::drive(&poses, 0.0, &[], |t| {
+            let tick = EgoTick {
+                throttle: 0.0,
+                ..*t
+            };
+            if t.tick == 1 {
+                out.push(Infraction::at(
+                    &tick,
+                    InfractionKind::CollisionVehicle,
+                    "npc 3".into(),
+                ));
+            }
+            m.observe(&tick, &mut out);
+        });
+        let stuck: Vec<u64> = out
+            .iter()
+            .filter(|i| i.kind == InfractionKind::Stuck)
+            .map(|i| i.tick)
+            .collect();
+        assert_eq!(stuck, vec![320], "{out:?}");
     }
 }

@@ -5,7 +5,7 @@
 
 use std::collections::BTreeSet;
 
-use super::{ContactKind, EgoTick, Infraction, InfractionKind};
+use super::{ContactKind, EgoTick, Infraction, InfractionKind, Monitor};
 
 /// Counts collisions by kind.
 #[derive(Debug, Clone)]
@@ -29,9 +29,11 @@ impl Default for CollisionMonitor {
     }
 }
 
-impl CollisionMonitor {
+impl CollisionMonitor {}
+
+impl Monitor for CollisionMonitor {
     /// Looks at this tick's contacts; pushes the collisions that count.
-    pub fn observe(&mut self, tick: &EgoTick<'_>, out: &mut Vec<Infraction>) {
+    fn observe(&mut self, tick: &EgoTick<'_>, out: &mut Vec<Infraction>) {
         if tick.speed_mps < self.min_speed_mps {
             return;
         }

@@ -9,7 +9,7 @@ use std::collections::BTreeSet;
 use world::geometry::box_touches_polyline;
 use world::{MarkKind, Town, Vec2, Vec3};
 
-use super::{EgoTick, Infraction, InfractionKind};
+use super::{EgoTick, Infraction, InfractionKind, Monitor};
 
 /// Side of a grid cell of the marking index (metres).
 const CELL_M: f32 = 8.0;
@@ -89,9 +89,11 @@ impl LaneCrossingMonitor {
             }
         }
     }
+}
 
+impl Monitor for LaneCrossingMonitor {
     /// Pushes a crossing for each marking the footprint newly touches.
-    pub fn observe(&mut self, tick: &EgoTick<'_>, out: &mut Vec<Infraction>) {
+    fn observe(&mut self, tick: &EgoTick<'_>, out: &mut Vec<Infraction>) {
         self.collect_touching(tick);
         for &m in self.scratch.difference(&self.touching) {
             out.push(Infraction::at(

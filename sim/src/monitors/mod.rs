@@ -68,6 +68,11 @@ pub struct EgoTick<'a> {
     pub contacts: &'a [EgoContact],
     /// The state of every light, indexed by `LightIdx`.
     pub lights: &'a [LightState],
+    /// The tick's length (seconds).
+    pub dt_s: f64,
+    /// Whether the ego is on a driving lane in its direction after the step
+    /// (the rule book's lane under a point).
+    pub on_lane: bool,
 }
 
 impl EgoTick<'_> {
@@ -78,6 +83,68 @@ impl EgoTick<'_> {
             heading: self.now.heading,
             half_length: self.size_m.0 / 2.0,
             half_width: self.size_m.1 / 2.0,
+        }
+    }
+}
+
+/// One thing counted about a run, from one tick at a time (like Waymax's
+/// metrics): every monitor sees the same [`EgoTick`].
+pub trait Monitor {
+    /// Looks at one tick and pushes what it counts to `out`, which already
+    /// holds what the monitors before it pushed for this tick.
+    fn observe(&mut self, tick: &EgoTick<'_>, out: &mut Vec<Infraction>);
+}
+
+/// Every monitor of a run, observed in a fixed order (the blocked monitor
+/// last: standing after a collision counted this tick is stuck).
+#[derive(Debug, Clone)]
+pub struct Monitors {
+    /// Route completion, success and deviation.
+    pub route: route::RouteMonitor,
+    /// Collisions.
+    pub collisions: collision::CollisionMonitor,
+    /// Lane markings crossed.
+    pub lane_crossings: lane_crossing::LaneCrossingMonitor,
+    /// Red lights run.
+    pub red_lights: red_light::RedLightMonitor,
+    /// Distance driven off the lanes.
+    pub outside_lane: outside_lane::OutsideLaneMonitor,
+    /// Stuck, low speed, route timeout.
+    pub blocked: blocked::BlockedMonitor,
+}
+
+impl Monitors {
+    /// The monitors of a run in `town` along `route`: deviation limit
+    /// (metres), stuck and low-speed limits and route timeout (seconds).
+    pub fn new(
+        town: &world::Town,
+        rules: std::sync::Arc<world::rules::RuleBook>,
+        route: &world::planner::DenseRoute,
+        deviation_m: f32,
+        (stuck_s, low_speed_s, timeout_s): (f64, f64, f64),
+    ) -> Monitors {
+        Monitors {
+            route: route::RouteMonitor::new(route, deviation_m),
+            collisions: collision::CollisionMonitor::default(),
+            lane_crossings: lane_crossing::LaneCrossingMonitor::new(town),
+            red_lights: red_light::RedLightMonitor::new(rules),
+            outside_lane: outside_lane::OutsideLaneMonitor::default(),
+            blocked: blocked::BlockedMonitor::new(stuck_s, low_speed_s, timeout_s),
+        }
+    }
+
+    /// Every monitor looks at the tick, in order; their reports go to `out`.
+    pub fn observe(&mut self, tick: &EgoTick<'_>, out: &mut Vec<Infraction>) {
+        let all: [&mut dyn Monitor; 6] = [
+            &mut self.route,
+            &mut self.collisions,
+            &mut self.lane_crossings,
+            &mut self.red_lights,
+            &mut self.outside_lane,
+            &mut self.blocked,
+        ];
+        for m in all {
+            m.observe(tick, out);
         }
     }
 }
@@ -211,6 +278,8 @@ pub(crate) mod scripted {
                 throttle: 0.5,
                 contacts: &[],
                 lights,
+                dt_s: 0.025,
+                on_lane: true,
             };
             observe(&tick);
         }

@@ -4,7 +4,7 @@
 //! rule book's ([`world::rules::lanes`]: within half a lane width plus 0.5 m,
 //! heading within 60 degrees), so the NPCs and this monitor agree on it.
 
-use super::EgoTick;
+use super::{EgoTick, Infraction, Monitor};
 
 /// Accumulates the distance driven outside the lanes.
 #[derive(Debug, Clone, Default)]
@@ -14,16 +14,6 @@ pub struct OutsideLaneMonitor {
 }
 
 impl OutsideLaneMonitor {
-    /// Adds this tick's distance; `on_lane` says whether the ego is on a
-    /// driving lane in its direction after the step.
-    pub fn observe(&mut self, tick: &EgoTick<'_>, on_lane: bool) {
-        let d = f64::from(tick.now.ground().distance(tick.prev.ground()));
-        self.driven_m += d;
-        if !on_lane {
-            self.outside_m += d;
-        }
-    }
-
     /// Distance driven outside the lanes (metres).
     pub fn outside_m(&self) -> f64 {
         self.outside_m
@@ -39,6 +29,18 @@ impl OutsideLaneMonitor {
     }
 }
 
+impl Monitor for OutsideLaneMonitor {
+    /// Adds this tick's distance, to the outside share when the ego is not
+    /// on a driving lane in its direction after the step. Reports nothing.
+    fn observe(&mut self, tick: &EgoTick<'_>, _out: &mut Vec<Infraction>) {
+        let d = f64::from(tick.now.ground().distance(tick.prev.ground()));
+        self.driven_m += d;
+        if !tick.on_lane {
+            self.outside_m += d;
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::scripted;
@@ -49,7 +51,8 @@ mod tests {
         let mut m = OutsideLaneMonitor::default();
         let poses = scripted::straight(0.0, 0.0, 4.0, 400); // 40 m
         scripted::drive(&poses, 4.0, &[], |t| {
-            m.observe(t, !(100..200).contains(&t.tick))
+            let on_lane = !(100..200).contains(&t.tick);
+            m.observe(&EgoTick { on_lane, ..*t }, &mut Vec::new())
         });
         assert!((m.outside_pct() - 25.0).abs() < 0.5, "{}", m.outside_pct());
         assert!((m.outside_m() - 10.0).abs() < 0.2);
@@ -59,7 +62,15 @@ mod tests {
     fn standing_still_off_the_lane_adds_nothing() {
         let mut m = OutsideLaneMonitor::default();
         let poses = scripted::straight(0.0, 0.0, 0.0, 100);
-        scripted::drive(&poses, 0.0, &[], |t| m.observe(t, false));
+        scripted::drive(&poses, 0.0, &[], |t| {
+            m.observe(
+                &EgoTick {
+                    on_lane: false,
+                    ..*t
+                },
+                &mut Vec::new(),
+            )
+        });
         assert_eq!(m.outside_pct(), 0.0);
     }
 }

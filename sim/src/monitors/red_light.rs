@@ -12,7 +12,7 @@ use world::LightState;
 use world::geometry::crosses_stop_line;
 use world::rules::{RuleBook, crossing_point};
 
-use super::{EgoTick, Infraction, InfractionKind};
+use super::{EgoTick, Infraction, InfractionKind, Monitor};
 
 /// Counts red-light infractions.
 #[derive(Debug, Clone)]
@@ -31,9 +31,11 @@ impl RedLightMonitor {
             rules,
         }
     }
+}
 
+impl Monitor for RedLightMonitor {
     /// Pushes an infraction if the ego ran a red light during this tick.
-    pub fn observe(&mut self, tick: &EgoTick<'_>, out: &mut Vec<Infraction>) {
+    fn observe(&mut self, tick: &EgoTick<'_>, out: &mut Vec<Infraction>) {
         if tick.speed_mps <= self.min_speed_mps {
             return;
         }

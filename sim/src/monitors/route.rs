@@ -12,7 +12,7 @@ use world::Vec2;
 use world::planner::DenseRoute;
 use world::rules::nearest_route_point;
 
-use super::{EgoTick, Infraction, InfractionKind};
+use super::{EgoTick, Infraction, InfractionKind, Monitor};
 
 /// How far ahead along the route the ego is looked for (route points, ~1 m each).
 const WINDOW_POINTS: usize = 40;
@@ -72,10 +72,12 @@ impl RouteMonitor {
             .map_or(position, |p| p.position.truncate());
         self.completion_pct() >= 99.0 && position.distance(end) <= 10.0
     }
+}
 
+impl Monitor for RouteMonitor {
     /// Advances the progress; pushes a deviation (once) when the ego is too far
     /// from the route.
-    pub fn observe(&mut self, tick: &EgoTick<'_>, out: &mut Vec<Infraction>) {
+    fn observe(&mut self, tick: &EgoTick<'_>, out: &mut Vec<Infraction>) {
         let nearest =
             nearest_route_point(&self.route, tick.now.ground(), self.index, WINDOW_POINTS);
         let distance = match nearest {

@@ -189,6 +189,21 @@ pub fn label_rgb(id: ClassId) -> [u8; 3] {
     class_info(id).map_or([0, 0, 0], |c| c.label_rgb)
 }
 
+/// The colour of a WoR class id (0-5) in pictures of class images: its
+/// main class's label colour (road, lane marking, vehicle, pedestrian,
+/// traffic-light pole), black for background and for ids past 5.
+pub fn wor_rgb(id: u8) -> [u8; 3] {
+    let main = match id {
+        x if x == WorClass::Road as u8 => ROAD,
+        x if x == WorClass::LaneMarking as u8 => LANE_MARKING,
+        x if x == WorClass::Vehicle as u8 => VEHICLE,
+        x if x == WorClass::Pedestrian as u8 => PEDESTRIAN,
+        x if x == WorClass::TrafficLight as u8 => LIGHT_POLE,
+        _ => return [0, 0, 0],
+    };
+    label_rgb(main)
+}
+
 /// Whether a class id is a lit lamp of any colour.
 pub fn is_lamp(id: ClassId) -> bool {
     matches!(id, LAMP_RED | LAMP_YELLOW | LAMP_GREEN)
@@ -223,6 +238,20 @@ mod tests {
         for id in [SIDEWALK, BUILDING, VEGETATION, TERRAIN, 200] {
             assert_eq!(to_wor(id), WorClass::Background);
         }
+    }
+
+    #[test]
+    fn each_wor_class_has_its_own_colour_of_a_class_folding_into_it() {
+        let colours: Vec<[u8; 3]> = (0..WOR_CLASS_COUNT as u8).map(wor_rgb).collect();
+        for (i, c) in colours.iter().enumerate() {
+            assert!(!colours[..i].contains(c), "class {i} shares {c:?}");
+            if i > 0 {
+                let folded = CLASSES.iter().find(|k| k.label_rgb == *c).unwrap();
+                assert_eq!(folded.wor as usize, i, "{}", folded.name);
+            }
+        }
+        assert_eq!(wor_rgb(0), [0, 0, 0]);
+        assert_eq!(wor_rgb(6), [0, 0, 0]);
     }
 
     #[test]

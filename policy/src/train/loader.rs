@@ -1,0 +1,705 @@
+//! The training loader: streams (frame, view) samples of a labelled dataset
+//! (`dataset::format`) into [`Batch`]es.
+//!
+//! - Samples: every camera view of every frame whose label is valid (its
+//!   future was driven), over the episodes whose shard and labels are
+//!   usable. A bad episode (truncated shard, another S0, labels of another
+//!   version, no labels) is skipped and listed in [`TrainSet::skipped`] with
+//!   the reason and the fix; the rest is used.
+//! - Order: epoch `e` visits the samples in a ChaCha8 shuffle seeded from
+//!   `(seed, e)`; with `balanced`, each draw first picks a command uniformly
+//!   among those present, then a sample of that command (TimeParam's
+//!   command-balanced retargeting data). Batches are whole (the epoch's
+//!   remainder is dropped).
+//! - Per sample: the view's RGB image, augmented ([`super::augment`], seeded
+//!   from `(epoch seed, position in the epoch)`), normalised like the
+//!   policy's input (`PolicyConfig::normalize_rgb8`: RGB / 255, ImageNet
+//!   mean and std) into `[3, H0, W0]`; `q` `[6, 4, 28]` from the label file;
+//!   `seg` `[H0, W0]` the WoR class ids (warped with the image).
+//! - Worker threads (one by default) read, augment and normalise, and hand
+//!   batches over bounded channels, batch `g` from worker `g mod workers`;
+//!   the training step converts them to tensors. Every number depends only
+//!   on the dataset, the seed and the configuration, not on the number of
+//!   workers or their timing.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
+use std::thread::JoinHandle;
+
+use burn::prelude::*;
+use dataset::action::{NUM_ACTIONS, NUM_COMMANDS, NUM_SPEED_BINS};
+use dataset::format::{DataError, INDEX_FILE, Index, MappedLabels, MappedShard, Q_PER_VIEW};
+use dataset::labels::LABEL_VERSION;
+use rand::RngExt;
+
+use super::augment::{AugmentConfig, Sample as Pixels, augment, mix, sample_rng};
+use super::multires::Batch;
+use crate::model::PolicyConfig;
+
+/// How the loader samples and augments.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoaderConfig {
+    /// Samples per batch.
+    pub batch: usize,
+    /// Seed of the sample order and the augmentations.
+    pub seed: u64,
+    /// Augment (WoR's ops); `None` feeds the images as stored (BN recalibration, evaluation).
+    pub augment: Option<AugmentConfig>,
+    /// Draw commands evenly instead of visiting every sample once per epoch.
+    pub balanced: bool,
+    /// The first epoch (to resume a run where it stopped).
+    pub first_epoch: u64,
+    /// Epochs to stream; `None` streams until the loader is dropped.
+    pub epochs: Option<u64>,
+    /// Batches prepared ahead of the training step (over all workers).
+    pub queue: usize,
+    /// Worker threads (1 keeps one core for the loader on a 2-core CPU;
+    /// more for a GPU step, which wants more samples per second). The
+    /// batches are the same for any number.
+    pub workers: usize,
+}
+
+impl LoaderConfig {
+    /// Batches of `batch`, seed `seed`, WoR's augmentations, every sample
+    /// once per epoch, forever, 4 batches ahead, one worker thread.
+    pub fn new(batch: usize, seed: u64) -> LoaderConfig {
+        LoaderConfig {
+            batch,
+            seed,
+            augment: Some(AugmentConfig::default()),
+            balanced: false,
+            first_epoch: 0,
+            epochs: None,
+            queue: 4,
+            workers: 1,
+        }
+    }
+}
+
+/// Why a dataset cannot feed training.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    /// The index is missing or unreadable.
+    #[error(transparent)]
+    Data(#[from] DataError),
+    /// The directory has nothing in it.
+    #[error(
+        "{0}: the dataset directory is empty; collect into it with `mrdrive collect --out {0}`, then label it with `mrdrive label {0}`"
+    )]
+    EmptyDir(PathBuf),
+    /// No episode gave a labelled frame.
+    #[error(
+        "{dir}: no labelled frame to train on ({episodes} episodes in the index{skipped}); label the dataset with `mrdrive label {dir}`"
+    )]
+    NoSamples {
+        /// The dataset directory.
+        dir: PathBuf,
+        /// Episodes in the index.
+        episodes: usize,
+        /// The skipped files, as text.
+        skipped: String,
+    },
+    /// The dataset's images are not the size the policy takes.
+    #[error(
+        "{index}: s0 is {w} x {h} but the policy takes {pw} x {ph}; train a policy config with input_width {w} and input_height {h}, or collect at the policy's size"
+    )]
+    Size {
+        /// The index file.
+        index: PathBuf,
+        /// The dataset's width.
+        w: u32,
+        /// The dataset's height.
+        h: u32,
+        /// The policy's width.
+        pw: usize,
+        /// The policy's height.
+        ph: usize,
+    },
+    /// The policy's head does not have WoR's commands and speed bins.
+    #[error(
+        "policy config num_commands {commands} and num_speed_bins {bins}: the labels have {NUM_COMMANDS} and {NUM_SPEED_BINS}; use those"
+    )]
+    Head {
+        /// The config's commands.
+        commands: usize,
+        /// The config's speed bins.
+        bins: usize,
+    },
+}
+
+/// An episode the loader could not use, and why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Skipped {
+    /// The file at fault.
+    pub path: PathBuf,
+    /// What is wrong and how to fix it.
+    pub why: String,
+}
+
+/// One training sample: a view of a frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SampleRef {
+    /// The episode's position among the usable episodes.
+    pub episode: u32,
+    /// The frame in its shard.
+    pub frame: u32,
+    /// The camera view.
+    pub view: u8,
+    /// The frame's command (`world::Command` as u8).
+    pub command: u8,
+}
+
+struct Part {
+    shard: MappedShard,
+    labels: MappedLabels,
+}
+
+/// A labelled dataset opened for training: its usable episodes mapped.
+pub struct TrainSet {
+    /// The dataset directory.
+    pub dir: PathBuf,
+    /// Its index.
+    pub index: Index,
+    /// Every usable sample, in index order.
+    pub samples: Vec<SampleRef>,
+    /// Episodes left out, and why.
+    pub skipped: Vec<Skipped>,
+    parts: Vec<Part>,
+    size: [usize; 2],
+}
+
+impl TrainSet {
+    /// Opens the dataset in `dir` for a policy of `config`; unusable
+    /// episodes are skipped (see [`TrainSet::skipped`]).
+    pub fn open(dir: &Path, config: &PolicyConfig) -> Result<TrainSet, LoadError> {
+        if config.num_commands != NUM_COMMANDS || config.num_speed_bins != NUM_SPEED_BINS {
+            return Err(LoadError::Head {
+                commands: config.num_commands,
+                bins: config.num_speed_bins,
+            });
+        }
+        if dir.is_dir()
+            && std::fs::read_dir(dir)
+                .map(|mut d| d.next().is_none())
+                .unwrap_or(false)
+        {
+            return Err(LoadError::EmptyDir(dir.to_path_buf()));
+        }
+        let index = Index::load(dir)?;
+        let [w, h] = index.s0;
+        if (w as usize, h as usize) != (config.input_width, config.input_height) {
+            return Err(LoadError::Size {
+                index: dir.join(INDEX_FILE),
+                w,
+                h,
+                pw: config.input_width,
+                ph: config.input_height,
+            });
+        }
+        let views = index.view_yaws_deg.len();
+        let mut parts = Vec::new();
+        let mut skipped = Vec::new();
+        let mut samples = Vec::new();
+        for e in &index.episodes {
+            let shard_path = dir.join(&e.shard);
+            let Some(labels_name) = &e.labels else {
+                skipped.push(Skipped {
+                    path: shard_path,
+                    why: format!("no labels; run `mrdrive label {}`", dir.display()),
+                });
+                continue;
+            };
+            let opened = MappedShard::open(&shard_path, index.s0, views).and_then(|shard| {
+                let labels =
+                    MappedLabels::open(&dir.join(labels_name), LABEL_VERSION, shard.len(), views)?;
+                Ok(Part { shard, labels })
+            });
+            let part = match opened {
+                Ok(p) => p,
+                Err(err) => {
+                    let path = match &err {
+                        DataError::Io { path, .. }
+                        | DataError::Index { path, .. }
+                        | DataError::Shard { path, .. } => path.clone(),
+                    };
+                    skipped.push(Skipped {
+                        path,
+                        why: err.to_string(),
+                    });
+                    continue;
+                }
+            };
+            let episode = parts.len() as u32;
+            for (f, &valid) in part.labels.valid.iter().enumerate() {
+                if valid {
+                    for v in 0..views {
+                        samples.push(SampleRef {
+                            episode,
+                            frame: f as u32,
+                            view: v as u8,
+                            command: part.shard.state.command[f],
+                        });
+                    }
+                }
+            }
+            parts.push(part);
+        }
+        if samples.is_empty() {
+            let skipped = skipped
+                .iter()
+                .map(|s| format!("; skipped {}: {}", s.path.display(), s.why))
+                .collect();
+            return Err(LoadError::NoSamples {
+                dir: dir.to_path_buf(),
+                episodes: index.episodes.len(),
+                skipped,
+            });
+        }
+        Ok(TrainSet {
+            dir: dir.to_path_buf(),
+            index,
+            samples,
+            skipped,
+            parts,
+            size: [h as usize, w as usize],
+        })
+    }
+
+    /// Samples per command (`world::Command` as index).
+    pub fn per_command(&self) -> [usize; NUM_COMMANDS] {
+        let mut n = [0; NUM_COMMANDS];
+        for s in &self.samples {
+            n[usize::from(s.command)] += 1;
+        }
+        n
+    }
+
+    /// The order of epoch `epoch`: positions in [`TrainSet::samples`].
+    pub fn epoch_order(&self, cfg: &LoaderConfig, epoch: u64) -> Vec<usize> {
+        let mut rng = sample_rng(cfg.seed, epoch);
+        let n = self.samples.len();
+        if cfg.balanced {
+            let mut by_command: Vec<Vec<usize>> = vec![Vec::new(); NUM_COMMANDS];
+            for (i, s) in self.samples.iter().enumerate() {
+                by_command[usize::from(s.command)].push(i);
+            }
+            by_command.retain(|c| !c.is_empty());
+            (0..n)
+                .map(|_| {
+                    let c = &by_command[rng.random_range(0..by_command.len())];
+                    c[rng.random_range(0..c.len())]
+                })
+                .collect()
+        } else {
+            let mut order: Vec<usize> = (0..n).collect();
+            for i in (1..n).rev() {
+                order.swap(i, rng.random_range(0..=i));
+            }
+            order
+        }
+    }
+
+    /// The host-side batch of the samples at `order` positions `at`, the
+    /// `k`-th sample of the epoch seeded from `(epoch seed, first_k + i)`.
+    pub fn host_batch(
+        &self,
+        config: &PolicyConfig,
+        cfg: &LoaderConfig,
+        epoch: u64,
+        first_k: u64,
+        at: &[usize],
+    ) -> HostBatch {
+        let [h, w] = self.size;
+        let epoch_seed = mix(cfg.seed, epoch);
+        let mut out = HostBatch {
+            images: Vec::with_capacity(at.len() * 3 * h * w),
+            q: vec![0.0; at.len() * Q_PER_VIEW],
+            seg: Vec::with_capacity(at.len() * h * w),
+            samples: Vec::with_capacity(at.len()),
+            size: [h, w],
+        };
+        for (i, &pos) in at.iter().enumerate() {
+            let s = self.samples[pos];
+            let part = &self.parts[s.episode as usize];
+            let (f, v) = (s.frame as usize, usize::from(s.view));
+            let mut rgb = part.shard.rgb(f, v).to_vec();
+            let mut classes = part.shard.classes(f, v).to_vec();
+            if let Some(aug) = &cfg.augment {
+                let mut rng = sample_rng(epoch_seed, first_k + i as u64);
+                let mut px = Pixels {
+                    rgb: &mut rgb,
+                    classes: &mut classes,
+                    width: w,
+                    height: h,
+                };
+                augment(&mut px, aug, &mut rng);
+            }
+            out.images.extend(config.normalize_rgb8(&rgb, h, w));
+            part.labels
+                .q_into(f, v, &mut out.q[i * Q_PER_VIEW..(i + 1) * Q_PER_VIEW]);
+            out.seg.extend(classes.iter().map(|&c| i64::from(c)));
+            out.samples.push(s);
+        }
+        out
+    }
+}
+
+/// A batch on the host, before it becomes tensors.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HostBatch {
+    /// Normalised images `[B, 3, H0, W0]`.
+    pub images: Vec<f32>,
+    /// Action values `[B, 6, 4, 28]`.
+    pub q: Vec<f32>,
+    /// WoR class ids `[B, H0, W0]`.
+    pub seg: Vec<i64>,
+    /// Which samples, in batch order.
+    pub samples: Vec<SampleRef>,
+    /// H0, W0 (pixels).
+    pub size: [usize; 2],
+}
+
+impl HostBatch {
+    /// Samples in the batch.
+    pub fn len(&self) -> usize {
+        self.samples.len()
+    }
+
+    /// Whether it holds no sample.
+    pub fn is_empty(&self) -> bool {
+        self.samples.is_empty()
+    }
+
+    /// The batch as tensors on `device`.
+    pub fn to_batch(&self, device: &Device) -> Batch {
+        let (n, [h, w]) = (self.len(), self.size);
+        Batch {
+            images: Tensor::from_data(TensorData::new(self.images.clone(), [n, 3, h, w]), device),
+            q: Tensor::from_data(
+                TensorData::new(
+                    self.q.clone(),
+                    [n, NUM_COMMANDS, NUM_SPEED_BINS, NUM_ACTIONS],
+                ),
+                device,
+            ),
+            seg: Tensor::from_data(TensorData::new(self.seg.clone(), [n, h, w]), device),
+        }
+    }
+}
+
+/// Streams batches of a [`TrainSet`] from worker threads.
+pub struct Loader {
+    /// One channel per worker; batch `g` comes from worker `g mod workers`.
+    rx: Vec<Receiver<HostBatch>>,
+    workers: Vec<JoinHandle<()>>,
+    next: usize,
+    /// Batches per epoch.
+    pub batches_per_epoch: usize,
+}
+
+impl Loader {
+    /// Starts the workers. `set` is shared with them; `config` says how to normalise.
+    pub fn start(set: Arc<TrainSet>, config: &PolicyConfig, cfg: LoaderConfig) -> Loader {
+        let batch = cfg.batch.max(1);
+        let batches_per_epoch = set.samples.len() / batch;
+        let n = cfg.workers.max(1);
+        let mut rx = Vec::with_capacity(n);
+        let mut workers = Vec::with_capacity(n);
+        for w in 0..n {
+            let (tx, r) = sync_channel(cfg.queue.div_ceil(n).max(1));
+            let (set, config, cfg) = (set.clone(), config.clone(), cfg.clone());
+            let worker = std::thread::Builder::new()
+                .name(format!("mrdrive-loader-{w}"))
+                .spawn(move || produce(&set, &config, &cfg, batch, (w, n), &tx))
+                .expect("a loader thread starts");
+            rx.push(r);
+            workers.push(worker);
+        }
+        Loader {
+            rx,
+            workers,
+            next: 0,
+            batches_per_epoch,
+        }
+    }
+
+    /// The next batch on the host, or `None` after the last epoch.
+    pub fn next_host(&mut self) -> Option<HostBatch> {
+        let n = self.rx.len();
+        let b = self.rx.get(self.next % n.max(1))?.recv().ok()?;
+        self.next += 1;
+        Some(b)
+    }
+
+    /// The next batch as tensors on `device`, or `None` after the last epoch.
+    pub fn next_batch(&mut self, device: &Device) -> Option<Batch> {
+        self.next_host().map(|b| b.to_batch(device))
+    }
+}
+
+/// Worker `w` of `n`: makes every batch `g` of the stream with `g mod n = w`.
+fn produce(
+    set: &TrainSet,
+    config: &PolicyConfig,
+    cfg: &LoaderConfig,
+    batch: usize,
+    (w, n): (usize, usize),
+    tx: &SyncSender<HostBatch>,
+) {
+    let mut epoch = cfg.first_epoch;
+    let mut g = 0usize;
+    loop {
+        if cfg.epochs.is_some_and(|e| epoch >= cfg.first_epoch + e) {
+            return;
+        }
+        let order = set.epoch_order(cfg, epoch);
+        for (b, at) in order.chunks_exact(batch).enumerate() {
+            if g % n == w {
+                let hb = set.host_batch(config, cfg, epoch, (b * batch) as u64, at);
+                if tx.send(hb).is_err() {
+                    return; // the loader was dropped
+                }
+            }
+            g += 1;
+        }
+        if order.len() < batch {
+            return; // not one whole batch: nothing to stream
+        }
+        epoch += 1;
+    }
+}
+
+impl Drop for Loader {
+    fn drop(&mut self) {
+        // Closing the channels makes each worker's next send fail, so it ends.
+        self.rx.clear();
+        for w in self.workers.drain(..) {
+            let _ = w.join();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::backbone::Depth;
+    use dataset::synthetic::{self, SyntheticSpec};
+
+    fn config() -> PolicyConfig {
+        PolicyConfig::new(Depth::Resnet18, [4, 8, 8, 16])
+            .with_input_height(8)
+            .with_input_width(24)
+    }
+
+    fn write(episodes: u32, frames: u32) -> tempfile::TempDir {
+        let dir = tempfile::tempdir().unwrap();
+        synthetic::write(dir.path(), &SyntheticSpec::tiny(episodes, frames)).unwrap();
+        dir
+    }
+
+    fn all(set: TrainSet, cfg: LoaderConfig) -> Vec<HostBatch> {
+        let mut l = Loader::start(Arc::new(set), &config(), cfg);
+        std::iter::from_fn(|| l.next_host()).collect()
+    }
+
+    #[test]
+    fn samples_are_every_view_of_every_labelled_frame() {
+        let dir = write(2, 12);
+        let set = TrainSet::open(dir.path(), &config()).unwrap();
+        // 12 - 5 labelled frames, 3 views, 2 episodes.
+        assert_eq!(set.samples.len(), 2 * 7 * 3);
+        assert!(set.skipped.is_empty());
+        assert!(set.samples.iter().all(|s| (s.frame as usize) < 7));
+        // Frames 4 (LEFT) and 0-3, 5, 6 (LANEFOLLOW) of each episode.
+        assert_eq!(set.per_command()[0], 2 * 3);
+        assert_eq!(set.per_command()[3], 2 * 6 * 3);
+    }
+
+    #[test]
+    fn a_batch_holds_the_normalised_image_its_label_and_its_classes() {
+        let dir = write(1, 8);
+        let set = TrainSet::open(dir.path(), &config()).unwrap();
+        let cfg = LoaderConfig {
+            augment: None,
+            ..LoaderConfig::new(4, 1)
+        };
+        let k = set
+            .samples
+            .iter()
+            .position(|s| (s.frame, s.view) == (2, 1))
+            .unwrap();
+        let b = set.host_batch(&config(), &cfg, 0, 0, &[k]);
+        let (h, w) = (8, 24);
+        let c = config();
+        for (ch, y, x) in [(0, 0, 0), (1, 3, 5), (2, 7, 23)] {
+            let byte = synthetic::rgb_byte(x, y, ch, 2, 1, 0);
+            let want = (f32::from(byte) / 255.0 - c.mean[ch]) / c.std[ch];
+            assert_eq!(b.images[ch * h * w + y * w + x], want);
+        }
+        for (cmd, bin, a) in [(0, 0, 0), (3, 2, 10), (5, 3, 27)] {
+            let at = (cmd * NUM_SPEED_BINS + bin) * NUM_ACTIONS + a;
+            assert_eq!(b.q[at], synthetic::q_value(2, 1, cmd, bin, a));
+        }
+        assert_eq!(b.seg[5], i64::from(synthetic::class_id(5, w, 2, 1)));
+        let t = b.to_batch(&Device::flex());
+        assert_eq!(t.images.dims(), [1, 3, h, w]);
+        assert_eq!(t.q.dims(), [1, 6, 4, 28]);
+        assert_eq!(t.seg.dims(), [1, h, w]);
+    }
+
+    #[test]
+    fn batches_are_the_same_for_a_seed_and_differ_for_another() {
+        let dir = write(2, 12);
+        let cfg = |seed| LoaderConfig {
+            epochs: Some(2),
+            queue: 1,
+            ..LoaderConfig::new(5, seed)
+        };
+        let open = || TrainSet::open(dir.path(), &config()).unwrap();
+        let a = all(open(), cfg(7));
+        let b = all(open(), cfg(7));
+        assert_eq!(a.len(), 2 * (42 / 5));
+        assert_eq!(a, b);
+        let c = all(open(), cfg(8));
+        assert_ne!(a[0].samples, c[0].samples);
+        let three = all(
+            open(),
+            LoaderConfig {
+                workers: 3,
+                queue: 5,
+                ..cfg(7)
+            },
+        );
+        assert_eq!(three, a, "three workers give the same stream");
+        // Each epoch visits each sample at most once, and the epochs differ.
+        let first: Vec<SampleRef> = a[..8].iter().flat_map(|b| b.samples.clone()).collect();
+        let mut dedup = first.clone();
+        dedup.sort_by_key(|s| (s.episode, s.frame, s.view));
+        dedup.dedup();
+        assert_eq!(dedup.len(), first.len());
+        assert_ne!(a[0].samples, a[8].samples);
+        // Augmentation changed the images (a fixed seed, so a fixed answer).
+        let plain = all(
+            open(),
+            LoaderConfig {
+                augment: None,
+                ..cfg(7)
+            },
+        );
+        assert_eq!(plain[0].samples, a[0].samples);
+        assert_ne!(plain[0].images, a[0].images);
+    }
+
+    #[test]
+    fn balanced_sampling_draws_each_command_about_equally() {
+        let dir = write(2, 40);
+        let set = TrainSet::open(dir.path(), &config()).unwrap();
+        // LEFT is one frame in five.
+        let [left, .., follow, _, _] = set.per_command().map(|n| n as f32);
+        assert!(follow > 3.0 * left);
+        let cfg = LoaderConfig {
+            balanced: true,
+            ..LoaderConfig::new(5, 3)
+        };
+        let mut drawn = [0usize; NUM_COMMANDS];
+        for e in 0..5 {
+            for k in set.epoch_order(&cfg, e) {
+                drawn[usize::from(set.samples[k].command)] += 1;
+            }
+        }
+        let share = drawn[0] as f32 / (drawn[0] + drawn[3]) as f32;
+        assert!((0.45..0.55).contains(&share), "{drawn:?}");
+    }
+
+    #[test]
+    fn a_bad_shard_is_skipped_by_name_and_the_rest_used() {
+        let dir = write(4, 10);
+        let index = Index::load(dir.path()).unwrap();
+        // Episode 0: truncated. Episode 1: another S0. Episode 2: labels of
+        // another version. Episode 3: fine.
+        let p0 = dir.path().join(&index.episodes[0].shard);
+        let bytes = std::fs::read(&p0).unwrap();
+        std::fs::write(&p0, &bytes[..bytes.len() - 100]).unwrap();
+        let other = tempfile::tempdir().unwrap();
+        let spec = SyntheticSpec {
+            s0: [12, 4],
+            ..SyntheticSpec::tiny(2, 10)
+        };
+        synthetic::write(other.path(), &spec).unwrap();
+        let p1 = dir.path().join(&index.episodes[1].shard);
+        std::fs::copy(other.path().join(&index.episodes[1].shard), &p1).unwrap();
+        let l2 = dir.path().join(index.episodes[2].labels.as_ref().unwrap());
+        std::fs::write(
+            &l2,
+            synthetic::labels(10, 3).to_bytes(LABEL_VERSION + 1, "x"),
+        )
+        .unwrap();
+        let set = TrainSet::open(dir.path(), &config()).unwrap();
+        assert_eq!(set.samples.len(), 5 * 3);
+        let why: Vec<String> = set
+            .skipped
+            .iter()
+            .map(|s| format!("{}: {}", s.path.display(), s.why))
+            .collect();
+        assert_eq!(why.len(), 3, "{why:?}");
+        assert!(
+            why[0].contains("episode-00000") && why[0].contains("truncated"),
+            "{}",
+            why[0]
+        );
+        assert!(
+            why[1].contains("episode-00001") && why[1].contains("another dataset or S0"),
+            "{}",
+            why[1]
+        );
+        assert!(
+            why[2].contains("labels-00002") && why[2].contains("mrdrive label"),
+            "{}",
+            why[2]
+        );
+    }
+
+    #[test]
+    fn an_empty_or_unindexed_or_unlabelled_dataset_says_what_to_run() {
+        let empty = tempfile::tempdir().unwrap();
+        let err = TrainSet::open(empty.path(), &config())
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            err.contains("empty") && err.contains("mrdrive collect"),
+            "{err}"
+        );
+        std::fs::write(empty.path().join("notes.txt"), "x").unwrap();
+        let err = TrainSet::open(empty.path(), &config())
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            err.contains(INDEX_FILE) && err.contains("mrdrive collect"),
+            "{err}"
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let spec = SyntheticSpec {
+            labelled: false,
+            ..SyntheticSpec::tiny(1, 10)
+        };
+        synthetic::write(dir.path(), &spec).unwrap();
+        let err = TrainSet::open(dir.path(), &config())
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            err.contains("no labelled frame") && err.contains("mrdrive label"),
+            "{err}"
+        );
+        let wide = config().with_input_width(48);
+        let dir = write(1, 10);
+        let err = TrainSet::open(dir.path(), &wide).err().unwrap().to_string();
+        assert!(
+            err.contains("24 x 8") && err.contains("input_width"),
+            "{err}"
+        );
+    }
+}

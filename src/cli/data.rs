@@ -1,0 +1,153 @@
+//! `mrdrive data ...`: look at a collected dataset; `mrdrive bench loader`.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use anyhow::Context;
+use clap::{Args, Subcommand};
+use dataset::info::{Summary, towns_from_maps};
+use dataset::show::show;
+use dataset::synthetic::{self, SyntheticSpec};
+use policy::bench;
+use policy::train::Preset;
+use policy::train::loader::TrainSet;
+
+/// Dataset subcommands.
+#[derive(Subcommand)]
+pub enum DataCommand {
+    /// Print what a dataset holds: frames, hours, commands, red lights, speeds, towns, routes, labels, disk.
+    Info(InfoArgs),
+    /// Draw one frame and its label to a PNG, for a person to check.
+    Show(ShowArgs),
+}
+
+/// `data info` arguments.
+#[derive(Args)]
+pub struct InfoArgs {
+    /// The dataset directory (`mrdrive collect --out`).
+    pub dir: PathBuf,
+}
+
+/// `data show` arguments.
+#[derive(Args)]
+pub struct ShowArgs {
+    /// The dataset directory (`mrdrive collect --out`).
+    pub dir: PathBuf,
+    /// The frame, counted over the whole dataset in index order.
+    #[arg(long)]
+    pub frame: u64,
+    /// The camera view (0: as mounted; then the index's other yaws).
+    #[arg(long, default_value_t = 0)]
+    pub view: usize,
+    /// Output PNG.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// Runs a `data` subcommand.
+pub fn run(c: DataCommand) -> anyhow::Result<()> {
+    match c {
+        DataCommand::Info(a) => {
+            let summary = Summary::of(&a.dir, &mut towns_from_maps())?;
+            print!("{summary}");
+        }
+        DataCommand::Show(a) => {
+            let img = show(&a.dir, a.frame, a.view, &mut towns_from_maps())?;
+            img.save(&a.out)
+                .with_context(|| format!("writing {}", a.out.display()))?;
+            println!(
+                "wrote {} ({} x {} px)",
+                a.out.display(),
+                img.width(),
+                img.height()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// The loader benchmark.
+#[derive(Debug, Subcommand)]
+pub enum BenchCommand {
+    /// The training loader's rate against the training step of the default model.
+    Loader {
+        /// A labelled dataset at the default model's S0 (240 x 96); without
+        /// one, a synthetic dataset (3 views, 2 x 100 frames) is written to a
+        /// temporary directory.
+        #[arg(long)]
+        dataset: Option<PathBuf>,
+        /// Batch size.
+        #[arg(long, default_value_t = 32)]
+        batch: usize,
+        /// Loader worker threads.
+        #[arg(long, default_value_t = 1)]
+        workers: usize,
+        /// Timed loader batches (after 1 untimed).
+        #[arg(long, default_value_t = 20)]
+        batches: usize,
+        /// Timed training steps, alone and fed by the loader (after 1 warm-up); 0 skips training.
+        #[arg(long, default_value_t = 3)]
+        train_steps: usize,
+    },
+}
+
+/// Runs the loader benchmark.
+pub fn run_bench(c: BenchCommand) -> anyhow::Result<()> {
+    let BenchCommand::Loader {
+        dataset,
+        batch,
+        workers,
+        batches,
+        train_steps,
+    } = c;
+    let config = Preset::Cpu.config(&[0.75, 1.0]);
+    let scratch = tempfile::tempdir().context("making a temporary directory")?;
+    let dir = match dataset {
+        Some(d) => d,
+        None => {
+            let spec = SyntheticSpec {
+                s0: [config.input_width as u32, config.input_height as u32],
+                ..SyntheticSpec::tiny(2, 100)
+            };
+            synthetic::write(scratch.path(), &spec)?;
+            scratch.path().to_path_buf()
+        }
+    };
+    let set = Arc::new(TrainSet::open(&dir, &config)?);
+    for s in &set.skipped {
+        eprintln!("warning: skipped {}: {}", s.path.display(), s.why);
+    }
+    println!(
+        "loader benchmark: {} ({} samples), batch {batch}, S0 {} x {}, {workers} loader thread(s) + {} rayon threads; load average {}",
+        dir.display(),
+        set.samples.len(),
+        config.input_width,
+        config.input_height,
+        policy::cpu_threads(),
+        std::fs::read_to_string("/proc/loadavg")
+            .unwrap_or_default()
+            .trim()
+    );
+    let r = bench::loader_bench(set, &config, batch, workers, batches, train_steps);
+    let per_s = |bps: f64| format!("{bps:.2} batches/s = {:.0} samples/s", bps * batch as f64);
+    println!(
+        "loader alone, augmented:     {} ({batches} batches)",
+        per_s(r.augmented_batches_per_s)
+    );
+    println!(
+        "loader alone, not augmented: {} ({batches} batches)",
+        per_s(r.plain_batches_per_s)
+    );
+    if let (Some(sps), Some(fed)) = (r.train_samples_per_s, r.fed) {
+        println!(
+            "training step alone (default model, 0.75x + 1.0x, segmentation on), toy batch: {sps:.1} samples/s = {:.3} batches/s ({train_steps} steps)",
+            sps / batch as f64
+        );
+        println!(
+            "training step fed by the augmenting loader: {:.1} samples/s, waiting for a batch {:.1} % of the time",
+            fed.samples_per_s,
+            100.0 * fed.waiting
+        );
+    }
+    Ok(())
+}
