@@ -21,38 +21,25 @@
 //! headings in radians counter-clockwise from +x. CARLA's left-handed route
 //! files are converted on reading (`y_xodr = -y`, `yaw_xodr = -yaw`).
 
-pub mod actor;
-pub mod ahead;
-pub mod command;
-pub mod error;
-pub mod generator;
-pub mod geometry;
-pub mod lane_graph;
-pub mod lane_path;
-pub mod map_render;
-pub mod npc;
-pub mod pedestrian;
+pub mod agents;
+pub mod map;
 pub mod physics;
-pub mod planner;
+pub mod road;
 pub mod route;
 pub mod rules;
-pub mod soak;
 pub mod testdata;
-pub mod testtown;
-pub mod town;
 pub mod traffic;
-pub mod traffic_light;
-pub mod vehicle;
-pub mod xodr_map;
 
-pub use actor::{ActorKind, ActorSnapshot, EgoPose};
-pub use command::Command;
-pub use error::{MapError, RouteError};
+pub use agents::{ActorKind, ActorSnapshot, EgoPose};
 pub use glam::{Vec2, Vec3};
-pub use planner::{DenseRoute, PlannerConfig, RoutePoint, plan_route};
-pub use route::{Route, RouteFile, RouteWaypoint};
+pub use map::town::*;
+pub use map::{
+    LoadOptions, LoadReport, MapError, UnsignalledJunctions, load_xodr_file, load_xodr_str,
+};
+pub use route::{
+    Command, DenseRoute, PlannerConfig, Route, RouteError, RouteFile, RoutePoint, RouteWaypoint,
+    plan_route,
+};
 pub use rules::RuleBook;
 pub use rules::lanes::LanePoint;
-pub use town::*;
-pub use traffic_light::{LightController, LightTiming};
-pub use xodr_map::{LoadOptions, LoadReport, UnsignalledJunctions, load_xodr_file, load_xodr_str};
+pub use traffic::{LightController, LightTiming};

@@ -1,8 +1,8 @@
 //! Integration tests: NPC traffic on real maps (CARLA's towns, our generated towns).
 
 use std::sync::Arc;
-use world::generator::{GridTownParams, generate_grid_town};
-use world::lane_path::LanePath;
+use world::map::generator::{GridTownParams, generate_grid_town};
+use world::road::LanePath;
 use world::testdata::carla_dir;
 use world::traffic::{Traffic, TrafficConfig};
 use world::{LaneIdx, LightController, LightIdx, LightTiming, LoadOptions, Town, load_xodr_str};

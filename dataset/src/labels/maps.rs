@@ -7,7 +7,8 @@
 //! grows with what is near the ego, not with the town.
 
 use glam::Vec2;
-use world::planner::{PlannerConfig, turn_decision};
+use world::route::PlannerConfig;
+use world::route::planner::turn_decision;
 use world::rules::StopLines;
 use world::{Command, LightState, Town};
 

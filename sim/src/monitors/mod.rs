@@ -24,7 +24,7 @@ pub mod score;
 use serde::{Deserialize, Serialize};
 pub use world::EgoPose;
 use world::LightState;
-use world::geometry::OrientedBox;
+use world::road::geometry::OrientedBox;
 
 /// What the other body in a collision was.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]

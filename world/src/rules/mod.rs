@@ -16,8 +16,9 @@
 //! [`crate::DenseRoute`]): none needs a running [`crate::traffic::Traffic`].
 //! [`RuleBook`] holds a town's tables, built once; a run shares one
 //! ([`crate::traffic::Traffic::rules`]). The vehicle model every vehicle
-//! moves by is [`crate::vehicle::VehicleState::step`].
+//! moves by is [`crate::agents::vehicle::VehicleState::step`].
 
+pub mod ahead;
 pub mod conflicts;
 pub mod crossing;
 pub mod lanes;
@@ -26,6 +27,7 @@ pub mod pursuit;
 pub mod route;
 pub mod stop_lines;
 
+pub use ahead::{ActorView, Ahead, nearest_ahead};
 pub use conflicts::JunctionConflicts;
 pub use crossing::{crossing_offset_m, crossing_point};
 pub use lanes::{LaneGrid, heading_agrees, nearest_lane, project_on_lane};
@@ -34,7 +36,7 @@ pub use pursuit::pursuit_lookahead_m;
 pub use route::{nearest_route_point, route_ahead, route_point_at, route_s_at};
 pub use stop_lines::{RouteStop, RouteStops, StopLineEntry, StopLines};
 
-use crate::town::Town;
+use crate::map::town::Town;
 
 /// Side of the cells of a rule book's lane grid (metres).
 pub const LANE_GRID_CELL_M: f32 = 5.0;

@@ -14,17 +14,23 @@
 //! Random streams: every actor has its own `ChaCha8Rng` derived from the
 //! seed and its id, so the same seed gives the same run bit for bit.
 
-use crate::actor::{ActorKind, ActorSnapshot};
-use crate::ahead::{ActorView, Ahead, nearest_ahead};
-use crate::lane_path::LanePath;
-use crate::npc::{self, Npc, NpcParams, Reservations, Scratch};
-use crate::pedestrian::{Pedestrian, PedestrianParams, WalkGraph};
+pub mod light_controller;
+pub mod soak;
+
+pub use light_controller::{LightController, LightTiming};
+pub use soak::{MeanSd, SoakReport, TableOneRow, soak, table_one};
+
+use crate::agents::actor::{ActorKind, ActorSnapshot};
+use crate::agents::npc::{self, Npc, NpcParams, Reservations, Scratch};
+use crate::agents::pedestrian::{Pedestrian, PedestrianParams, WalkGraph};
+use crate::agents::vehicle::{VehicleControl, VehicleParams, VehicleState};
+use crate::map::town::{LaneIdx, LightState, Town};
 use crate::physics::{
     ContactEvent, DT_S, PEDESTRIAN_HEIGHT_M, PEDESTRIAN_RADIUS_M, Party, Physics,
 };
+use crate::road::lane_path::LanePath;
+use crate::rules::ahead::{ActorView, Ahead, nearest_ahead};
 use crate::rules::{self, RuleBook};
-use crate::town::{LaneIdx, LightState, Town};
-use crate::vehicle::{VehicleControl, VehicleParams, VehicleState};
 use glam::{Vec2, Vec3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -372,7 +378,7 @@ impl Traffic {
         &self.views
     }
 
-    /// The nearest actor other than the ego ahead along a path (points ~1 m apart from the ego's centre): see [`crate::ahead`].
+    /// The nearest actor other than the ego ahead along a path (points ~1 m apart from the ego's centre): see [`crate::rules::ahead`].
     pub fn nearest_ahead_of_ego(
         &self,
         path: &[Vec2],
@@ -476,7 +482,7 @@ impl Traffic {
         &self,
         n: &Npc,
         lights: &[LightState],
-    ) -> Option<(bool, f32, crate::town::LightIdx)> {
+    ) -> Option<(bool, f32, crate::map::town::LightIdx)> {
         let v = n.state.speed_mps;
         npc::next_stop_line(&self.town, &self.rules, n, &self.cfg.vehicle, 80.0).map(
             |(d, light)| {
@@ -779,12 +785,10 @@ fn town_successor_of(town: &Town, lane: LaneIdx) -> LaneIdx {
         .unwrap_or(lane)
 }
 
-pub use crate::soak::{SoakReport, TableOneRow, soak, table_one};
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testtown::{FixtureLights, grid};
+    use crate::map::testtown::{FixtureLights, grid};
 
     fn town() -> Arc<Town> {
         Arc::new(grid(3, 3, 60.0))
@@ -945,7 +949,7 @@ mod tests {
                 let now = front(n);
                 for ends in &lines {
                     assert!(
-                        jumped || !crate::geometry::crosses_stop_line(*prev, now, *ends),
+                        jumped || !crate::road::geometry::crosses_stop_line(*prev, now, *ends),
                         "NPC {} crossed a red stop line at {now}",
                         n.id
                     );
@@ -1150,7 +1154,7 @@ mod tests {
             let c = &t.lanes[l].centerline;
             (c[c.len() - 1] - c[0]).truncate().normalize()
         };
-        let in_j4 = |l: usize| t.lanes[l].junction == Some(crate::town::JunctionIdx(4));
+        let in_j4 = |l: usize| t.lanes[l].junction == Some(crate::map::town::JunctionIdx(4));
         // The ego stands in the centre junction on the straight northbound lane.
         let ego_lane = (0..t.lanes.len())
             .find(|&l| in_j4(l) && dir_of(l).y > 0.99)

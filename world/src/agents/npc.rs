@@ -8,7 +8,7 @@
 //! - longitudinal: the Intelligent Driver Model toward the lane's speed limit
 //!   (lowered on curves to keep lateral acceleration below 2.5 m/s^2), with
 //!   obstacles at (a) the nearest actor in its corridor ahead
-//!   ([`crate::ahead::nearest_ahead`]), minimum gap 3.0 m, (b) the stop line
+//!   ([`crate::rules::ahead::nearest_ahead`]), minimum gap 3.0 m, (b) the stop line
 //!   of a light it must stop for ([`rules::must_stop`]: red, or a yellow
 //!   one it can still stop for at its comfortable deceleration),
 //!   (c) the entry of a junction it holds no reservation for;
@@ -22,11 +22,11 @@
 //! lane and the exit lane has room for it ("don't block the box"). The
 //! reservation is released once the vehicle has left the junction.
 
-use crate::ahead::{ActorView, nearest_ahead};
-use crate::lane_path::LanePath;
+use crate::agents::vehicle::{VehicleControl, VehicleParams, VehicleState};
+use crate::map::town::{LaneIdx, LightIdx, LightState, Town};
+use crate::road::lane_path::LanePath;
+use crate::rules::ahead::{ActorView, nearest_ahead};
 use crate::rules::{self, JunctionConflicts, RuleBook};
-use crate::town::{LaneIdx, LightIdx, LightState, Town};
-use crate::vehicle::{VehicleControl, VehicleParams, VehicleState};
 use glam::Vec2;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
@@ -276,7 +276,7 @@ pub fn decide(
     let corridor = vp.width_m * 0.5 + p.corridor_margin_m;
     if let Some(a) = nearest_ahead(pts, actors, Some(npc.id), corridor, look + half) {
         let gap = a.distance_m - half;
-        let s0 = if a.kind == crate::actor::ActorKind::Pedestrian {
+        let s0 = if a.kind == crate::agents::actor::ActorKind::Pedestrian {
             p.pedestrian_gap_m
         } else {
             p.min_gap_m
@@ -358,7 +358,7 @@ fn curvature(a: Vec2, b: Vec2, c: Vec2) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testtown::grid;
+    use crate::map::testtown::grid;
 
     #[test]
     fn reservations_block_conflicts_only() {

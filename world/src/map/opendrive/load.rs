@@ -10,9 +10,9 @@ use std::path::{Path, PathBuf};
 use glam::{Vec2, Vec3};
 use xodr::{Direction, LaneId, LaneType, Layer, RoadMarkType, RoadNetwork};
 
-use crate::error::MapError;
-use crate::geometry::{arc_lengths, convex_hull, project_to_polyline, signed_area};
-use crate::town::*;
+use crate::map::MapError;
+use crate::map::town::*;
+use crate::road::geometry::{arc_lengths, convex_hull, project_to_polyline, signed_area};
 
 /// Largest coordinate magnitude accepted from a map (metres): 1000 km.
 pub const MAX_COORD_M: f32 = 1.0e6;
@@ -340,7 +340,7 @@ fn resample(points: &[Vec3], spacing: f32) -> (Vec<Vec3>, Vec<f32>) {
     let mut ss = Vec::with_capacity(n + 1);
     for i in 0..=n {
         let s = total * i as f32 / n as f32;
-        out.push(crate::geometry::point_at(points, &cum, s));
+        out.push(crate::road::geometry::point_at(points, &cum, s));
         ss.push(s);
     }
     (out, ss)
@@ -1055,12 +1055,12 @@ fn clip_to_mark(
     let cum = arc_lengths(edge);
     let total = cum.last().copied().unwrap_or(0.0);
     let (s0, s1) = (f0 * total, f1 * total);
-    let mut out = vec![crate::geometry::point_at(edge, &cum, s0)];
+    let mut out = vec![crate::road::geometry::point_at(edge, &cum, s0)];
     for (p, c) in edge.iter().zip(&cum) {
         if *c > s0 && *c < s1 {
             out.push(*p);
         }
     }
-    out.push(crate::geometry::point_at(edge, &cum, s1));
+    out.push(crate::road::geometry::point_at(edge, &cum, s1));
     out
 }

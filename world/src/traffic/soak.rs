@@ -7,7 +7,7 @@
 //! behaviours. [`table_one`] spawns each density for several seeds and
 //! reports the realised counts as mean and standard deviation.
 
-use crate::town::{LightState, Town};
+use crate::map::town::{LightState, Town};
 use crate::traffic::{EgoStart, Traffic, TrafficConfig, TrafficStats};
 use std::sync::Arc;
 use std::time::Instant;

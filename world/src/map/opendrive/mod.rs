@@ -1,0 +1,5 @@
+//! Loading an OpenDRIVE file (through the `xodr` crate) into a [`crate::Town`].
+
+mod load;
+
+pub use load::*;
