@@ -58,7 +58,7 @@ pub fn soak(
     SoakReport {
         vehicles: (cfg.vehicles, traffic.realised_vehicles()),
         pedestrians: (cfg.pedestrians, traffic.realised_pedestrians()),
-        pedestrians_alive: traffic.pedestrians.len(),
+        pedestrians_alive: traffic.pedestrians().len(),
         ticks,
         sim_s: ticks as f64 * tick_s,
         step_wall_s: wall,
