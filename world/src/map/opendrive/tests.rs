@@ -379,6 +379,21 @@ fn a_lane_width_out_of_range_names_the_road_the_lane_and_the_record() {
 }
 
 #[test]
+fn an_unreadable_width_is_an_error_not_a_lane_dropped() {
+    // The importer drops the <width> (its `a` is not a number) and with it
+    // the lane; the loader must not hand out a town without that lane.
+    let err = load_xodr_str(&road_xml("nan"), "tiny", &LoadOptions::default()).unwrap_err();
+    let MapError::Invalid { what, location, .. } = &err else {
+        panic!("{err}");
+    };
+    assert!(what.contains("width"), "{what}");
+    assert!(
+        location.starts_with(r#"road id="1" lane id="-1""#),
+        "{location}"
+    );
+}
+
+#[test]
 fn a_cut_short_or_foreign_file_is_refused_with_the_fix() {
     let xml = road_xml("3.5");
     let cut = &xml[..xml.find("<objects>").unwrap()];

@@ -35,9 +35,11 @@ impl Ctx<'_> {
         }
     }
 
-    /// The importer drops roads, geometries and numbers it cannot read (NaN,
-    /// infinite, negative lengths) with a warning; a town missing them would
-    /// mislead every run, so those warnings are errors here.
+    /// The importer drops roads, geometries, lanes, records and numbers it
+    /// cannot read (NaN, infinite, negative lengths) with a warning; a town
+    /// missing them would mislead every run, so those warnings are errors
+    /// here. (A lane whose `<width>` has an unreadable `a` would otherwise
+    /// vanish, and the lanes outside it move in.)
     pub(super) fn reject_dropped_geometry(
         &self,
         warnings: &[xodr::Warning],
@@ -55,6 +57,14 @@ impl Ctx<'_> {
                 xodr::Warning::RecordValueUnreadable { road_id, record, attribute, s, .. } => (
                     format!("<{record}> {attribute} is not a finite number"),
                     format!("road id=\"{road_id}\" s={}", s.map_or("?".into(), |v| v.to_string())),
+                ),
+                xodr::Warning::RecordDropped { road_id, record, lane, s, attribute, .. } => (
+                    format!("<{record}> without a readable {attribute} (the importer dropped it)"),
+                    record_location(road_id, *lane, *s),
+                ),
+                xodr::Warning::LaneDropped { road_id, lane, .. } => (
+                    "a lane with no readable <width> or <border> (the importer dropped it and its road marks)".to_string(),
+                    record_location(road_id, Some(*lane), None),
                 ),
                 _ => continue,
             };
@@ -134,4 +144,16 @@ impl Ctx<'_> {
         }
         Ok(())
     }
+}
+
+/// Where a dropped record or lane was: `road id="1" lane id="-1" s=0`.
+fn record_location(road_id: &str, lane: Option<i32>, s: Option<f64>) -> String {
+    let mut at = format!("road id=\"{road_id}\"");
+    if let Some(lane) = lane {
+        at += &format!(" lane id=\"{lane}\"");
+    }
+    if let Some(s) = s {
+        at += &format!(" s={s}");
+    }
+    at
 }
