@@ -4,7 +4,7 @@
 //! Everyone decides from the start-of-tick state; junction reservations are
 //! granted ([`super::reservations`]); the ego, then the NPCs (by id), then
 //! the pedestrians (by id) are moved through the physics; NPC paths advance;
-//! stuck NPCs are respawned ([`super::spawn`]); contact events are counted
+//! stuck NPCs are respawned (`spawn.rs`); contact events are counted
 //! ([`super::TrafficStats`]).
 
 use super::Traffic;
