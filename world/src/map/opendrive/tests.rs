@@ -205,7 +205,6 @@ fn a_signal_stops_its_lanes_traffic_at_the_lane_end() {
     // 1. The lanes lead into no junction, so each stop line is at its
     // lane's end, across its width.
     let mut lines: Vec<_> = light.stop_lines.iter().collect();
-    lines.sort_by_key(|sl| sl.lane);
     let want = [
         (lane_od(&town, -1), 0.0, -3.5),
         (lane_od(&town, -2), -3.5, -7.0),
