@@ -1,5 +1,33 @@
 //! `mrdrive`: the command-line program that wires the crates together. Each
-//! subcommand lives in `cli/`.
+//! command group lives in one file of `cli/`, which parses its arguments,
+//! calls the library and prints; no rule or loop lives here.
+//!
+//! Its part of the data flow (`DESIGN.md`): the entry points, and the one
+//! place that joins `sim` and `policy` (a scenario's policy driver is built
+//! by `policy::PolicyFactory`, registered in `cli::drivers()`).
+//!
+//! ```text
+//! mrdrive run / sweep ──▶ sim::build + sim::runner (one run) / sim::sweep (many) ──▶ tables
+//!     with cli::drivers(): the expert (sim) and the policy (policy::PolicyFactory)
+//! mrdrive collect / label ──▶ dataset (episodes, shards, action values)
+//! mrdrive policy / train ──▶ policy (checkpoints, training, BN recalibration)
+//! mrdrive map / routes / traffic ──▶ world (towns, routes, traffic soaks, Table I)
+//! mrdrive render / render-demo / log / bench ──▶ sim::render, sim::recorder, benchmarks
+//! ```
+//!
+//! | file in `cli/` | commands |
+//! | --- | --- |
+//! | `run.rs` | `run`: one scenario and its result table |
+//! | `sweep.rs` | `sweep`, `sweep merge`, `sweep summary` |
+//! | `map.rs` | `map info`, `map render`, `map generate` |
+//! | `routes.rs` | `routes` |
+//! | `traffic.rs` | `traffic soak`, `traffic table` |
+//! | `render.rs` | `render`, `render-demo`, `render lamp-size`, `bench render` |
+//! | `collect.rs` | `collect`, `label` |
+//! | `policy.rs` | `policy ...`, `train`, `bench policy` |
+//! | `recalibrate.rs` | `policy recalibrate` |
+//! | `bench.rs` | `bench`: joins `bench render` and `bench policy` |
+//! | `log.rs` | `log summary` |
 
 mod cli;
 

@@ -26,9 +26,9 @@ use sim::render::{EgoPose, Renderer, RigConfig};
 use sim::runner::{Prepared, RunError, RunInputs};
 use sim::scenario::{MapSpec, RouteSpec as ScenarioRoute, Scenario};
 use sim::selector::Fixed;
-use world::planner::{DenseRoute, PlannerConfig, plan_route};
+use world::map::{LoadOptions, UnsignalledJunctions, load_xodr_file};
+use world::route::{DenseRoute, PlannerConfig, plan_route};
 use world::route::{Route, RouteFile, RouteWaypoint};
-use world::xodr_map::{LoadOptions, UnsignalledJunctions, load_xodr_file};
 use world::{ActorKind, Town, Vec3};
 
 use crate::format::{
@@ -651,7 +651,7 @@ mod tests {
 
     #[test]
     fn random_routes_are_deterministic_and_long_enough() {
-        let town = world::testtown::grid(4, 4, 100.0);
+        let town = world::map::testtown::grid(4, 4, 100.0);
         let (a, da) = random_route(&town, 7).unwrap();
         let (b, _) = random_route(&town, 7).unwrap();
         assert_eq!(format!("{a:?}"), format!("{b:?}"));

@@ -24,7 +24,7 @@ pub struct LabelDriver {
 
 impl LabelDriver {
     /// A driver for this town.
-    pub fn new(town: &world::Town, vehicle: &world::vehicle::VehicleParams) -> LabelDriver {
+    pub fn new(town: &world::Town, vehicle: &world::agents::VehicleParams) -> LabelDriver {
         LabelDriver {
             labeller: Labeller::wor(town, vehicle),
         }

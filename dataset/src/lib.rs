@@ -1,11 +1,27 @@
 //! Driving data without networks: WoR's action space, the shard format and
 //! its reader, world-on-rails action values, and the collection of episodes.
+//! It builds and tests without burn.
 //!
-//! Data flow (DESIGN.md): the expert drives scenarios with noise -> the
-//! collection observer keeps a frame every 10th tick (rig images per camera
-//! yaw, class image, speed, command, every actor and light) -> shards
-//! ([`format`]) -> the labeller ([`labels`]) computes `Q[command, speed,
-//! action]` from the recorded future -> label files -> the policy's loader.
+//! Its part of the data flow (`DESIGN.md`):
+//!
+//! ```text
+//! scenarios + the expert with noise (noise) ─▶ a run of sim's loop, observed (collect):
+//!   a frame every 10th tick: rig images per camera yaw, class images, speed,
+//!   command, every actor and light
+//! ─▶ shards (format) ─▶ the labeller (labels/): Q[command, speed, action] from
+//!   world's rules and vehicle model over the recorded future ─▶ label files
+//! ─▶ the policy's loader (policy)
+//! ```
+//!
+//! | path | what |
+//! | --- | --- |
+//! | [`action`] | WoR's 28 actions and the command and speed-bin counts |
+//! | [`decode`] | from the head's logits to a control: speed interpolation, then WoR's decoding to steer, throttle and brake |
+//! | [`noise`] | the expert with noise, the driver of collection |
+//! | [`collect`] | planned episodes, the observer that keeps frames, writing shards |
+//! | [`format`] | the on-disk dataset: index and safetensors shards, and their reader |
+//! | [`labels`] | world-on-rails action values: grid, static and per-step maps, the vehicle model's dynamics, the backward recursion, episodes |
+//! | [`label_driver`] | a driver that drives by the action values (do the labels say how to drive?) |
 
 pub mod action;
 pub mod collect;

@@ -27,8 +27,8 @@ use std::path::{Path, PathBuf};
 
 use image::{Rgb, RgbImage};
 use sim::render::classes::wor_rgb;
-use world::map_render::{Canvas, ROAD, View};
-use world::vehicle::VehicleParams;
+use world::agents::VehicleParams;
+use world::map::picture::{Canvas, ROAD, View};
 use world::{Command, LightState, Vec2};
 
 use crate::action::{
@@ -322,7 +322,7 @@ fn footprint(centre: Vec2, yaw: f32, length: f32, width: f32) -> [Vec2; 4] {
 
 fn bird_eye(
     town: &world::Town,
-    route: Option<&world::planner::DenseRoute>,
+    route: Option<&world::route::DenseRoute>,
     state: &crate::format::Shard,
     i: usize,
 ) -> RgbImage {
@@ -461,7 +461,7 @@ mod tests {
     use super::*;
     use crate::synthetic::{self, SyntheticSpec};
     use std::sync::Arc;
-    use world::map_render::light_rgb;
+    use world::map::picture::light_rgb;
 
     fn towns() -> impl FnMut(&crate::format::Episode) -> Result<Arc<world::Town>, String> {
         let town = Arc::new(synthetic::town());

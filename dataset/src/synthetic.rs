@@ -2,7 +2,7 @@
 //! of the readers (`mrdrive data info`, `data show`, the training loader):
 //! no simulator run, every number below follows from the frame index.
 //!
-//! The town is [`town`] (`world::testtown::grid(3, 3, 100)`); every episode
+//! The town is [`town`] (`world::map::testtown::grid(3, 3, 100)`); every episode
 //! drives its road `y = 0` eastwards on the right-hand lane (`y = -1.75`),
 //! route [`ROUTE_ID`] from `x = 20` to `x = 180` through the lit junction at
 //! `x = 100`, whose stop line for this lane is at `x = 86`. Frame `i` of
@@ -23,8 +23,8 @@ use std::collections::HashMap;
 use std::path::Path;
 
 use world::Town;
-use world::planner::DenseRoute;
-use world::testtown::LANE_WIDTH_M;
+use world::map::testtown::LANE_WIDTH_M;
+use world::route::DenseRoute;
 
 use crate::action::{NUM_ACTIONS, NUM_COMMANDS, NUM_SPEED_BINS};
 use crate::format::{
@@ -77,7 +77,7 @@ impl SyntheticSpec {
 
 /// The town the synthetic episodes drive.
 pub fn town() -> Town {
-    world::testtown::grid(3, 3, 100.0)
+    world::map::testtown::grid(3, 3, 100.0)
 }
 
 /// The route the synthetic episodes drive, as stored in the index.

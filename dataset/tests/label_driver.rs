@@ -8,7 +8,7 @@ use dataset::label_driver::LabelDriver;
 use sim::runner::{self, RunInputs};
 use sim::scenario::Scenario;
 use sim::selector::Fixed;
-use world::vehicle::VehicleParams;
+use world::agents::VehicleParams;
 
 #[test]
 fn the_label_driver_completes_the_default_route_without_running_a_red_light() {

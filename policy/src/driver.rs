@@ -368,7 +368,7 @@ mod tests {
         assert_eq!(rig_for(&scenario, &drivers).unwrap().base_size(), (96, 64));
         let prepared = Prepared {
             town: std::sync::Arc::new(world::Town::empty("t")),
-            route: world::planner::DenseRoute {
+            route: world::route::DenseRoute {
                 id: "0".into(),
                 points: vec![],
                 length_m: 0.0,

@@ -2,7 +2,7 @@
 
 pub use world::Command;
 /// What a driver emits: the vehicle model's control (steer, throttle, brake).
-pub use world::vehicle::VehicleControl;
+pub use world::agents::VehicleControl;
 
 /// An RGB image in row-major order, 3 bytes a pixel, no row padding.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -39,7 +39,7 @@ pub struct Privileged<'a> {
     /// The town.
     pub town: &'a world::Town,
     /// The dense route being driven.
-    pub route: &'a world::planner::DenseRoute,
+    pub route: &'a world::route::DenseRoute,
     /// The route point the ego has reached.
     pub route_index: usize,
     /// The ego.
@@ -49,9 +49,9 @@ pub struct Privileged<'a> {
     /// The stop lines on the route, in route order (the rule book's).
     pub stops: &'a world::rules::RouteStops,
     /// The nearest actor ahead along the route, if any within range.
-    pub ahead: Option<world::ahead::Ahead>,
+    pub ahead: Option<world::rules::Ahead>,
     /// The ego's vehicle model.
-    pub vehicle: &'a world::vehicle::VehicleParams,
+    pub vehicle: &'a world::agents::VehicleParams,
 }
 
 /// What a driver needs the loop to provide.

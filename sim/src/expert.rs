@@ -202,11 +202,11 @@ mod tests {
     //! vehicle model from the expert's controls at every 40 Hz tick.
     use super::*;
     use crate::runner::{AHEAD_CORRIDOR_M, AHEAD_RANGE_M};
-    use world::ahead::{ActorView, nearest_ahead};
-    use world::planner::DenseRoute;
+    use world::agents::{VehicleParams, VehicleState};
+    use world::map::testtown::{grid, planned_route};
+    use world::route::DenseRoute;
+    use world::rules::{ActorView, nearest_ahead};
     use world::rules::{RouteStops, StopLines};
-    use world::testtown::{grid, planned_route};
-    use world::vehicle::{VehicleParams, VehicleState};
     use world::{ActorKind, ActorSnapshot, LightState, Town, Vec2, Vec3};
 
     const DT: f32 = 0.025;
@@ -226,7 +226,7 @@ mod tests {
     struct Tick {
         state: VehicleState,
         control: VehicleControl,
-        ahead: Option<world::ahead::Ahead>,
+        ahead: Option<world::rules::Ahead>,
     }
 
     impl Scene {

@@ -4,8 +4,8 @@
 //! recorder all implement [`RunObserver`] and are handed to
 //! [`crate::runner::run`] in a list; each sees every tick as a [`TickView`].
 
-use world::planner::DenseRoute;
-use world::vehicle::VehicleControl;
+use world::agents::VehicleControl;
+use world::route::DenseRoute;
 use world::{ActorSnapshot, Command, LightState, Town};
 
 use crate::camera::{Camera, CameraFrame};

@@ -21,15 +21,15 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
-use world::ahead::Ahead;
-use world::pedestrian::PedestrianParams;
+use world::agents::pedestrian::PedestrianParams;
+use world::map::{LoadOptions, UnsignalledJunctions, load_xodr_file};
 use world::physics::Party;
-use world::planner::{DenseRoute, PlannerConfig, plan_route};
 use world::route::RouteFile;
+use world::route::{DenseRoute, PlannerConfig, plan_route};
+use world::rules::Ahead;
 use world::rules::{RouteStops, route_ahead, route_s_at};
 use world::traffic::{EgoStart, Traffic, TrafficConfig};
-use world::traffic_light::{LightController, LightTiming};
-use world::xodr_map::{LoadOptions, UnsignalledJunctions, load_xodr_file};
+use world::traffic::{LightController, LightTiming};
 use world::{ActorKind, ActorSnapshot, LightIdx, LightState, Town, Vec2};
 
 use crate::camera::{Camera, CameraFrame};

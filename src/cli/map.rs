@@ -5,8 +5,8 @@ use std::time::Instant;
 
 use anyhow::Context;
 use clap::{Args, Subcommand};
-use world::generator::{GridTownParams, generate_grid_town};
-use world::map_render::{RenderOptions, render_town};
+use world::map::generator::{GridTownParams, generate_grid_town};
+use world::map::picture::{RenderOptions, render_town};
 use world::{
     LightController, LightTiming, LoadOptions, PlannerConfig, RouteFile, UnsignalledJunctions,
     load_xodr_file, plan_route,

@@ -4,9 +4,9 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
 use std::sync::Arc;
-use world::testtown::{FixtureLights, grid};
+use world::map::testtown::{FixtureLights, grid};
 use world::traffic::{EgoStart, TrafficConfig, soak, table_one};
-use world::traffic_light::{LightController, LightTiming};
+use world::traffic::{LightController, LightTiming};
 use world::{LightIdx, PlannerConfig, RouteFile, plan_route};
 
 /// Traffic commands.

@@ -30,8 +30,8 @@
 //! walk on sidewalks and step off them at crossings); they do collide with
 //! vehicles, both ways.
 
-use crate::actor::ActorKind;
-use crate::town::Town;
+use crate::agents::actor::ActorKind;
+use crate::map::town::Town;
 use glam::{Quat, Vec2, Vec3};
 use rapier3d::parry::query::{ShapeCastOptions, cast_shapes, intersection_test};
 use rapier3d::parry::shape::{Capsule, Cuboid, Shape};
@@ -731,7 +731,7 @@ impl Physics {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::town::{Building, Town};
+    use crate::map::town::{Building, Town};
 
     fn walled_town() -> Town {
         // A single building whose west wall is the plane x = 20.

@@ -1,6 +1,6 @@
 //! Integration tests: CARLA's maps and routes, our generated towns, bad input.
 
-use world::generator::{GridTownParams, generate_grid_town};
+use world::map::generator::{GridTownParams, generate_grid_town};
 use world::testdata::{carla_dir, workspace_root};
 use world::{
     Command, LoadOptions, PlannerConfig, RouteFile, Town, load_xodr_file, load_xodr_str, plan_route,

@@ -1,8 +1,8 @@
 //! Integration tests: NPC traffic on real maps (CARLA's towns, our generated towns).
 
 use std::sync::Arc;
-use world::generator::{GridTownParams, generate_grid_town};
-use world::lane_path::LanePath;
+use world::map::generator::{GridTownParams, generate_grid_town};
+use world::road::LanePath;
 use world::testdata::carla_dir;
 use world::traffic::{Traffic, TrafficConfig};
 use world::{LaneIdx, LightController, LightIdx, LightTiming, LoadOptions, Town, load_xodr_str};
@@ -48,7 +48,7 @@ fn drive_every_turn(town: &Arc<Town>) -> f32 {
     };
     let mut tr = Traffic::new(town.clone(), cfg, None);
     assert_eq!(tr.realised_vehicles(), 1);
-    let id = tr.npcs[0].id;
+    let id = tr.npcs()[0].id;
     let half = tr.config().vehicle.length_m * 0.5;
     let mut min_clearance = f32::INFINITY;
     let mut driven = 0;
@@ -71,14 +71,14 @@ fn drive_every_turn(town: &Arc<Town>) -> f32 {
         let mut path = LanePath::new(approach, s);
         path.lanes.push_back(turn);
         tr.place_npc(0, path);
-        let exit = tr.npcs[0].path.lanes[2];
+        let exit = tr.npcs()[0].path.lanes[2];
         let before = tr.stats();
         let mut through = false;
         let mut lane_min = f32::INFINITY;
         for _ in 0..(40 * 90) {
             tr.step(&[]);
-            let c = tr.physics.static_clearance(id);
-            let n = &tr.npcs[0];
+            let c = tr.physics().static_clearance(id);
+            let n = &tr.npcs()[0];
             lane_min = lane_min.min(c);
             let left_turn_lane = !n.path.lanes.contains(&turn);
             if left_turn_lane && (n.path.lane() != exit || n.path.s_m > half + 2.0) {

@@ -1,7 +1,7 @@
 //! The ego's motion over one label step, from the simulator's own vehicle model.
 //!
 //! World on Rails fits a kinematic bicycle to CARLA; mrdrive knows its vehicle
-//! exactly, so a label step integrates `world::vehicle::VehicleState::step`
+//! exactly, so a label step integrates `world::agents::vehicle::VehicleState::step`
 //! (the equations the loop integrates: bicycle, drag, rolling resistance) at
 //! the loop's 40 Hz for one label step (0.25 s). The grid has no actuator
 //! state, so the steering rate limit and the actuator lags are left out: the
@@ -12,7 +12,7 @@
 //! grid state: the move of a car at yaw `t` is the table's move rotated by `t`.
 
 use glam::Vec2;
-use world::vehicle::{VehicleControl, VehicleParams, VehicleState};
+use world::agents::{VehicleControl, VehicleParams, VehicleState};
 
 use crate::action::{BRAKE, NUM_ACTIONS, NUM_STEERS, STEERS, THROTTLES};
 

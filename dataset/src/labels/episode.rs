@@ -8,10 +8,10 @@ use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 use sim::runner::{AHEAD_CORRIDOR_M, AHEAD_RANGE_M};
-use world::ahead::{ActorView, nearest_ahead};
-use world::planner::DenseRoute;
+use world::agents::VehicleParams;
+use world::route::DenseRoute;
+use world::rules::{ActorView, nearest_ahead};
 use world::rules::{RouteStops, StopLines, route_ahead};
-use world::vehicle::VehicleParams;
 use world::{ActorKind, Town, Vec2};
 
 use super::{FrameInput, Hazards, LABEL_VERSION, Labeller, Q};

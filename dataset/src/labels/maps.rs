@@ -7,14 +7,15 @@
 //! grows with what is near the ego, not with the town.
 
 use glam::Vec2;
-use world::planner::{PlannerConfig, turn_decision};
+use world::route::PlannerConfig;
+use world::route::planner::turn_decision;
 use world::rules::StopLines;
 use world::{Command, LightState, Town};
 
 use super::LabelParams;
 use super::grid::{EgoFrame, Grid};
 use crate::format::ActorRow;
-use world::geometry::wrap_angle;
+use world::road::geometry::wrap_angle;
 
 /// Commands (CARLA RoadOption - 1).
 pub const COMMANDS: usize = 6;

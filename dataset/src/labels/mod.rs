@@ -20,7 +20,7 @@ pub mod maps;
 
 use glam::Vec2;
 use world::Command;
-use world::vehicle::VehicleParams;
+use world::agents::VehicleParams;
 
 use crate::action::{BRAKE, NUM_ACTIONS, NUM_COMMANDS, NUM_SPEED_BINS};
 use crate::decode::SPEED_BIN_CENTRES_MPS;
@@ -175,7 +175,7 @@ impl Hazards {
         stops: &world::rules::RouteStops,
         ego_s: f32,
         light: impl Fn(world::LightIdx) -> world::LightState,
-        ahead: Option<world::ahead::Ahead>,
+        ahead: Option<world::rules::Ahead>,
     ) -> Hazards {
         let front_s = ego_s + prm.ego_half_extents.x;
         let stop_line = stops

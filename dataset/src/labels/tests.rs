@@ -4,7 +4,7 @@
 
 use super::*;
 use crate::action::{NUM_STEERS, index};
-use world::testtown::{JUNCTION_HALF_M, LANE_WIDTH_M, STOP_LINE_BACK_M, grid};
+use world::map::testtown::{JUNCTION_HALF_M, LANE_WIDTH_M, STOP_LINE_BACK_M, grid};
 
 const BLOCK_M: f32 = 100.0;
 const RED: u8 = 0;

@@ -6,7 +6,7 @@
 
 use std::collections::BTreeSet;
 
-use world::geometry::box_touches_polyline;
+use world::road::geometry::box_touches_polyline;
 use world::{MarkKind, Town, Vec2, Vec3};
 
 use super::{EgoTick, Infraction, InfractionKind, Monitor};

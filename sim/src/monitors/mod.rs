@@ -24,7 +24,7 @@ pub mod score;
 use serde::{Deserialize, Serialize};
 pub use world::EgoPose;
 use world::LightState;
-use world::geometry::OrientedBox;
+use world::road::geometry::OrientedBox;
 
 /// What the other body in a collision was.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -119,7 +119,7 @@ impl Monitors {
     pub fn new(
         town: &world::Town,
         rules: std::sync::Arc<world::rules::RuleBook>,
-        route: &world::planner::DenseRoute,
+        route: &world::route::DenseRoute,
         deviation_m: f32,
         (stuck_s, low_speed_s, timeout_s): (f64, f64, f64),
     ) -> Monitors {

@@ -9,7 +9,7 @@
 use std::sync::Arc;
 
 use world::LightState;
-use world::geometry::crosses_stop_line;
+use world::road::geometry::crosses_stop_line;
 use world::rules::{RuleBook, crossing_point};
 
 use super::{EgoTick, Infraction, InfractionKind, Monitor};

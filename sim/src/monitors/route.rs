@@ -9,7 +9,7 @@
 //! deviation limit from the route near the ego ends the run.
 
 use world::Vec2;
-use world::planner::DenseRoute;
+use world::route::DenseRoute;
 use world::rules::nearest_route_point;
 
 use super::{EgoTick, Infraction, InfractionKind, Monitor};
@@ -102,7 +102,7 @@ impl Monitor for RouteMonitor {
 mod tests {
     use super::super::{EgoPose, scripted};
     use super::*;
-    use world::testtown::route_through;
+    use world::map::testtown::route_through;
 
     fn line(length: usize) -> Vec<Vec2> {
         (0..=length).map(|i| Vec2::new(i as f32, 0.0)).collect()

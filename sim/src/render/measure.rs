@@ -5,7 +5,7 @@
 use std::time::Instant;
 
 use glam::{Vec2, Vec3};
-use world::planner::DenseRoute;
+use world::route::DenseRoute;
 use world::{ActorSnapshot, LightState, Town, TrafficLight};
 
 use super::classes;
@@ -355,7 +355,7 @@ pub fn bench_report(
 
 #[cfg(test)]
 mod tests {
-    use world::planner::RoutePoint;
+    use world::route::RoutePoint;
     use world::{Command, LaneIdx};
 
     use super::*;

@@ -6,7 +6,7 @@
 //! that merge into one exit). The NPCs' junction reservations grant a lane
 //! only while no conflicting lane is held.
 
-use crate::town::{LaneIdx, Town};
+use crate::map::town::{LaneIdx, Town};
 
 /// Distance between two centrelines below which connecting lanes conflict (metres).
 pub const CONFLICT_M: f32 = 3.0;
@@ -57,8 +57,8 @@ fn centrelines_within(town: &Town, a: usize, b: usize, d: f32) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testtown::grid;
-    use crate::town::{DriveLane, JunctionIdx};
+    use crate::map::testtown::grid;
+    use crate::map::town::{DriveLane, JunctionIdx};
 
     #[test]
     fn crossing_connecting_lanes_conflict_and_parallel_right_turns_do_not() {

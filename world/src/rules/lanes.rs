@@ -23,7 +23,7 @@
 
 use glam::Vec2;
 
-use crate::town::{DriveLane, LaneIdx, Town};
+use crate::map::town::{DriveLane, LaneIdx, Town};
 
 /// Extra distance beyond half a lane's width within which a point is still on it (metres).
 pub const ON_LANE_MARGIN_M: f32 = 0.5;
@@ -208,8 +208,8 @@ impl LaneGrid {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testtown::{grid, lane_through};
-    use crate::town::{JunctionIdx, Town};
+    use crate::map::testtown::{grid, lane_through};
+    use crate::map::town::{JunctionIdx, Town};
     use std::f32::consts::PI;
 
     fn lane(pts: &[(f32, f32)], width: f32, junction: Option<JunctionIdx>) -> DriveLane {

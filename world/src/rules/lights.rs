@@ -13,7 +13,7 @@
 //! A light missing from a state slice counts as green (a town's state vector
 //! may end before an unsignalled light).
 
-use crate::town::{LightIdx, LightState};
+use crate::map::town::{LightIdx, LightState};
 
 /// The slack of the yellow-light decision (metres).
 pub const YELLOW_SLACK_M: f32 = 0.5;

@@ -11,13 +11,15 @@
 //! | [`pursuit`] | the pure-pursuit lookahead |
 //! | [`lanes`] | the lane under a point (heading agreement, one width lookup), the nearest lane, and [`LaneGrid`] |
 //! | [`conflicts`] | which connecting lanes of a junction conflict |
+//! | [`ahead`] | what is ahead along a path: the nearest actor whose footprint reaches into a corridor, and its distance along the path |
 //!
 //! Each rule is a plain function or table built from a [`Town`] (and a
 //! [`crate::DenseRoute`]): none needs a running [`crate::traffic::Traffic`].
 //! [`RuleBook`] holds a town's tables, built once; a run shares one
 //! ([`crate::traffic::Traffic::rules`]). The vehicle model every vehicle
-//! moves by is [`crate::vehicle::VehicleState::step`].
+//! moves by is [`crate::agents::vehicle::VehicleState::step`].
 
+pub mod ahead;
 pub mod conflicts;
 pub mod crossing;
 pub mod lanes;
@@ -26,6 +28,7 @@ pub mod pursuit;
 pub mod route;
 pub mod stop_lines;
 
+pub use ahead::{ActorView, Ahead, nearest_ahead};
 pub use conflicts::JunctionConflicts;
 pub use crossing::{crossing_offset_m, crossing_point};
 pub use lanes::{LaneGrid, heading_agrees, nearest_lane, project_on_lane};
@@ -34,7 +37,7 @@ pub use pursuit::pursuit_lookahead_m;
 pub use route::{nearest_route_point, route_ahead, route_point_at, route_s_at};
 pub use stop_lines::{RouteStop, RouteStops, StopLineEntry, StopLines};
 
-use crate::town::Town;
+use crate::map::town::Town;
 
 /// Side of the cells of a rule book's lane grid (metres).
 pub const LANE_GRID_CELL_M: f32 = 5.0;

@@ -8,7 +8,7 @@
 
 use glam::Vec2;
 
-use crate::planner::DenseRoute;
+use crate::route::planner::DenseRoute;
 
 /// Distance along `route` of a position (metres, ground plane), measured
 /// from route point `index`: its `route_s` plus the position's offset along
@@ -42,7 +42,7 @@ pub fn route_point_at(route: &DenseRoute, from: usize, route_s: f32) -> Option<V
 }
 
 /// The path ahead of a vehicle along its route, for the "ahead" query
-/// ([`crate::ahead::nearest_ahead`]): its position first, then the route's
+/// ([`crate::rules::ahead::nearest_ahead`]): its position first, then the route's
 /// points from point `from` on, up to `range_m` metres along the route from
 /// that point (metres, ground plane). Clears `out` first.
 pub fn route_ahead(
@@ -87,7 +87,7 @@ pub fn nearest_route_point(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testtown::route_through;
+    use crate::map::testtown::route_through;
 
     fn l_shape() -> DenseRoute {
         // 10 m east, then 10 m north, 1 m apart.

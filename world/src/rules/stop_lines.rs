@@ -10,8 +10,8 @@
 
 use glam::Vec2;
 
-use crate::planner::DenseRoute;
-use crate::town::{LaneIdx, LightIdx, Town};
+use crate::map::town::{LaneIdx, LightIdx, Town};
+use crate::route::planner::DenseRoute;
 
 /// One stop line of a town, as the table lists it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -159,8 +159,8 @@ impl RouteStops {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testtown::{JUNCTION_HALF_M, STOP_LINE_BACK_M, grid, planned_route};
-    use crate::town::{StopLine, TrafficLight};
+    use crate::map::testtown::{JUNCTION_HALF_M, STOP_LINE_BACK_M, grid, planned_route};
+    use crate::map::town::{StopLine, TrafficLight};
     use glam::Vec3;
     use std::f32::consts::PI;
 

@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 
-use crate::error::RouteError;
+use crate::route::RouteError;
 
 /// One route waypoint in the OpenDRIVE frame.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -327,6 +327,17 @@ pub fn wrap_angle(a: f32) -> f32 {
 mod tests {
     use super::*;
 
+    #[test]
+    fn angles_wrap_into_minus_pi_exclusive_to_pi_inclusive() {
+        use std::f32::consts::{FRAC_PI_2, PI, TAU};
+        assert_eq!(wrap_angle(0.25), 0.25);
+        assert!((wrap_angle(1.5 * PI) + FRAC_PI_2).abs() < 1e-6);
+        assert!((wrap_angle(-1.5 * PI) - FRAC_PI_2).abs() < 1e-6);
+        assert!((wrap_angle(3.0 * TAU + 0.5) - 0.5).abs() < 1e-5);
+        assert_eq!(wrap_angle(PI), PI);
+        assert_eq!(wrap_angle(-PI), PI);
+    }
+
     fn v3(x: f32, y: f32) -> Vec3 {
         Vec3::new(x, y, 0.0)
     }

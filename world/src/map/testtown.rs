@@ -14,9 +14,9 @@
 //! [`FixtureLights`] cycles the lit junctions on a fixed timetable, standing
 //! in for the real controller in tests.
 
-use crate::command::Command;
-use crate::planner::{DenseRoute, RoutePoint};
-use crate::town::*;
+use crate::map::town::*;
+use crate::route::command::Command;
+use crate::route::planner::{DenseRoute, RoutePoint};
 use glam::{Vec2, Vec3};
 
 /// Half the side of a junction's square area (metres): lanes end this far from the node.
@@ -263,7 +263,7 @@ pub fn lane_through(points: &[Vec2]) -> DriveLane {
 pub fn planned_route(
     town: &Town,
     waypoints: &[(f32, f32, f32)],
-) -> Result<DenseRoute, crate::error::RouteError> {
+) -> Result<DenseRoute, crate::route::RouteError> {
     let route = crate::route::Route {
         id: "planned".into(),
         town: None,
@@ -276,7 +276,11 @@ pub fn planned_route(
             .collect(),
         source: "testtown::planned_route".into(),
     };
-    crate::planner::plan_route(town, &route, &crate::planner::PlannerConfig::default())
+    crate::route::planner::plan_route(
+        town,
+        &route,
+        &crate::route::planner::PlannerConfig::default(),
+    )
 }
 
 /// A dense route along the polyline `points` (ground plane, metres), for

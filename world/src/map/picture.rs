@@ -5,7 +5,7 @@
 use glam::{Mat2, Vec2, Vec3};
 use image::RgbImage;
 
-use crate::town::{LightState, MarkColor, MarkKind, Town};
+use crate::map::town::{LightState, MarkColor, MarkKind, Town};
 
 /// How to draw a town.
 #[derive(Debug, Clone)]
@@ -391,12 +391,12 @@ pub fn render_town(town: &Town, opts: &RenderOptions) -> RgbImage {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::town::*;
+    use crate::map::town::*;
 
     #[test]
     fn lane_and_light_colours_land_where_they_should() {
         let centerline: Vec<Vec3> = (0..=20).map(|i| Vec3::new(i as f32, 0.0, 0.0)).collect();
-        let s = crate::geometry::arc_lengths(&centerline);
+        let s = crate::road::geometry::arc_lengths(&centerline);
         let lane = DriveLane {
             road_id: "r".into(),
             od_lane: -1,

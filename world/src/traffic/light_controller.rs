@@ -12,7 +12,7 @@
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::town::{LightIdx, LightState, Town};
+use crate::map::town::{LightIdx, LightState, Town};
 
 /// Phase durations of a light cycle (seconds).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -180,7 +180,7 @@ impl LightController {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::town::*;
+    use crate::map::town::*;
     use glam::Vec3;
 
     fn light(j: Option<u32>, group: u32) -> TrafficLight {

@@ -5,7 +5,7 @@
 //! about 1 m apart) and lies in front of the path's start. Its distance is
 //! measured along the path to the near edge of its footprint.
 
-use crate::actor::ActorKind;
+use crate::agents::actor::ActorKind;
 use glam::Vec2;
 
 /// A moving actor as the behaviours see it at the start of a tick.

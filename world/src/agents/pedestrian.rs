@@ -17,10 +17,10 @@
 //! vehicle's path, and nowhere does it step within [`VEHICLE_MARGIN_M`] of a
 //! vehicle's body; a walker held up by a vehicle for half a second turns back.
 
-use crate::actor::ActorKind;
-use crate::ahead::ActorView;
+use crate::agents::actor::ActorKind;
+use crate::map::town::Town;
 use crate::physics::PEDESTRIAN_RADIUS_M;
-use crate::town::Town;
+use crate::rules::ahead::ActorView;
 use glam::Vec2;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
@@ -516,8 +516,8 @@ fn seg_dist(p: Vec2, a: Vec2, b: Vec2) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::actor::ActorKind;
-    use crate::testtown::grid;
+    use crate::agents::actor::ActorKind;
+    use crate::map::testtown::grid;
     use rand::SeedableRng;
 
     #[test]

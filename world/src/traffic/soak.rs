@@ -7,7 +7,7 @@
 //! behaviours. [`table_one`] spawns each density for several seeds and
 //! reports the realised counts as mean and standard deviation.
 
-use crate::town::{LightState, Town};
+use crate::map::town::{LightState, Town};
 use crate::traffic::{EgoStart, Traffic, TrafficConfig, TrafficStats};
 use std::sync::Arc;
 use std::time::Instant;
@@ -58,7 +58,7 @@ pub fn soak(
     SoakReport {
         vehicles: (cfg.vehicles, traffic.realised_vehicles()),
         pedestrians: (cfg.pedestrians, traffic.realised_pedestrians()),
-        pedestrians_alive: traffic.pedestrians.len(),
+        pedestrians_alive: traffic.pedestrians().len(),
         ticks,
         sim_s: ticks as f64 * tick_s,
         step_wall_s: wall,

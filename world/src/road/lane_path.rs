@@ -5,7 +5,7 @@
 //! left. The lane under a point (for the ego, which is not on rails) is a
 //! rule: [`crate::rules::lanes`].
 
-use crate::town::{LaneIdx, Town};
+use crate::map::town::{LaneIdx, Town};
 use glam::Vec2;
 use std::collections::VecDeque;
 
@@ -128,7 +128,7 @@ impl LanePath {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testtown::grid;
+    use crate::map::testtown::grid;
 
     #[test]
     fn path_advances_across_lane_boundaries() {
@@ -157,7 +157,7 @@ mod tests {
         let t = grid(3, 3, 60.0);
         let mut p = LanePath::new(LaneIdx(0), 3.3);
         let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(1);
-        crate::npc::extend_path(&t, &mut p, &mut rng, 120.0);
+        crate::agents::npc::extend_path(&t, &mut p, &mut rng, 120.0);
         let mut pts = Vec::new();
         p.sample_ahead(&t, 1.0, 100.0, &mut pts);
         assert_eq!(pts.len(), 101);

@@ -30,6 +30,8 @@
 
 use glam::Vec2;
 
+use crate::road::geometry::wrap_angle;
+
 /// Controls for one vehicle, as a driver emits them.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct VehicleControl {
@@ -202,18 +204,6 @@ impl VehicleState {
         let resist = params.drag_per_m * v * v + if v > 0.0 { params.rolling_mps2 } else { 0.0 };
         self.speed_mps = (v + (self.accel_actual - resist) * dt_s).max(0.0);
     }
-}
-
-/// Wraps an angle into (-pi, pi] (radians).
-pub fn wrap_angle(a: f32) -> f32 {
-    let two_pi = std::f32::consts::TAU;
-    let mut r = a % two_pi;
-    if r > std::f32::consts::PI {
-        r -= two_pi;
-    } else if r <= -std::f32::consts::PI {
-        r += two_pi;
-    }
-    r
 }
 
 #[cfg(test)]

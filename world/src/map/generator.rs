@@ -457,7 +457,7 @@ fn wrap(a: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::xodr_map::{LoadOptions, load_xodr_str};
+    use crate::map::opendrive::{LoadOptions, load_xodr_str};
 
     #[test]
     fn small_town_loads_clean_and_connected() {
@@ -515,7 +515,7 @@ mod tests {
 
     #[test]
     fn stop_lines_sit_at_the_junction_entry_and_markings_bound_the_lane() {
-        use crate::geometry::{OrientedBox, box_touches_polyline, crosses_stop_line};
+        use crate::road::geometry::{OrientedBox, box_touches_polyline, crosses_stop_line};
         use glam::Vec2;
         // Nodes at x = 0, 60, 120 and y = 0, 60; junction squares 10 m half size.
         let p = GridTownParams {

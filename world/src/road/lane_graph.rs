@@ -4,8 +4,8 @@
 
 use glam::{Vec2, Vec3};
 
-use crate::geometry::{PolylineProjection, project_to_polyline};
-use crate::town::{DriveLane, LaneIdx, Town};
+use crate::map::town::{DriveLane, LaneIdx, Town};
+use crate::road::geometry::{PolylineProjection, project_to_polyline};
 
 impl DriveLane {
     /// The lane's length along its centreline (metres).
@@ -15,12 +15,12 @@ impl DriveLane {
 
     /// The centreline point at arc length `s` (metres), clamped to the lane.
     pub fn point_at(&self, s: f32) -> Vec3 {
-        crate::geometry::point_at(&self.centerline, &self.s, s)
+        crate::road::geometry::point_at(&self.centerline, &self.s, s)
     }
 
     /// Driving heading at arc length `s` (radians, counter-clockwise from +x).
     pub fn heading_at(&self, s: f32) -> f32 {
-        crate::geometry::heading_at(&self.centerline, &self.s, s)
+        crate::road::geometry::heading_at(&self.centerline, &self.s, s)
     }
 
     /// The pose at arc length `s` (metres), clamped to the lane: the ground
@@ -160,13 +160,13 @@ impl Town {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::town::*;
+    use crate::map::town::*;
 
     fn lane(pts: &[(f32, f32)], succ: &[u32]) -> DriveLane {
         let pts: Vec<Vec2> = pts.iter().map(|&(x, y)| Vec2::new(x, y)).collect();
         DriveLane {
             successors: succ.iter().map(|&i| LaneIdx(i)).collect(),
-            ..crate::testtown::lane_through(&pts)
+            ..crate::map::testtown::lane_through(&pts)
         }
     }
 

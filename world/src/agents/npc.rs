@@ -8,7 +8,7 @@
 //! - longitudinal: the Intelligent Driver Model toward the lane's speed limit
 //!   (lowered on curves to keep lateral acceleration below 2.5 m/s^2), with
 //!   obstacles at (a) the nearest actor in its corridor ahead
-//!   ([`crate::ahead::nearest_ahead`]), minimum gap 3.0 m, (b) the stop line
+//!   ([`crate::rules::ahead::nearest_ahead`]), minimum gap 3.0 m, (b) the stop line
 //!   of a light it must stop for ([`rules::must_stop`]: red, or a yellow
 //!   one it can still stop for at its comfortable deceleration),
 //!   (c) the entry of a junction it holds no reservation for;
@@ -17,16 +17,16 @@
 //!
 //! Junction yielding: connecting lanes of one junction conflict as
 //! [`rules::conflicts`] says. Before entering a junction an
-//! NPC requests its connecting lane; [`Reservations`] grants requests in
+//! NPC requests its connecting lane; [`crate::traffic::Reservations`] grants requests in
 //! order of waiting time (then id) when no other vehicle holds a conflicting
 //! lane and the exit lane has room for it ("don't block the box"). The
 //! reservation is released once the vehicle has left the junction.
 
-use crate::ahead::{ActorView, nearest_ahead};
-use crate::lane_path::LanePath;
-use crate::rules::{self, JunctionConflicts, RuleBook};
-use crate::town::{LaneIdx, LightIdx, LightState, Town};
-use crate::vehicle::{VehicleControl, VehicleParams, VehicleState};
+use crate::agents::vehicle::{VehicleControl, VehicleParams, VehicleState};
+use crate::map::town::{LaneIdx, LightIdx, LightState, Town};
+use crate::road::lane_path::LanePath;
+use crate::rules::ahead::{ActorView, nearest_ahead};
+use crate::rules::{self, RuleBook};
 use glam::Vec2;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
@@ -99,51 +99,6 @@ pub struct Npc {
     /// Its own random stream (route choices, respawns).
     pub rng: ChaCha8Rng,
 }
-
-/// Junction reservations: who holds which connecting lane.
-#[derive(Debug, Clone, Default)]
-pub struct Reservations {
-    holders: Vec<Vec<u32>>,
-}
-
-impl Reservations {
-    /// No reservations, for a town with `n_lanes` lanes.
-    pub fn new(n_lanes: usize) -> Reservations {
-        Reservations {
-            holders: vec![Vec::new(); n_lanes],
-        }
-    }
-
-    /// Whether `lane` can be granted to `id`: no other vehicle holds it or a conflicting lane.
-    /// (Several vehicles may hold the same lane: they follow each other.)
-    pub fn free_for(&self, conflicts: &JunctionConflicts, lane: LaneIdx, id: u32) -> bool {
-        conflicts
-            .of(lane)
-            .iter()
-            .all(|c| self.holders[c.0 as usize].iter().all(|&h| h == id))
-    }
-
-    /// Records that `id` holds `lane`.
-    pub fn grant(&mut self, lane: LaneIdx, id: u32) {
-        let h = &mut self.holders[lane.0 as usize];
-        if !h.contains(&id) {
-            h.push(id);
-        }
-    }
-
-    /// Drops `id`'s hold on `lane`.
-    pub fn release(&mut self, lane: LaneIdx, id: u32) {
-        self.holders[lane.0 as usize].retain(|&h| h != id);
-    }
-
-    /// Who holds a lane.
-    pub fn holders(&self, lane: LaneIdx) -> &[u32] {
-        &self.holders[lane.0 as usize]
-    }
-}
-
-/// Where an actor is on the lane graph, for the box-blocking check: (lane, arc length of its rear).
-pub type LaneOccupant = (LaneIdx, f32);
 
 /// Makes sure the path reaches `ahead_m` beyond the position, choosing random successors.
 pub fn extend_path(town: &Town, path: &mut LanePath, rng: &mut ChaCha8Rng, ahead_m: f32) {
@@ -276,7 +231,7 @@ pub fn decide(
     let corridor = vp.width_m * 0.5 + p.corridor_margin_m;
     if let Some(a) = nearest_ahead(pts, actors, Some(npc.id), corridor, look + half) {
         let gap = a.distance_m - half;
-        let s0 = if a.kind == crate::actor::ActorKind::Pedestrian {
+        let s0 = if a.kind == crate::agents::actor::ActorKind::Pedestrian {
             p.pedestrian_gap_m
         } else {
             p.min_gap_m
@@ -352,28 +307,5 @@ fn curvature(a: Vec2, b: Vec2, c: Vec2) -> f32 {
         0.0
     } else {
         2.0 * cross / (ab * bc * ca)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::testtown::grid;
-
-    #[test]
-    fn reservations_block_conflicts_only() {
-        let t = grid(3, 3, 60.0);
-        let conflicts = JunctionConflicts::new(&t);
-        let mut r = Reservations::new(t.lanes.len());
-        let a = (0..t.lanes.len())
-            .map(|i| LaneIdx(i as u32))
-            .find(|&l| !conflicts.of(l).is_empty())
-            .unwrap();
-        let b = conflicts.of(a)[0];
-        r.grant(a, 1);
-        assert!(!r.free_for(&conflicts, b, 2));
-        assert!(r.free_for(&conflicts, a, 2));
-        r.release(a, 1);
-        assert!(r.free_for(&conflicts, b, 2));
     }
 }

@@ -15,10 +15,10 @@ use std::collections::BinaryHeap;
 
 use glam::{Vec2, Vec3};
 
-use crate::command::Command;
-use crate::error::RouteError;
+use crate::map::town::{LaneIdx, Town};
 use crate::route::Route;
-use crate::town::{LaneIdx, Town};
+use crate::route::RouteError;
+use crate::route::command::Command;
 
 /// Planner settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -254,7 +254,7 @@ fn plan_leg(
                 continue;
             }
             let target = town.lane(nb);
-            let Some(p) = crate::geometry::project_to_polyline(
+            let Some(p) = crate::road::geometry::project_to_polyline(
                 &target.centerline,
                 l.point_at(end_s).truncate(),
             ) else {
@@ -574,15 +574,15 @@ fn densify(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::map::town::*;
     use crate::route::RouteWaypoint;
-    use crate::town::*;
     use std::path::PathBuf;
 
     fn lane(pts: Vec<Vec3>, junction: Option<u32>) -> DriveLane {
         let pts: Vec<Vec2> = pts.iter().map(|p| p.truncate()).collect();
         DriveLane {
             junction: junction.map(JunctionIdx),
-            ..crate::testtown::lane_through(&pts)
+            ..crate::map::testtown::lane_through(&pts)
         }
     }
 

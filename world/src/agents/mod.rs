@@ -1,0 +1,11 @@
+//! What moves in the town: the [`actor`] snapshot every consumer reads, the
+//! [`vehicle`] model shared by the ego and the NPCs, the [`npc`] driver and
+//! the [`pedestrian`] walkers.
+
+pub mod actor;
+pub mod npc;
+pub mod pedestrian;
+pub mod vehicle;
+
+pub use actor::{ActorKind, ActorSnapshot, EgoPose};
+pub use vehicle::{VehicleControl, VehicleParams, VehicleState};

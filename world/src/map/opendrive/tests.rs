@@ -1,0 +1,420 @@
+//! The loader's parts, each on a map small enough to know the answer: one
+//! straight road written by hand (three driving lanes, a sidewalk, three
+//! road marks, a traffic light, a building, a crosswalk), a generated grid
+//! town for what needs junctions, and broken files for the errors.
+
+use glam::Vec2;
+
+use super::*;
+use crate::map::generator::{GridTownParams, generate_grid_town};
+use crate::map::{LightIdx, MapError, MarkColor, MarkKind};
+use crate::road::geometry::{point_in_polygon, signed_area};
+
+/// One road along +x from (0, 0), 100 m long, 50 km/h: lane 1 (driving,
+/// against +x), lanes -1 and -2 (driving, along +x), 3.5 m each; a broken
+/// yellow centre line, a broken white line between -1 and -2, a solid white
+/// line on lane -2's outer edge; sidewalk -3 (3 m, 0.2 m high). A traffic
+/// light for the +x traffic at s = 90, a building at (50, -15)
+/// (10 m x 8 m x 12 m) and a crosswalk across lanes -1 and -2 at s = 50
+/// (4 m x 7 m). `@WIDTH@` is lane -1's width.
+const ROAD: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
+<OpenDRIVE>
+    <header revMajor="1" revMinor="4" name="tiny" version="1"/>
+    <road name="main" length="100" id="1" junction="-1">
+        <type s="0" type="town"><speed max="50" unit="km/h"/></type>
+        <planView>
+            <geometry s="0" x="0" y="0" hdg="0" length="100"><line/></geometry>
+        </planView>
+        <lanes>
+            <laneSection s="0">
+                <left>
+                    <lane id="1" type="driving" level="false">
+                        <width sOffset="0" a="3.5" b="0" c="0" d="0"/>
+                    </lane>
+                </left>
+                <center>
+                    <lane id="0" type="none" level="false">
+                        <roadMark sOffset="0" type="broken" weight="standard" color="yellow" width="0.15"/>
+                    </lane>
+                </center>
+                <right>
+                    <lane id="-1" type="driving" level="false">
+                        <width sOffset="0" a="@WIDTH@" b="0" c="0" d="0"/>
+                        <roadMark sOffset="0" type="broken" weight="standard" color="white" width="0.15"/>
+                    </lane>
+                    <lane id="-2" type="driving" level="false">
+                        <width sOffset="0" a="3.5" b="0" c="0" d="0"/>
+                        <roadMark sOffset="0" type="solid" weight="standard" color="white" width="0.15"/>
+                    </lane>
+                    <lane id="-3" type="sidewalk" level="false">
+                        <width sOffset="0" a="3" b="0" c="0" d="0"/>
+                        <height sOffset="0" inner="0.2" outer="0.2"/>
+                    </lane>
+                </right>
+            </laneSection>
+        </lanes>
+        <objects>
+            <object type="building" name="building" id="b1" s="50" t="-15" zOffset="0" orientation="none" length="10" width="8" height="12" hdg="0" pitch="0" roll="0"/>
+            <object type="crosswalk" name="crosswalk" id="c1" s="50" t="-3.5" zOffset="0" orientation="none" length="4" width="7" height="0" hdg="0" pitch="0" roll="0"/>
+        </objects>
+        <signals>
+            <signal s="90" t="-5" id="5000" name="TrafficLight" dynamic="yes" orientation="+" zOffset="0" country="OpenDRIVE" type="1000001" subtype="-1" value="-1" hOffset="3.141593" pitch="0" roll="0" height="3.0" width="0.5"/>
+        </signals>
+    </road>
+</OpenDRIVE>
+"#;
+
+fn road_xml(width: &str) -> String {
+    ROAD.replace("@WIDTH@", width)
+}
+
+fn road() -> (Town, LoadReport) {
+    load_xodr_str(&road_xml("3.5"), "tiny", &LoadOptions::default()).unwrap()
+}
+
+fn close(a: Vec2, b: Vec2) -> bool {
+    (a - b).length() < 1e-3
+}
+
+/// The lane whose OpenDRIVE id is `od`.
+fn lane_od(town: &Town, od: i32) -> LaneIdx {
+    LaneIdx(town.lanes.iter().position(|l| l.od_lane == od).unwrap() as u32)
+}
+
+#[test]
+fn the_report_counts_what_the_file_holds() {
+    let (town, report) = road();
+    assert_eq!(town.name, "tiny");
+    assert_eq!((report.roads, report.signals), (1, 1));
+    // Lanes of every type: two driving lanes, the sidewalk and the centre lane's none.
+    assert!(report.lanes >= 3, "{report:?}");
+    assert!(!report.generated_lights);
+    assert_eq!(report.file, PathBuf::from("<tiny>"));
+}
+
+#[test]
+fn driving_lanes_run_their_way_with_width_speed_and_neighbours() {
+    let (town, _) = road();
+    assert_eq!(town.lanes.len(), 3, "the sidewalk is not a driving lane");
+    let (inner, outer, back) = (lane_od(&town, -1), lane_od(&town, -2), lane_od(&town, 1));
+    let f = town.lane(inner);
+    // Along +x on the right of the reference line, resampled a metre apart.
+    assert!(close(f.centerline[0].truncate(), Vec2::new(0.0, -1.75)));
+    let last = f.centerline.len() - 1;
+    assert!(close(
+        f.centerline[last].truncate(),
+        Vec2::new(100.0, -1.75)
+    ));
+    assert_eq!(last, (100.0 / CENTERLINE_SPACING_M) as usize);
+    assert!((f.s[last] - 100.0).abs() < 1e-3);
+    assert!(f.width.iter().all(|w| (w - 3.5).abs() < 1e-4));
+    assert!((f.speed_limit_mps - 50.0 / 3.6).abs() < 1e-4);
+    assert_eq!((f.road_id.as_str(), f.junction), ("1", None));
+    assert!(close(
+        town.lane(outer).centerline[0].truncate(),
+        Vec2::new(0.0, -5.25)
+    ));
+    // Lane 1 drives against the reference line: it starts at x = 100.
+    let b = town.lane(back);
+    assert!(close(b.centerline[0].truncate(), Vec2::new(100.0, 1.75)));
+    // Neighbours are the lanes one may change into, seen in the driving
+    // direction: -2 is right of -1; lane 1 runs the other way, so it is
+    // nobody's neighbour.
+    assert_eq!((f.left, f.right), (None, Some(outer)));
+    assert_eq!(
+        (town.lane(outer).left, town.lane(outer).right),
+        (Some(inner), None)
+    );
+    assert_eq!((b.left, b.right), (None, None));
+}
+
+#[test]
+fn a_lane_without_a_speed_limit_gets_the_default() {
+    let xml = road_xml("3.5").replace(r#"<speed max="50" unit="km/h"/>"#, "");
+    let (town, _) = load_xodr_str(&xml, "tiny", &LoadOptions::default()).unwrap();
+    assert!(
+        town.lanes
+            .iter()
+            .all(|l| l.speed_limit_mps == DEFAULT_SPEED_LIMIT_MPS)
+    );
+}
+
+#[test]
+fn road_marks_follow_the_lane_edges_with_their_kind_and_colour() {
+    let (town, _) = road();
+    assert_eq!(town.markings.len(), 3, "{:?}", town.markings);
+    // (kind, colour, dash pattern, y of the line)
+    let expected = [
+        (MarkKind::Broken, MarkColor::Yellow, Some((4.0, 8.0)), 0.0),
+        (MarkKind::Broken, MarkColor::White, Some((4.0, 8.0)), -3.5),
+        (MarkKind::Solid, MarkColor::White, None, -7.0),
+    ];
+    for (kind, color, dash, y) in expected {
+        let m = town
+            .markings
+            .iter()
+            .find(|m| m.kind == kind && m.color == color)
+            .unwrap_or_else(|| panic!("no {kind:?} {color:?} line"));
+        // No dash pattern in the file: the importer paints `broken` 4 m on, 8 m off.
+        assert_eq!(m.dash_m, dash);
+        assert!(
+            m.points.iter().all(|p| (p.y - y).abs() < 1e-3),
+            "{kind:?} {color:?}"
+        );
+        let (lo, hi) = m.points.iter().fold((f32::MAX, f32::MIN), |(lo, hi), p| {
+            (lo.min(p.x), hi.max(p.x))
+        });
+        assert!(lo.abs() < 1e-3 && (hi - 100.0).abs() < 1e-3, "{lo}..{hi}");
+        assert!((m.width_m - 0.15).abs() < 1e-6);
+    }
+}
+
+#[test]
+fn the_sidewalk_has_its_road_side_edge_inside_and_its_height() {
+    let (town, _) = road();
+    assert_eq!(town.sidewalks.len(), 1);
+    let s = &town.sidewalks[0];
+    assert!(
+        s.inner.iter().all(|p| (p.y + 7.0).abs() < 1e-3),
+        "{:?}",
+        s.inner
+    );
+    assert!(
+        s.outer.iter().all(|p| (p.y + 10.0).abs() < 1e-3),
+        "{:?}",
+        s.outer
+    );
+    assert!((s.height_m - 0.2).abs() < 1e-6);
+    // Without a <height> record: the default.
+    let xml = road_xml("3.5").replace(r#"<height sOffset="0" inner="0.2" outer="0.2"/>"#, "");
+    let (town, _) = load_xodr_str(&xml, "tiny", &LoadOptions::default()).unwrap();
+    assert_eq!(town.sidewalks[0].height_m, DEFAULT_SIDEWALK_HEIGHT_M);
+}
+
+#[test]
+fn a_signal_stops_its_lanes_traffic_at_the_lane_end() {
+    let (town, _) = road();
+    assert_eq!(town.lights.len(), 1);
+    let light = &town.lights[0];
+    assert_eq!(light.od_id, "5000");
+    assert_eq!((light.junction, light.group), (None, 0));
+    assert_eq!(light.head_height_m, DEFAULT_LIGHT_HEAD_HEIGHT_M);
+    // It stands where the file puts it: s = 90, t = -5.
+    assert!(close(light.position.truncate(), Vec2::new(90.0, -5.0)));
+    // Orientation "+": it stops the +x traffic (lanes -1 and -2), not lane
+    // 1. The lanes lead into no junction, so each stop line is at its
+    // lane's end, across its width.
+    let mut lines: Vec<_> = light.stop_lines.iter().collect();
+    let want = [
+        (lane_od(&town, -1), 0.0, -3.5),
+        (lane_od(&town, -2), -3.5, -7.0),
+    ];
+    assert_eq!(lines.len(), want.len());
+    lines.sort_by_key(|sl| want.iter().position(|w| w.0 == sl.lane));
+    for (sl, (lane, y_left, y_right)) in lines.iter().zip(want) {
+        assert_eq!(sl.lane, lane);
+        assert!((sl.s - town.lane(lane).length_m()).abs() < 1e-3);
+        let mut ends = [sl.ends[0].truncate(), sl.ends[1].truncate()];
+        ends.sort_by(|a, b| b.y.total_cmp(&a.y));
+        assert!(close(ends[0], Vec2::new(100.0, y_left)), "{ends:?}");
+        assert!(close(ends[1], Vec2::new(100.0, y_right)), "{ends:?}");
+    }
+}
+
+#[test]
+fn unsignalled_junctions_get_one_light_per_approach_only_when_asked() {
+    let p = GridTownParams {
+        name: "g".into(),
+        blocks_x: 2,
+        blocks_y: 2,
+        block_size_m: 60.0,
+        seed: 3,
+    };
+    // The generator's lights, taken out: signals become plain road.
+    let xml = generate_grid_town(&p).unwrap();
+    let unlit = xml.replace(r#"dynamic="yes""#, r#"dynamic="no""#);
+    let (plain, report) = load_xodr_str(&unlit, "g", &LoadOptions::default()).unwrap();
+    assert!(plain.lights.is_empty() && !report.generated_lights);
+    let opts = LoadOptions {
+        unsignalled: UnsignalledJunctions::GenerateLights,
+    };
+    let (lit, report) = load_xodr_str(&unlit, "g", &opts).unwrap();
+    assert!(report.generated_lights);
+    assert!(!lit.lights.is_empty());
+    for (i, l) in lit.lights.iter().enumerate() {
+        // Each junction lists its lights, one group per approach road.
+        let j = l.junction.expect("a generated light belongs to a junction");
+        let listed = &lit.junctions[j.0 as usize].lights;
+        assert!(listed.contains(&LightIdx(i as u32)));
+        let groups: Vec<u32> = listed
+            .iter()
+            .map(|k| lit.lights[k.0 as usize].group)
+            .collect();
+        assert_eq!(groups, (0..listed.len() as u32).collect::<Vec<_>>());
+        assert!(listed.len() >= 3, "only junctions with 3+ approaches");
+        assert!(!l.stop_lines.is_empty());
+    }
+}
+
+#[test]
+fn buildings_and_the_maps_crosswalk_come_from_its_objects() {
+    let (town, _) = road();
+    assert_eq!(town.buildings.len(), 1);
+    let b = &town.buildings[0];
+    assert_eq!(b.height_m, 12.0);
+    assert_eq!(b.footprint.len(), 4);
+    assert!(signed_area(&b.footprint) > 0.0, "counter-clockwise");
+    assert!((signed_area(&b.footprint) - 80.0).abs() < 1e-2);
+    assert!(point_in_polygon(&b.footprint, Vec2::new(50.0, -15.0)));
+    // The map's crosswalk is kept as it is, and none is generated.
+    assert_eq!(town.crosswalks.len(), 1);
+    let c = &town.crosswalks[0];
+    assert!(c.from_map);
+    let corners: Vec<Vec2> = c.corners.iter().map(|p| p.truncate()).collect();
+    assert!((signed_area(&corners) - 28.0).abs() < 1e-2);
+    assert!(point_in_polygon(&corners, Vec2::new(50.0, -3.5)));
+}
+
+#[test]
+fn a_map_without_crosswalks_gets_one_at_each_junction_approach() {
+    let p = GridTownParams {
+        name: "g".into(),
+        blocks_x: 2,
+        blocks_y: 2,
+        block_size_m: 60.0,
+        seed: 3,
+    };
+    let xml = generate_grid_town(&p).unwrap();
+    let (town, _) = load_xodr_str(&xml, "g", &LoadOptions::default()).unwrap();
+    assert!(!town.crosswalks.is_empty());
+    for c in &town.crosswalks {
+        assert!(!c.from_map);
+        let k: Vec<Vec2> = c.corners.iter().map(|p| p.truncate()).collect();
+        // Depth along the road, width across both 3.5 m lanes.
+        let (d1, d2) = ((k[1] - k[0]).length(), (k[2] - k[1]).length());
+        let (depth, width) = (d1.min(d2), d1.max(d2));
+        assert!((depth - CROSSWALK_DEPTH_M).abs() < 1e-3, "{k:?}");
+        assert!((width - 7.0).abs() < 1e-2, "{k:?}");
+        // Set back from the junction: its near edge is CROSSWALK_SETBACK_M
+        // from the end of the lane that enters it.
+        let gap = town
+            .lanes
+            .iter()
+            .filter(|l| l.junction.is_none())
+            .flat_map(|l| {
+                [
+                    l.centerline[0].truncate(),
+                    l.centerline[l.centerline.len() - 1].truncate(),
+                ]
+            })
+            .map(|e| {
+                k.iter()
+                    .zip(k.iter().cycle().skip(1))
+                    .map(|(a, b)| crate::road::geometry::segment_point_distance(*a, *b, e))
+                    .fold(f32::MAX, f32::min)
+            })
+            .fold(f32::MAX, f32::min);
+        assert!((gap - CROSSWALK_SETBACK_M).abs() < 1e-2, "{gap}");
+    }
+}
+
+#[test]
+fn junction_outlines_hold_their_connecting_lanes() {
+    let p = GridTownParams {
+        name: "g".into(),
+        blocks_x: 2,
+        blocks_y: 2,
+        block_size_m: 60.0,
+        seed: 3,
+    };
+    let xml = generate_grid_town(&p).unwrap();
+    let (town, _) = load_xodr_str(&xml, "g", &LoadOptions::default()).unwrap();
+    assert!(!town.junctions.is_empty());
+    for l in town.lanes.iter().filter(|l| l.junction.is_some()) {
+        let outline = &town.junctions[l.junction.unwrap().0 as usize].outline;
+        assert!(outline.len() >= 3);
+        let mid = l.centerline[l.centerline.len() / 2].truncate();
+        assert!(point_in_polygon(outline, mid), "{mid} outside {outline:?}");
+    }
+}
+
+#[test]
+fn the_surface_covers_the_driving_lanes_and_the_bounds_every_lane() {
+    let (town, _) = road();
+    let m = &town.road_surface;
+    assert!(!m.indices.is_empty() && m.indices.len() % 3 == 0);
+    let mut area = 0.0;
+    for t in m.indices.chunks_exact(3) {
+        let [a, b, c] = [0, 1, 2].map(|k| m.positions[t[k] as usize].truncate());
+        let twice = (b - a).perp_dot(c - a);
+        assert!(twice >= 0.0, "a triangle is wound clockwise");
+        area += 0.5 * twice;
+    }
+    // Three 3.5 m lanes, 100 m long; the sidewalk is not road surface.
+    assert!((area - 1050.0).abs() < 1.0, "{area} m^2");
+    // Each lane's centre points, padded by half its width (the sidewalk's
+    // centre is at y = -8.5, 3 m wide).
+    let (lo, hi) = town.bounds;
+    assert!(close(lo, Vec2::new(-1.75, -10.0)), "{lo}");
+    assert!(close(hi, Vec2::new(101.75, 3.5)), "{hi}");
+}
+
+#[test]
+fn a_lane_width_out_of_range_names_the_road_the_lane_and_the_record() {
+    let err = load_xodr_str(&road_xml("150"), "tiny", &LoadOptions::default()).unwrap_err();
+    let MapError::Invalid {
+        file,
+        what,
+        location,
+        fix,
+    } = &err
+    else {
+        panic!("{err}");
+    };
+    assert_eq!(file, &PathBuf::from("<tiny>"));
+    assert!(what.contains("lane width 150"), "{what}");
+    assert_eq!(location, r#"road id="1" lane id="-1""#);
+    assert!(fix.contains("<width>"), "{fix}");
+}
+
+#[test]
+fn an_unreadable_width_is_an_error_not_a_lane_dropped() {
+    // The importer drops the <width> (its `a` is not a number) and with it
+    // the lane; the loader must not hand out a town without that lane.
+    let err = load_xodr_str(&road_xml("nan"), "tiny", &LoadOptions::default()).unwrap_err();
+    let MapError::Invalid { what, location, .. } = &err else {
+        panic!("{err}");
+    };
+    assert!(what.contains("width"), "{what}");
+    assert!(
+        location.starts_with(r#"road id="1" lane id="-1""#),
+        "{location}"
+    );
+}
+
+#[test]
+fn a_cut_short_or_foreign_file_is_refused_with_the_fix() {
+    let xml = road_xml("3.5");
+    let cut = &xml[..xml.find("<objects>").unwrap()];
+    let err = load_xodr_str(cut, "cut", &LoadOptions::default()).unwrap_err();
+    let text = err.to_string();
+    assert!(matches!(err, MapError::Import { .. }), "{text}");
+    assert!(text.contains("line") && text.contains("column"), "{text}");
+    assert!(text.contains("copy the file again"), "{text}");
+    let err = load_xodr_str("<html></html>", "page", &LoadOptions::default()).unwrap_err();
+    assert!(
+        err.to_string().contains("no <OpenDRIVE> root element"),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_missing_file_names_its_path() {
+    let path = std::env::temp_dir().join("mrdrive-no-such-map.xodr");
+    let err = load_xodr_file(&path, &LoadOptions::default()).unwrap_err();
+    assert!(matches!(err, MapError::Read { .. }));
+    assert!(
+        err.to_string().contains("mrdrive-no-such-map.xodr"),
+        "{err}"
+    );
+}

@@ -1,0 +1,122 @@
+//! One tick of the traffic world: decide, move through the physics, keep
+//! the books.
+//!
+//! Everyone decides from the start-of-tick state; junction reservations are
+//! granted ([`super::reservations`]); the ego, then the NPCs (by id), then
+//! the pedestrians (by id) are moved through the physics; NPC paths advance;
+//! stuck NPCs are respawned (`spawn.rs`); contact events are counted
+//! ([`super::TrafficStats`]).
+
+use super::Traffic;
+use crate::agents::npc;
+use crate::map::LightState;
+use crate::physics::ContactEvent;
+
+/// An NPC stopped this long counts as a deadlock (seconds).
+const DEADLOCK_S: f32 = 60.0;
+/// A walker held up by a vehicle this long turns back (seconds).
+const WALKER_PATIENCE_S: f32 = 0.5;
+
+impl Traffic {
+    /// Advances the world one tick of [`TrafficConfig::tick_s`]; `lights` are the light states by `LightIdx` (a light beyond the slice's end counts as green). Returns the tick's contacts.
+    pub fn step(&mut self, lights: &[LightState]) -> &[ContactEvent] {
+        let vp = self.cfg.vehicle;
+        let dt = self.cfg.tick_s;
+        self.update_reservations(lights);
+        // Decide.
+        let mut decisions = Vec::with_capacity(self.npcs.len());
+        for n in &self.npcs {
+            decisions.push(npc::decide(
+                &self.town,
+                &self.rules,
+                &self.cfg.npc,
+                &vp,
+                n,
+                &self.views,
+                lights,
+                &mut self.scratch,
+            ));
+        }
+        let mut ped_targets = Vec::with_capacity(self.pedestrians.len());
+        for p in &mut self.pedestrians {
+            ped_targets.push(p.decide(&self.walk, &self.cfg.pedestrian, &self.views, dt));
+        }
+        // Move: ego, NPCs, pedestrians.
+        if let Some(e) = &mut self.ego {
+            let mut s = e.state;
+            s.step(&vp, e.control, dt);
+            let out = self.physics.move_actor(0, s.position, s.yaw);
+            s.position = out.position;
+            s.yaw = out.yaw;
+            if out.hit.is_some() {
+                s.speed_mps *= out.fraction;
+            }
+            e.state = s;
+        }
+        for (n, d) in self.npcs.iter_mut().zip(&decisions) {
+            let stop_before = npc::next_stop_line(&self.town, &self.rules, n, &vp, 20.0);
+            n.control = d.control;
+            let mut s = n.state;
+            s.step(&vp, d.control, dt);
+            let out = self.physics.move_actor(n.id, s.position, s.yaw);
+            s.position = out.position;
+            s.yaw = out.yaw;
+            if out.hit.is_some() {
+                s.speed_mps *= out.fraction;
+            }
+            n.state = s;
+            let travelled = n.path.advance_to(&self.town, s.position);
+            if let Some((dist, light)) = stop_before
+                && dist >= 0.0
+                && travelled > dist
+                && lights.get(light.0 as usize) == Some(&LightState::Red)
+            {
+                self.stats.npc_red_runs += 1;
+            }
+            npc::extend_path(&self.town, &mut n.path, &mut n.rng, 80.0);
+            // Stuck / stopped bookkeeping.
+            if s.speed_mps < 0.1 {
+                n.stopped_ticks += 1;
+                if n.stopped_ticks == (DEADLOCK_S / dt) as u32 + 1 {
+                    self.stats.deadlocks += 1;
+                }
+                if d.accel_mps2 > 0.3 {
+                    n.stuck_ticks += 1;
+                } else {
+                    n.stuck_ticks = 0;
+                }
+            } else {
+                n.stopped_ticks = 0;
+                n.stuck_ticks = 0;
+            }
+        }
+        for (p, (target, z)) in self.pedestrians.iter_mut().zip(ped_targets) {
+            let out = self.physics.move_actor(p.id, target, p.yaw);
+            let z = if out.fraction >= 1.0 { z } else { p.z };
+            p.arrive(&self.walk, out.position, z, dt);
+            // A walker held up by a vehicle for half a second turns back (cars wait for walkers
+            // in front of them; this keeps the two from waiting for each other).
+            p.note_blocked(
+                &self.walk,
+                p.held_by_vehicle || (out.hit.is_some() && out.fraction < 0.5),
+                (WALKER_PATIENCE_S / dt).round() as u32,
+            );
+        }
+        self.respawn_stuck();
+        if let Some(e) = &mut self.ego {
+            e.lane = self
+                .rules
+                .lanes
+                .lane_under(&self.town, e.state.position, e.state.yaw)
+                .map(|lp| (lp.lane, lp.s));
+        }
+        self.events.clear();
+        self.events.extend_from_slice(self.physics.end_tick());
+        for ev in self.events.iter().filter(|ev| ev.started) {
+            self.stats.count_contact(ev);
+        }
+        self.stats.ticks += 1;
+        self.refresh_views();
+        &self.events
+    }
+}

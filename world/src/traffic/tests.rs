@@ -1,0 +1,506 @@
+//! Tests of the traffic world through its API.
+
+use std::sync::Arc;
+
+use glam::Vec2;
+
+use super::*;
+use crate::agents::{ActorKind, VehicleControl, VehicleParams, VehicleState};
+use crate::map::testtown::{FixtureLights, grid};
+use crate::map::{Building, JunctionIdx, LaneIdx, LightState, Town};
+use crate::physics::{DT_S, Party};
+use crate::road::LanePath;
+use crate::road::geometry::crosses_stop_line;
+use crate::rules::RuleBook;
+
+fn town() -> Arc<Town> {
+    Arc::new(grid(3, 3, 60.0))
+}
+
+fn cfg(v: usize, p: usize, seed: u64) -> TrafficConfig {
+    TrafficConfig {
+        vehicles: v,
+        pedestrians: p,
+        seed,
+        ..Default::default()
+    }
+}
+
+fn trace(seed: u64, ticks: u64) -> Vec<u32> {
+    let t = town();
+    let lights = FixtureLights::new(&t);
+    let ego = EgoStart {
+        position: Vec2::new(30.0, -1.75),
+        z: 0.0,
+        yaw: 0.0,
+    };
+    let mut tr = Traffic::new(t, cfg(10, 20, seed), Some(ego));
+    tr.set_ego_control(VehicleControl {
+        steer: 0.0,
+        throttle: 0.5,
+        brake: 0.0,
+    });
+    let mut states = Vec::new();
+    let mut snaps = Vec::new();
+    let mut bits = Vec::new();
+    for tick in 0..ticks {
+        lights.states_at(tick, &mut states);
+        tr.step(&states);
+        tr.snapshots(&mut snaps);
+        for s in &snaps {
+            bits.extend([
+                s.id,
+                s.position.x.to_bits(),
+                s.position.y.to_bits(),
+                s.position.z.to_bits(),
+                s.heading.to_bits(),
+                s.speed_mps.to_bits(),
+            ]);
+        }
+    }
+    bits
+}
+
+#[test]
+fn same_seed_gives_identical_trajectories_bit_for_bit() {
+    let a = trace(11, 600);
+    let b = trace(11, 600);
+    assert_eq!(a.len(), b.len());
+    assert!(a == b, "trajectories differ");
+    let c = trace(12, 600);
+    assert!(a != c, "a different seed should give a different run");
+}
+
+/// The ego's x after `seconds` at full throttle from rest on a straight
+/// road, stepping `tick_s`.
+fn ego_x_after(tick_s: f32, seconds: f32) -> f32 {
+    let t = Arc::new(grid(4, 1, 200.0));
+    let ego = EgoStart {
+        position: Vec2::new(20.0, -1.75),
+        z: 0.0,
+        yaw: 0.0,
+    };
+    let c = TrafficConfig {
+        tick_s,
+        ..cfg(0, 0, 1)
+    };
+    let mut tr = Traffic::new(t, c, Some(ego));
+    tr.set_ego_control(VehicleControl {
+        steer: 0.0,
+        throttle: 1.0,
+        brake: 0.0,
+    });
+    for _ in 0..(seconds / tick_s).round() as usize {
+        tr.step(&[]);
+    }
+    tr.ego().unwrap().state.position.x
+}
+
+#[test]
+fn a_tick_of_another_length_moves_the_ego_that_much_farther() {
+    // 3 s at full throttle: the vehicle model's own integration at the
+    // step, and the same distance (to the integration error) at 40 Hz.
+    let vp = VehicleParams::default();
+    let mut model = VehicleState::at_rest(Vec2::new(20.0, -1.75), 0.0);
+    let full = VehicleControl {
+        steer: 0.0,
+        throttle: 1.0,
+        brake: 0.0,
+    };
+    for _ in 0..30 {
+        model.step(&vp, full, 0.1);
+    }
+    let (x40, x10) = (ego_x_after(DT_S, 3.0), ego_x_after(0.1, 3.0));
+    assert_eq!(x10, model.position.x, "stepped by the configured tick");
+    let (d40, d10) = (x40 - 20.0, x10 - 20.0);
+    assert!(d40 > 10.0, "{d40}");
+    assert!(
+        (d10 - d40).abs() < 0.05 * d40,
+        "{d10} m at 10 Hz vs {d40} m at 40 Hz"
+    );
+}
+
+#[test]
+fn spawns_do_not_overlap_each_other_or_the_ego() {
+    let t = town();
+    let ego = EgoStart {
+        position: Vec2::new(30.0, -1.75),
+        z: 0.0,
+        yaw: 0.0,
+    };
+    let tr = Traffic::new(t, cfg(20, 40, 5), Some(ego));
+    assert_eq!(tr.realised_vehicles(), 20);
+    assert!(tr.realised_pedestrians() > 30 && tr.realised_pedestrians() <= 40);
+    let ids: Vec<u32> = std::iter::once(0)
+        .chain(tr.npcs().iter().map(|n| n.id))
+        .collect();
+    for &a in &ids {
+        for &b in &ids {
+            if a < b {
+                let d = tr.physics().distance(a, b).unwrap();
+                assert!(
+                    d > tr.config().npc.min_gap_m,
+                    "{a} and {b} spawned {d} m apart"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn npcs_stop_at_red_lights_at_the_stop_line() {
+    let t = town();
+    let mut tr = Traffic::new(t.clone(), cfg(16, 0, 3), None);
+    let red = vec![LightState::Red; t.lights.len()];
+    let vp = tr.config().vehicle;
+    let half = vp.length_m * 0.5;
+    let lines: Vec<[Vec2; 2]> = t
+        .lights
+        .iter()
+        .flat_map(|l| &l.stop_lines)
+        .map(|sl| [sl.ends[0].truncate(), sl.ends[1].truncate()])
+        .collect();
+    let front = |n: &Npc| n.state.position + Vec2::from_angle(n.state.yaw) * half;
+    // Every front bumper, tick by tick: none crosses a stop line (all are red).
+    let mut fronts: Vec<Vec2> = tr.npcs().iter().map(front).collect();
+    for _ in 0..(40 * 90) {
+        let respawns = tr.stats().respawns;
+        tr.step(&red);
+        // (A respawned NPC jumps: its old and new fronts are no drive.)
+        let jumped = tr.stats().respawns != respawns;
+        for (n, prev) in tr.npcs().iter().zip(&mut fronts) {
+            let now = front(n);
+            for ends in &lines {
+                assert!(
+                    jumped || !crosses_stop_line(*prev, now, *ends),
+                    "NPC {} crossed a red stop line at {now}",
+                    n.id
+                );
+            }
+            *prev = now;
+        }
+    }
+    assert_eq!(tr.stats().npc_red_runs, 0);
+    // NPCs whose front bumper is within 2 m before a stop line of their lane stand still.
+    let mut waiting_at_line = 0;
+    for n in tr.npcs() {
+        let before_line = t.lights.iter().flat_map(|l| &l.stop_lines).any(|sl| {
+            let d = sl.s - (n.path.s_m + half);
+            sl.lane == n.path.lane() && (-0.3..2.0).contains(&d)
+        });
+        if before_line {
+            assert!(
+                n.state.speed_mps < 0.1,
+                "NPC {} at the line moving {}",
+                n.id,
+                n.state.speed_mps
+            );
+            waiting_at_line += 1;
+        }
+    }
+    assert!(
+        waiting_at_line >= 4,
+        "only {waiting_at_line} NPCs wait at a stop line"
+    );
+    assert_eq!(tr.stats().npc_npc_collisions, 0);
+    // Queues keep about 3.0 m bumper to bumper (IDM minimum gap).
+    let mut gaps = Vec::new();
+    for a in tr.npcs() {
+        for b in tr.npcs() {
+            if a.id != b.id && a.path.lane() == b.path.lane() && b.path.s_m > a.path.s_m {
+                let gap = b.path.s_m - a.path.s_m - vp.length_m;
+                if gap < 8.0 {
+                    gaps.push(gap);
+                }
+            }
+        }
+    }
+    assert!(gaps.len() >= 3, "no queues formed: {gaps:?}");
+    for g in &gaps {
+        assert!(*g > 2.7 && *g < 4.0, "queue gap {g} m: {gaps:?}");
+    }
+}
+
+#[test]
+fn no_npc_npc_collisions_in_normal_flow() {
+    let t = town();
+    let lights = FixtureLights::new(&t);
+    let mut tr = Traffic::new(t, cfg(20, 20, 7), None);
+    let mut states = Vec::new();
+    let start: Vec<Vec2> = tr.npcs().iter().map(|n| n.state.position).collect();
+    for tick in 0..(40 * 120) {
+        lights.states_at(tick, &mut states);
+        tr.step(&states);
+    }
+    let s = tr.stats();
+    assert_eq!(s.npc_npc_collisions, 0, "{s:?}");
+    assert_eq!(s.npc_red_runs, 0, "{s:?}");
+    assert_eq!(s.deadlocks, 0, "{s:?}");
+    // They did drive.
+    let moved = tr
+        .npcs()
+        .iter()
+        .zip(&start)
+        .filter(|(n, p)| (n.state.position - **p).length() > 20.0)
+        .count();
+    assert!(moved >= 15, "only {moved} NPCs moved: {s:?}");
+}
+
+#[test]
+fn ego_drives_from_controls_and_its_contacts_name_both_actors() {
+    let t = town();
+    // Park an NPC 20 m ahead of the ego on its lane by spawning none and placing the ego behind a wall of NPC... use a single NPC.
+    let ego = EgoStart {
+        position: Vec2::new(20.0, -1.75),
+        z: 0.0,
+        yaw: 0.0,
+    };
+    let mut tr = Traffic::new(t.clone(), cfg(1, 0, 1), Some(ego));
+    // The NPC 18 m ahead of the ego on its lane (x = 38); red lights keep it there.
+    let id = tr.npcs()[0].id;
+    tr.place_npc(0, LanePath::new(LaneIdx(0), 28.0));
+    assert_eq!(tr.npcs()[0].state.position, Vec2::new(38.0, -1.75));
+    tr.set_ego_control(VehicleControl {
+        steer: 0.0,
+        throttle: 1.0,
+        brake: 0.0,
+    });
+    let red = vec![LightState::Red; t.lights.len()];
+    let mut hit = None;
+    for _ in 0..200 {
+        let ev = tr.step(&red).to_vec();
+        if let Some(e) = ev.iter().find(|e| {
+            e.started
+                && e.a
+                    == Party::Actor {
+                        id: 0,
+                        kind: ActorKind::Ego,
+                    }
+        }) {
+            hit = Some(*e);
+            break;
+        }
+    }
+    let e = hit.expect("the ego hit the NPC");
+    assert!(matches!(
+        e.b,
+        Party::Actor {
+            kind: ActorKind::Vehicle,
+            ..
+        }
+    ));
+    assert!(!tr.physics().overlapping(0, id));
+    // The query sees the NPC ahead of the ego.
+    let path: Vec<Vec2> = (0..30)
+        .map(|i| Vec2::new(tr.ego().unwrap().state.position.x + i as f32, -1.75))
+        .collect();
+    let a = tr
+        .nearest_ahead_of_ego(&path, 1.5, 40.0)
+        .expect("something ahead");
+    assert!(
+        a.kind == ActorKind::Vehicle && a.distance_m < 2.4 + 0.3,
+        "{a:?}"
+    );
+}
+
+#[test]
+fn a_stuck_npc_is_respawned_after_40_ticks() {
+    // A block it cannot see (a building, not an actor) across lane 0 at x = 30.
+    let mut town = grid(3, 3, 60.0);
+    town.buildings.push(Building {
+        footprint: vec![
+            Vec2::new(29.5, -3.25),
+            Vec2::new(30.5, -3.25),
+            Vec2::new(30.5, -0.25),
+            Vec2::new(29.5, -0.25),
+        ],
+        height_m: 1.0,
+    });
+    let t = Arc::new(town);
+    let mut tr = Traffic::new(t.clone(), cfg(1, 0, 2), None);
+    // Put the NPC on lane 0 (at x = 20), 10 m before the block.
+    tr.place_npc(0, LanePath::new(LaneIdx(0), 10.0));
+    assert_eq!(tr.npcs()[0].state.position, Vec2::new(20.0, -1.75));
+    let green = vec![LightState::Green; t.lights.len()];
+    let mut hit_tick = None;
+    let mut respawn_tick = None;
+    for tick in 0..400u32 {
+        let ev = tr.step(&green).to_vec();
+        if hit_tick.is_none()
+            && ev
+                .iter()
+                .any(|e| e.started && matches!(e.b, Party::Static(_)))
+        {
+            hit_tick = Some(tick);
+        }
+        if tr.stats().respawns > 0 {
+            respawn_tick = Some(tick);
+            break;
+        }
+    }
+    let (h, r) = (
+        hit_tick.expect("hit the box"),
+        respawn_tick.expect("respawned"),
+    );
+    // Respawned once stuck for more than 40 ticks (it needs a few ticks to come to a stop).
+    assert!(r > h + 40 && r < h + 60, "hit at {h}, respawned at {r}");
+    assert!((tr.npcs()[0].state.position - Vec2::new(27.0, -1.75)).length() > 3.0);
+    assert_eq!(tr.stats().npc_static_collisions, 1);
+}
+
+#[test]
+fn the_cross_factor_decides_who_crosses_between_crosswalks() {
+    let t = town();
+    let legs = |cross: f32| {
+        let mut c = cfg(0, 40, 9);
+        c.pedestrian.cross_factor = cross;
+        let mut tr = Traffic::new(t.clone(), c, None);
+        let lights = vec![LightState::Red; t.lights.len()];
+        for _ in 0..(40 * 120) {
+            tr.step(&lights);
+        }
+        let cw: u32 = tr.pedestrians().iter().map(|p| p.crosswalk_legs).sum();
+        let jw: u32 = tr.pedestrians().iter().map(|p| p.jaywalk_legs).sum();
+        let jaywalkers = tr.pedestrians().iter().filter(|p| p.jaywalker).count();
+        assert!(
+            tr.pedestrians()
+                .iter()
+                .all(|p| p.jaywalker == (cross >= 1.0))
+        );
+        (cw, jw, jaywalkers)
+    };
+    let (cw0, jw0, j0) = legs(0.0);
+    assert!(cw0 > 5, "{cw0} crosswalk legs");
+    assert_eq!((jw0, j0), (0, 0));
+    let (_, jw1, j1) = legs(1.0);
+    assert!(j1 > 30, "{j1} jaywalkers");
+    assert!(jw1 > 5, "{jw1} jaywalk legs");
+}
+
+#[test]
+fn npcs_do_not_enter_a_junction_across_the_ego() {
+    let t = town();
+    let rules = RuleBook::new(&t);
+    let dir_of = |l: usize| {
+        let c = &t.lanes[l].centerline;
+        (c[c.len() - 1] - c[0]).truncate().normalize()
+    };
+    let in_j4 = |l: usize| t.lanes[l].junction == Some(JunctionIdx(4));
+    // The ego stands in the centre junction on the straight northbound lane.
+    let ego_lane = (0..t.lanes.len())
+        .find(|&l| in_j4(l) && dir_of(l).y > 0.99)
+        .unwrap();
+    let l = &t.lanes[ego_lane];
+    let (p, yaw, _) = l.pose_at(l.length_m() * 0.5);
+    let mut tr = Traffic::new(
+        t.clone(),
+        cfg(1, 0, 4),
+        Some(EgoStart {
+            position: p,
+            z: 0.0,
+            yaw,
+        }),
+    );
+    // One NPC approaches from the west and wants to go straight east, across the ego.
+    let approach = (0..t.lanes.len())
+        .find(|&l| {
+            t.lanes[l].junction.is_none()
+                && dir_of(l).x > 0.99
+                && t.lanes[l].successors.iter().any(|s| in_j4(s.0 as usize))
+        })
+        .unwrap();
+    let straight = *t.lanes[approach]
+        .successors
+        .iter()
+        .find(|s| dir_of(s.0 as usize).x > 0.99)
+        .unwrap();
+    assert!(
+        rules
+            .conflicts
+            .of(LaneIdx(ego_lane as u32))
+            .contains(&straight)
+    );
+    let entry_x = t.lanes[straight.0 as usize].centerline[0].x;
+    let mut path = LanePath::new(LaneIdx(approach as u32), 5.0);
+    path.lanes.push_back(straight);
+    tr.place_npc(0, path);
+    let green = vec![LightState::Green; t.lights.len()];
+    let half = tr.config().vehicle.length_m * 0.5;
+    for _ in 0..(40 * 20) {
+        tr.step(&green);
+        let front = tr.npcs()[0].state.position.x + half;
+        assert!(
+            front < entry_x + 0.1,
+            "NPC entered the junction across the ego (front at {front})"
+        );
+        assert_ne!(tr.npcs()[0].reservation, Some(straight));
+    }
+    // It waits at the entry, and goes once the ego has left.
+    assert!(tr.npcs()[0].state.position.x + half > entry_x - 2.0);
+    tr.teleport_ego(EgoStart {
+        position: Vec2::new(-100.0, -100.0),
+        z: 0.0,
+        yaw: 0.0,
+    });
+    for _ in 0..(40 * 10) {
+        tr.step(&green);
+    }
+    assert!(
+        tr.npcs()[0].state.position.x > entry_x + 10.0,
+        "NPC did not go after the ego left"
+    );
+}
+
+#[test]
+fn an_npc_stopping_for_a_red_at_the_line_gives_its_reservation_back() {
+    let t = town();
+    let mut tr = Traffic::new(t.clone(), cfg(1, 0, 6), None);
+    let sl = t.lights[0].stop_lines[0].clone();
+    let half = tr.config().vehicle.length_m * 0.5;
+    let turn = t.lanes[sl.lane.0 as usize].successors[0];
+    // Front bumper 0.2 m before the stop line, at rest, going into the junction.
+    let mut path = LanePath::new(sl.lane, sl.s - half - 0.2);
+    path.lanes.push_back(turn);
+    tr.place_npc(0, path);
+    let id = tr.npcs()[0].id;
+    tr.step(&vec![LightState::Green; t.lights.len()]);
+    assert_eq!(tr.npcs()[0].reservation, Some(turn), "granted on green");
+    // The light turns red before it has crossed the line: it stops there and
+    // must not keep the junction from the crossing traffic meanwhile.
+    let red = vec![LightState::Red; t.lights.len()];
+    for _ in 0..(40 * 5) {
+        tr.step(&red);
+    }
+    // Still on the approach lane with its front bumper at most 0.3 m over the line.
+    let n = &tr.npcs()[0];
+    assert_eq!(n.path.lane(), sl.lane, "left the approach lane");
+    let over = n.path.s_m + half - sl.s;
+    assert!(over < 0.3, "crossed the red line by {over} m");
+    assert_eq!(tr.npcs()[0].reservation, None);
+    assert!(!tr.reservations().holders(turn).contains(&id));
+    assert_eq!(tr.stats().npc_red_runs, 0);
+}
+
+#[test]
+fn a_free_npc_drives_at_the_speed_limit() {
+    // A straight road through unlit junctions: 4 x 1 junctions 200 m apart.
+    let t = Arc::new(grid(4, 1, 200.0));
+    let mut tr = Traffic::new(t.clone(), cfg(1, 0, 8), None);
+    tr.place_npc(0, LanePath::new(LaneIdx(0), 1.0));
+    let green = vec![LightState::Green; t.lights.len()];
+    let limit = t.lanes[0].speed_limit_mps;
+    let mut top = 0.0f32;
+    for _ in 0..(40 * 15) {
+        tr.step(&green);
+        top = top.max(tr.npcs()[0].state.speed_mps);
+    }
+    assert!(
+        top > 0.95 * limit && top < 1.02 * limit,
+        "top speed {top} vs limit {limit}"
+    );
+    // Tracking: it stays near its lane's centre.
+    let (lp, _, _) = t
+        .lane(tr.npcs()[0].path.lane())
+        .pose_at(tr.npcs()[0].path.s_m);
+    assert!((lp - tr.npcs()[0].state.position).length() < 0.3);
+}
