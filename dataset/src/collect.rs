@@ -205,7 +205,7 @@ pub fn plan(preset: Preset, episodes: usize, carla: &Path, repo: &Path) -> Vec<E
 /// A random route: start and end on non-junction lanes of one strongly
 /// connected part of the lane graph, 300-900 m apart along the planned route.
 pub fn random_route(town: &Town, seed: u64) -> Result<(Route, DenseRoute), String> {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x726f_7574_65);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x0072_6f75_7465);
     let comps = town.lane_components();
     let biggest = comps
         .iter()
@@ -321,7 +321,7 @@ pub fn prepare(spec: &EpisodeSpec, towns: &mut TownCache) -> Result<(Prepared, R
         Prepared {
             town,
             route: dense,
-            route_file: route_file.unwrap_or_else(|| PathBuf::from(route.source.clone())),
+            route_file: route_file.unwrap_or_else(|| route.source.clone()),
         },
         stored,
     ))
@@ -478,7 +478,7 @@ pub fn drive(
     let scenario = scenario_of(spec, &prepared);
     let town = prepared.town.clone();
     let expert = Expert::new(ExpertParams::default());
-    let mut driver = NoisyDriver::new(expert, cfg.noise, spec.seed ^ 0x6e6f_6973_65);
+    let mut driver = NoisyDriver::new(expert, cfg.noise, spec.seed ^ 0x006e_6f69_7365);
     let mut selector = Fixed { scale: 1.0 };
     let mut recorder = EpisodeRecorder::new(&town, cfg, spec.seed)?;
     let tick_s = scenario.timing.tick_s;
@@ -501,7 +501,11 @@ pub fn drive(
         shard: shard_name(spec.id),
         frames: recorder.shard.len() as u32,
         town: town.name.clone(),
-        map: spec.map.display().to_string(),
+        // Absolute, so `label`, `data info` and the loader find the map from any folder.
+        map: std::fs::canonicalize(&spec.map)
+            .unwrap_or_else(|_| spec.map.clone())
+            .display()
+            .to_string(),
         generate_lights: spec.generate_lights,
         route: stored,
         seed: spec.seed,

@@ -137,9 +137,9 @@ pub enum BuildError {
     Run {
         /// The scenario file.
         path: PathBuf,
-        /// Why.
+        /// Why (boxed: a run error is large, and most results carry none).
         #[source]
-        source: RunError,
+        source: Box<RunError>,
     },
     /// The scenario names a driver kind this program has no factory for.
     #[error(
@@ -401,7 +401,7 @@ pub fn run_scenario(
     let scenario = request.overrides.apply(&Scenario::from_file(path)?);
     let prepared = runner::prepare(&scenario).map_err(|source| BuildError::Run {
         path: path.to_path_buf(),
-        source,
+        source: Box::new(source),
     })?;
     let mut driver = drivers.driver(&scenario, &prepared)?;
     let mut selector = selector_for(&scenario, request.scale)?;
@@ -474,7 +474,7 @@ pub fn run_scenario(
     )
     .map_err(|source| BuildError::Run {
         path: path.to_path_buf(),
-        source,
+        source: Box::new(source),
     })?;
     progress(record.result.completion_pct);
     if let (Some(rec), Some((p, _))) = (recorder, &record_path) {

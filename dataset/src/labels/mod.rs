@@ -374,14 +374,16 @@ impl Labeller {
             for (view, &yaw) in view_yaws_rad.iter().enumerate() {
                 for (b, &v) in SPEED_BIN_CENTRES_MPS.iter().enumerate() {
                     let bonus = input.hazards.in_way(prm, v);
-                    for a in 0..NUM_ACTIONS {
-                        let m = &self.bin_moves[b][a];
+                    for (a, (q, m)) in out[view][cmd][b]
+                        .iter_mut()
+                        .zip(&self.bin_moves[b])
+                        .enumerate()
+                    {
                         let p = Vec2::from_angle(yaw).rotate(m.delta);
-                        let mut q = sample(&self.grid, &w1, p, yaw + m.dyaw, m.speed_mps);
+                        *q = sample(&self.grid, &w1, p, yaw + m.dyaw, m.speed_mps);
                         if a == BRAKE && bonus {
-                            q += prm.brake_bonus;
+                            *q += prm.brake_bonus;
                         }
-                        out[view][cmd][b][a] = q;
                     }
                 }
             }

@@ -128,7 +128,7 @@ fn collect(
     expert.driver.kind = DriverKind::Expert;
     let failed = |source| BuildError::Run {
         path: path.to_path_buf(),
-        source,
+        source: Box::new(source),
     };
     let prepared = runner::prepare(&expert).map_err(failed)?;
     let mut driver = drivers.driver(&expert, &prepared)?;

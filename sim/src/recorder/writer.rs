@@ -472,6 +472,57 @@ pub fn base64(data: &[u8]) -> String {
     out
 }
 
+impl<W: Write + Seek> RunObserver for Recorder<W> {
+    /// Logs the tick's infractions and controls; at camera ticks also the
+    /// ego, the actors and lights, and the images the options ask for
+    /// (rendered by the run's camera at the scale in force).
+    fn on_tick(
+        &mut self,
+        v: &TickView<'_>,
+        camera: Option<&mut dyn Camera>,
+    ) -> Result<(), RunError> {
+        let t_ns = (v.time_s * NS as f64).round() as u64;
+        for i in v.infractions {
+            self.infraction(t_ns, i)?;
+        }
+        self.control(t_ns, v.computed, v.control)?;
+        if !v.camera_frame {
+            return Ok(());
+        }
+        let ego = v.ego();
+        self.ego_transform(t_ns, ego)?;
+        self.actors(t_ns, v.actors, v.town, v.lights)?;
+        self.ego_state(t_ns, ego, v.command, v.scale, v.latency_ms)?;
+        let Some(cam) = camera else {
+            return Ok(());
+        };
+        let frame = v.camera_frame();
+        let opts = self.options();
+        let mut labels = std::mem::take(&mut self.label_image);
+        let labelled = if opts.labels {
+            cam.render_labelled(&frame, v.scale, &mut labels)
+        } else {
+            None
+        };
+        if let Some(image) = labelled {
+            let image = image.map_err(RunError::Camera)?;
+            self.camera(t_ns, image)?;
+            self.labels(t_ns, &labels)?;
+        } else if opts.camera {
+            let image = cam.render(&frame, v.scale).map_err(RunError::Camera)?;
+            self.camera(t_ns, image)?;
+        }
+        self.label_image = labels;
+        if opts.bev
+            && let Some(image) = cam.render_bev(&frame, BEV_SIZE_PX, BEV_SIZE_PX, BEV_EXTENT_M)
+        {
+            let image = image.map_err(RunError::Camera)?;
+            self.bev(t_ns, image)?;
+        }
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
@@ -589,56 +640,5 @@ pub(crate) mod tests {
         assert_eq!(topics.get("/scene/map"), Some(&1));
         let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
         assert_eq!(summary.metadata_indexes.len(), 1);
-    }
-}
-
-impl<W: Write + Seek> RunObserver for Recorder<W> {
-    /// Logs the tick's infractions and controls; at camera ticks also the
-    /// ego, the actors and lights, and the images the options ask for
-    /// (rendered by the run's camera at the scale in force).
-    fn on_tick(
-        &mut self,
-        v: &TickView<'_>,
-        camera: Option<&mut dyn Camera>,
-    ) -> Result<(), RunError> {
-        let t_ns = (v.time_s * NS as f64).round() as u64;
-        for i in v.infractions {
-            self.infraction(t_ns, i)?;
-        }
-        self.control(t_ns, v.computed, v.control)?;
-        if !v.camera_frame {
-            return Ok(());
-        }
-        let ego = v.ego();
-        self.ego_transform(t_ns, ego)?;
-        self.actors(t_ns, v.actors, v.town, v.lights)?;
-        self.ego_state(t_ns, ego, v.command, v.scale, v.latency_ms)?;
-        let Some(cam) = camera else {
-            return Ok(());
-        };
-        let frame = v.camera_frame();
-        let opts = self.options();
-        let mut labels = std::mem::take(&mut self.label_image);
-        let labelled = if opts.labels {
-            cam.render_labelled(&frame, v.scale, &mut labels)
-        } else {
-            None
-        };
-        if let Some(image) = labelled {
-            let image = image.map_err(RunError::Camera)?;
-            self.camera(t_ns, image)?;
-            self.labels(t_ns, &labels)?;
-        } else if opts.camera {
-            let image = cam.render(&frame, v.scale).map_err(RunError::Camera)?;
-            self.camera(t_ns, image)?;
-        }
-        self.label_image = labels;
-        if opts.bev
-            && let Some(image) = cam.render_bev(&frame, BEV_SIZE_PX, BEV_SIZE_PX, BEV_EXTENT_M)
-        {
-            let image = image.map_err(RunError::Camera)?;
-            self.bev(t_ns, image)?;
-        }
-        Ok(())
     }
 }
