@@ -27,8 +27,8 @@ pub struct GridSpec {
 
 impl Default for GridSpec {
     /// 0.5 m cells from 4 m behind to 14 m ahead and 9 m to each side (the
-    /// ego covers at most ~10 m in the 1.25 s horizon), yaws -87.5..87.5 deg
-    /// every 5 deg, speeds 0..8 m/s every 2 m/s.
+    /// ego covers at most ~10 m in the 1.25 s horizon), yaws -85..85 deg
+    /// every 10 deg, speeds 0..8 m/s every 2 m/s.
     ///
     /// The ego's start state sits half a cell and half a yaw step away from
     /// every node, on purpose. Linear interpolation underestimates a value
@@ -44,8 +44,8 @@ impl Default for GridSpec {
             x_min_m: -4.25,
             x_max_m: 14.25,
             y_half_m: 9.25,
-            yaws_rad: (-17..=18)
-                .map(|k| (k as f32 * 5.0 - 2.5).to_radians())
+            yaws_rad: (-8..=9)
+                .map(|k| (k as f32 * 10.0 - 5.0).to_radians())
                 .collect(),
             speeds_mps: vec![0.0, 2.0, 4.0, 6.0, 8.0],
         }
@@ -204,12 +204,17 @@ mod tests {
         let g = Grid::new(GridSpec::default(), 2.5);
         let o = g.to_node(Vec2::ZERO);
         assert_eq!((o.x.fract(), o.y.fract()), (0.5, 0.5));
-        assert!(
-            g.spec
+        // The views (0 and +-30 deg) lie half-way between yaw nodes too.
+        let step = g.spec.yaws_rad[1] - g.spec.yaws_rad[0];
+        for view in [0f32, 30.0, -30.0] {
+            let gap = g
+                .spec
                 .yaws_rad
                 .iter()
-                .all(|y| y.to_degrees().rem_euclid(5.0) > 1.0)
-        );
+                .map(|y| (y - view.to_radians()).abs())
+                .fold(f32::MAX, f32::min);
+            assert!((gap - step / 2.0).abs() < 1e-4, "view {view}: {gap}");
+        }
         let mut plane = vec![0.0; g.padded_len()];
         let (i, j) = (o.x as usize, o.y as usize);
         plane[g.padded_at(i, j)] = 1.0;
