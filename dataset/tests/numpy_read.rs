@@ -15,20 +15,6 @@ use dataset::format::{ACTOR_FIELDS, FORMAT};
 use dataset::synthetic::{self, SyntheticSpec};
 use serde_json::Value;
 
-fn python() -> Option<PathBuf> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    let candidates: Vec<PathBuf> = match std::env::var_os("MRDRIVE_PYTHON") {
-        Some(p) => vec![p.into()],
-        None => vec![root.join(".venv/bin/python"), "python3".into()],
-    };
-    candidates.into_iter().find(|p| {
-        Command::new(p)
-            .args(["-c", "import safetensors.numpy, numpy"])
-            .output()
-            .is_ok_and(|o| o.status.success())
-    })
-}
-
 fn f32s(v: &Value) -> Vec<f32> {
     v.as_array()
         .unwrap()
@@ -39,7 +25,7 @@ fn f32s(v: &Value) -> Vec<f32> {
 
 #[test]
 fn numpy_reads_a_shard_and_its_labels_as_written() {
-    let Some(py) = python() else {
+    let Some(py) = world::testdata::python_with("safetensors.numpy, numpy") else {
         let msg = "SKIPPED: no Python with `safetensors` and `numpy` (set MRDRIVE_PYTHON or create .venv)";
         if std::env::var("MRDRIVE_REQUIRE_PYTHON").is_ok_and(|v| v == "1") {
             panic!("{msg}, and MRDRIVE_REQUIRE_PYTHON=1");

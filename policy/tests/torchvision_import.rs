@@ -12,22 +12,8 @@ use policy::model::PolicyConfig;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn python() -> Option<PathBuf> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    let candidates: Vec<PathBuf> = match std::env::var_os("MRDRIVE_PYTHON") {
-        Some(p) => vec![p.into()],
-        None => vec![root.join(".venv/bin/python"), "python3".into()],
-    };
-    candidates.into_iter().find(|p| {
-        Command::new(p)
-            .args(["-c", "import safetensors.numpy, numpy"])
-            .output()
-            .is_ok_and(|o| o.status.success())
-    })
-}
-
 fn write_files(test: &str) -> Option<tempfile::TempDir> {
-    let Some(py) = python() else {
+    let Some(py) = world::testdata::python_with("safetensors.numpy, numpy") else {
         world::testdata::skip(
             test,
             world::testdata::Needs::Python,

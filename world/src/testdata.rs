@@ -193,3 +193,18 @@ mod tests {
         );
     }
 }
+
+/// A Python that imports `modules` (e.g. `"safetensors.numpy, numpy"`):
+/// `MRDRIVE_PYTHON` if set, else the workspace's `.venv`, else `python3`.
+pub fn python_with(modules: &str) -> Option<PathBuf> {
+    let candidates: Vec<PathBuf> = match std::env::var_os("MRDRIVE_PYTHON") {
+        Some(p) => vec![p.into()],
+        None => vec![workspace_root().join(".venv/bin/python"), "python3".into()],
+    };
+    candidates.into_iter().find(|p| {
+        std::process::Command::new(p)
+            .args(["-c", &format!("import {modules}")])
+            .output()
+            .is_ok_and(|o| o.status.success())
+    })
+}
