@@ -7,7 +7,7 @@
 //! prints "SKIPPED" and passes, unless `MRDRIVE_REQUIRE_PYTHON=1`.
 
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use dataset::action::NUM_ACTIONS;

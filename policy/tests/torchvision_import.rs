@@ -9,7 +9,7 @@ use policy::backbone::Depth;
 use policy::burn::prelude::*;
 use policy::checkpoint::load_torchvision_backbone;
 use policy::model::PolicyConfig;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 fn write_files(test: &str) -> Option<tempfile::TempDir> {

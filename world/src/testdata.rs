@@ -144,6 +144,21 @@ pub fn carla_dir(test: &str) -> Option<PathBuf> {
     shared_subdir(test, "carla", "Town01.xodr")
 }
 
+/// A Python that imports `modules` (e.g. `"safetensors.numpy, numpy"`):
+/// `MRDRIVE_PYTHON` if set, else the workspace's `.venv`, else `python3`.
+pub fn python_with(modules: &str) -> Option<PathBuf> {
+    let candidates: Vec<PathBuf> = match std::env::var_os("MRDRIVE_PYTHON") {
+        Some(p) => vec![p.into()],
+        None => vec![workspace_root().join(".venv/bin/python"), "python3".into()],
+    };
+    candidates.into_iter().find(|p| {
+        std::process::Command::new(p)
+            .args(["-c", &format!("import {modules}")])
+            .output()
+            .is_ok_and(|o| o.status.success())
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -192,19 +207,4 @@ mod tests {
             Some(e.shared_dir.join("carla"))
         );
     }
-}
-
-/// A Python that imports `modules` (e.g. `"safetensors.numpy, numpy"`):
-/// `MRDRIVE_PYTHON` if set, else the workspace's `.venv`, else `python3`.
-pub fn python_with(modules: &str) -> Option<PathBuf> {
-    let candidates: Vec<PathBuf> = match std::env::var_os("MRDRIVE_PYTHON") {
-        Some(p) => vec![p.into()],
-        None => vec![workspace_root().join(".venv/bin/python"), "python3".into()],
-    };
-    candidates.into_iter().find(|p| {
-        std::process::Command::new(p)
-            .args(["-c", &format!("import {modules}")])
-            .output()
-            .is_ok_and(|o| o.status.success())
-    })
 }
