@@ -11,7 +11,7 @@ use sim::runner::{AHEAD_CORRIDOR_M, AHEAD_RANGE_M};
 use world::agents::VehicleParams;
 use world::route::DenseRoute;
 use world::rules::{ActorView, nearest_ahead};
-use world::rules::{RouteStops, StopLines, route_ahead};
+use world::rules::{RouteStops, route_ahead};
 use world::{ActorKind, Town, Vec2};
 
 use super::{FrameInput, Hazards, LABEL_VERSION, Labeller, Q};
@@ -84,7 +84,7 @@ pub fn label_episode(
     let steps = labeller.steps;
     let n = shard.len();
     let views: Vec<f32> = view_yaws_deg.iter().map(|d| d.to_radians()).collect();
-    let stops = StopLines::new(town).on_route(route);
+    let stops = labeller.stop_lines().on_route(route);
     let per_frame: Vec<Option<Vec<Q>>> = (0..n)
         .into_par_iter()
         .map(|i| {

@@ -277,6 +277,11 @@ impl Labeller {
         Labeller::new(town, vehicle, GridSpec::default(), 5, 0.25, 0.025)
     }
 
+    /// The town's stop lines (the rule book's table, built once with the labeller).
+    pub fn stop_lines(&self) -> &world::rules::StopLines {
+        &self.lanes.stops
+    }
+
     /// The grid.
     pub fn grid(&self) -> &Grid {
         &self.grid
@@ -358,19 +363,17 @@ impl Labeller {
             self.steps,
         );
         // Commands with the same lane map and target speed share their values.
+        // (command, W_1) of each distinct command computed so far.
         let mut done: Vec<(usize, Vec<Vec<f32>>)> = Vec::new();
         for cmd in (0..NUM_COMMANDS).filter(|&c| wanted[c]) {
-            let same = done.iter().map(|(c, _)| *c).find(|&c| {
+            let same = done.iter().position(|&(c, _)| {
                 prm.target_mps(c) == prm.target_mps(cmd) && statics.lane[c] == statics.lane[cmd]
             });
-            let w1 = match same {
-                Some(c) => done
-                    .iter()
-                    .find(|(d, _)| *d == c)
-                    .map(|(_, w)| w.clone())
-                    .expect("computed before"),
-                None => self.first_step_values(&statics, &steps, &regions, cmd),
-            };
+            let k = same.unwrap_or_else(|| {
+                done.push((cmd, self.first_step_values(&statics, &steps, &regions, cmd)));
+                done.len() - 1
+            });
+            let w1 = &done[k].1;
             for (view, &yaw) in view_yaws_rad.iter().enumerate() {
                 for (b, &v) in SPEED_BIN_CENTRES_MPS.iter().enumerate() {
                     let bonus = input.hazards.in_way(prm, v);
@@ -380,14 +383,13 @@ impl Labeller {
                         .enumerate()
                     {
                         let p = Vec2::from_angle(yaw).rotate(m.delta);
-                        *q = sample(&self.grid, &w1, p, yaw + m.dyaw, m.speed_mps);
+                        *q = sample(&self.grid, w1, p, yaw + m.dyaw, m.speed_mps);
                         if a == BRAKE && bonus {
                             *q += prm.brake_bonus;
                         }
                     }
                 }
             }
-            done.push((cmd, w1));
         }
         out
     }
