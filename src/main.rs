@@ -60,8 +60,8 @@ enum Command {
     RenderDemo(cli::render::RenderDemoArgs),
     /// Policy network tools: checkpoints, BN-bank overhead, torchvision import.
     Policy(cli::policy::PolicyArgs),
-    /// Train the policy (`--synthetic`: a smoke run on a toy batch).
-    Train(cli::policy::TrainArgs),
+    /// Train a stage of the paper's pipeline: original, nra-<scale> or ra (`--synthetic`: a smoke run).
+    Train(cli::train::TrainArgs),
     /// Benchmarks that print figures.
     Bench(cli::bench::BenchArgs),
     /// Collect driving data: the expert with noise drives planned episodes.
@@ -74,6 +74,8 @@ enum Command {
     /// Run logs (MCAP): summary.
     #[command(subcommand)]
     Log(cli::log::LogCommand),
+    /// Serve one environment over stdin/stdout to another process (the Python package).
+    Serve,
 }
 
 /// Runs the command; a failure prints one readable message (the error and
@@ -102,10 +104,11 @@ fn run() -> anyhow::Result<()> {
         Command::Render(a) => cli::render::render(&a),
         Command::RenderDemo(a) => cli::render::render_demo(&a),
         Command::Policy(a) => cli::policy::run_policy(a),
-        Command::Train(a) => cli::policy::run_train(a),
+        Command::Train(a) => cli::train::run_train(a),
         Command::Bench(a) => cli::bench::run(a),
         Command::Data(c) => cli::data::run(c),
         Command::Log(c) => cli::log::run(c),
+        Command::Serve => cli::serve::serve(),
         Command::Collect(a) => cli::collect::collect(a),
         Command::Label(a) => cli::collect::label(a),
     }

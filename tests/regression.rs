@@ -1,5 +1,6 @@
 //! The regression suite: short scenarios driven by the expert at D = 0, 100
-//! and 200 ms and each traffic density, whose exact infraction counts and
+//! and 200 ms and each traffic density, and by the shipped RA (oracle selector)
+//! and Original policies on a few runs, whose exact infraction counts and
 //! route completion are golden files in `tests/golden/`. Each scenario's
 //! traffic seed is its own (`[traffic] seed`), chosen so that traffic
 //! changes what the ego meets: a golden file whose lines are the same at
@@ -52,7 +53,7 @@ fn golden_line(record: &serde_json::Value) -> String {
 
 /// Runs one regression scenario through `mrdrive sweep` (at its own traffic
 /// seed) and returns its lines.
-fn run_scenario(scenario: &Path, out: &Path) -> Vec<String> {
+fn run_scenario(scenario: &Path, out: &Path, delays: &str, densities: &str) -> Vec<String> {
     let seed = sim::scenario::Scenario::from_file(scenario)
         .unwrap()
         .traffic
@@ -61,9 +62,9 @@ fn run_scenario(scenario: &Path, out: &Path) -> Vec<String> {
     let mut args: Vec<OsString> = vec!["sweep".into(), scenario.into()];
     for a in [
         "--delays",
-        DELAYS,
+        delays,
         "--densities",
-        DENSITIES,
+        densities,
         "--seeds",
         seed.as_str(),
         "--jobs",
@@ -139,12 +140,16 @@ fn scenario_file(name: &str, needs_carla: bool, tmp: &Path) -> Option<PathBuf> {
 }
 
 fn regression(name: &str, needs_carla: bool) {
+    regression_at(name, needs_carla, DELAYS, DENSITIES, 9);
+}
+
+fn regression_at(name: &str, needs_carla: bool, delays: &str, densities: &str, runs: usize) {
     let tmp = tempfile::tempdir().unwrap();
     let Some(scenario) = scenario_file(name, needs_carla, tmp.path()) else {
         return;
     };
-    let lines = run_scenario(&scenario, &tmp.path().join("sweep"));
-    assert_eq!(lines.len(), 9, "3 delays x 3 densities");
+    let lines = run_scenario(&scenario, &tmp.path().join("sweep"), delays, densities);
+    assert_eq!(lines.len(), runs, "delays {delays} x densities {densities}");
     if let Err(diff) = check(name, &lines) {
         panic!("{diff}");
     }
@@ -173,4 +178,16 @@ fn town01_route0_segment() {
 #[test]
 fn town02_route1_segment() {
     regression("town02_route1_segment", true);
+}
+
+// The shipped policies (the camera at every control boundary: a few runs only).
+
+#[test]
+fn gen01_route0_ra_oracle() {
+    regression_at("gen01_route0_ra_oracle", false, "0,100", "0:0,5:10", 4);
+}
+
+#[test]
+fn gen01_route0_original() {
+    regression_at("gen01_route0_original", false, "0", "0:0,5:10", 2);
 }

@@ -26,6 +26,34 @@ pub struct ModelCard {
     pub description: String,
     /// Where they came from (a training run, an imported file, a seed).
     pub source: String,
+    /// How they were trained (for a trained checkpoint).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub training: Option<TrainingRecord>,
+}
+
+/// What a training stage records on its checkpoint's card.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TrainingRecord {
+    /// The stage (`original`, `nra-0.75`, `nra-1.0`, `ra`).
+    pub stage: String,
+    /// The dataset folder it trained on.
+    pub data: String,
+    /// Training samples (frame views) in the dataset.
+    pub samples_in_data: usize,
+    /// Steps taken.
+    pub steps: usize,
+    /// Samples per step.
+    pub batch: usize,
+    /// The stage's seed.
+    pub seed: u64,
+    /// Adam's learning rate.
+    pub lr: f64,
+    /// Where the loss curves are.
+    pub losses: String,
+    /// Training wall time over every session (seconds).
+    pub wall_s: f64,
+    /// The machine it trained on.
+    pub machine: String,
 }
 
 impl ModelCard {
@@ -35,6 +63,7 @@ impl ModelCard {
             trained: false,
             description: "randomly initialised network: NOT TRAINED, drives at random".into(),
             source: format!("burn initialisers, device seed {seed}"),
+            training: None,
         }
     }
 }

@@ -397,6 +397,26 @@ pub fn run_scenario(
     drivers: &Drivers,
     progress: &mut dyn FnMut(f64),
 ) -> Result<ScenarioRun, BuildError> {
+    run_scenario_with(request, drivers, progress, Extras::default())
+}
+
+/// What a caller adds to a run of [`run_scenario_with`]: an observer of its own,
+/// a selector in place of the scenario's.
+#[derive(Default)]
+pub struct Extras<'a> {
+    /// Sees every tick after the run's own observers.
+    pub observer: Option<&'a mut dyn RunObserver>,
+    /// Chooses the scale instead of the scenario's selector (and `RunRequest::scale`).
+    pub selector: Option<Box<dyn ResolutionSelector>>,
+}
+
+/// [`run_scenario`] with [`Extras`] (the remote environment's observer and selector).
+pub fn run_scenario_with(
+    request: &RunRequest<'_>,
+    drivers: &Drivers,
+    progress: &mut dyn FnMut(f64),
+    extras: Extras<'_>,
+) -> Result<ScenarioRun, BuildError> {
     let path = request.scenario;
     let scenario = request.overrides.apply(&Scenario::from_file(path)?);
     let prepared = runner::prepare(&scenario).map_err(|source| BuildError::Run {
@@ -404,7 +424,10 @@ pub fn run_scenario(
         source: Box::new(source),
     })?;
     let mut driver = drivers.driver(&scenario, &prepared)?;
-    let mut selector = selector_for(&scenario, request.scale)?;
+    let mut selector = match extras.selector {
+        Some(s) => s,
+        None => selector_for(&scenario, request.scale)?,
+    };
     let record_path = request
         .record
         .map(|(p, o)| (p.to_path_buf(), o))
@@ -459,6 +482,9 @@ pub fn run_scenario(
         observers.push(rec);
     } else if request.render_every_frame {
         observers.push(&mut render_every_frame);
+    }
+    if let Some(o) = extras.observer {
+        observers.push(o);
     }
     let record = runner::run(
         &scenario,

@@ -16,6 +16,7 @@ pub mod monitors;
 pub mod observe;
 pub mod record;
 pub mod recorder;
+pub mod remote;
 pub mod render;
 pub mod runner;
 pub mod scenario;

@@ -117,6 +117,8 @@ pub struct Overrides {
     pub vehicles: Option<u32>,
     /// Target pedestrians.
     pub pedestrians: Option<u32>,
+    /// Who drives, over the scenario's `[driver]` (paths relative to the working folder).
+    pub driver: Option<crate::scenario::DriverSpec>,
 }
 
 impl Overrides {
@@ -134,6 +136,9 @@ impl Overrides {
         }
         if let Some(p) = self.pedestrians {
             s.traffic.pedestrians = p;
+        }
+        if let Some(d) = &self.driver {
+            s.driver = d.clone();
         }
         s
     }

@@ -186,6 +186,8 @@ pub enum DriverKind {
     Expert,
     /// A trained (or randomly initialised) network from a checkpoint.
     Policy,
+    /// Controls from outside the process (`mrdrive serve`, the Python environment).
+    External,
 }
 
 impl DriverKind {
@@ -194,6 +196,7 @@ impl DriverKind {
         match self {
             DriverKind::Expert => "expert",
             DriverKind::Policy => "policy",
+            DriverKind::External => "external",
         }
     }
 }

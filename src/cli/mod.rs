@@ -1,17 +1,21 @@
 //! Subcommands of the `mrdrive` program, one file each.
 
+pub mod bar;
 pub mod bench;
 pub mod collect;
 pub mod data;
 pub mod log;
 pub mod map;
+pub mod plot;
 pub mod policy;
 pub mod recalibrate;
 pub mod render;
 pub mod routes;
 pub mod run;
+pub mod serve;
 pub mod sweep;
 pub mod traffic;
+pub mod train;
 
 /// Every driver kind a scenario can name: the expert (built by `sim`) and the
 /// policy (built by `policy` from its checkpoint).

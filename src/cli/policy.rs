@@ -1,11 +1,10 @@
 //! `mrdrive policy ...`, `mrdrive train --synthetic`, `mrdrive bench policy`.
 
-use anyhow::{Result, bail};
+use anyhow::Result;
 use clap::{Args, Subcommand};
 use policy::bench;
 use policy::checkpoint::{self, ModelCard};
 use policy::device::{self, DeviceKind};
-use policy::train::synthetic::{SmokeRun, train_on_toy_batch};
 use policy::train::{Preset, TrainConfig};
 use std::path::PathBuf;
 
@@ -56,6 +55,33 @@ enum PolicyCommand {
     /// Re-estimate every BN branch's running statistics on frames rendered along scenarios
     /// (PROTOCOL §6: 200 batches), each branch on frames drawn at its own scale.
     Recalibrate(super::recalibrate::RecalibrateArgs),
+    /// The closed-loop table of one sweep folder per driver (`<SWEEPS>/<label>/`): per
+    /// town, success, runs with a collision, red lights, lane crossings, route %.
+    Table {
+        /// The folder holding one sweep folder per driver.
+        sweeps: PathBuf,
+        /// Also write the Markdown table to this file.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// How well a checkpoint fits a labelled dataset at each frame's command and speed:
+    /// KL, argmax agreement and braking, standing and moving, follow and turn.
+    Fit {
+        /// Weights path.
+        weights: PathBuf,
+        /// The labelled dataset.
+        #[arg(long)]
+        data: PathBuf,
+        /// Batches to look at.
+        #[arg(long, default_value_t = 40)]
+        batches: usize,
+        /// Samples per batch.
+        #[arg(long, default_value_t = 32)]
+        batch: usize,
+        /// The scale (its BN branch) to evaluate at.
+        #[arg(long, default_value_t = 1.0)]
+        scale: f32,
+    },
     /// Print a checkpoint's config and card.
     Info {
         /// Weights path.
@@ -124,12 +150,58 @@ pub fn run_policy(args: PolicyArgs) -> Result<()> {
                 trained: false,
                 description: "backbone imported from a torchvision ResNet state dict; heads randomly initialised (seed 0): not a trained driving policy".into(),
                 source: weights.display().to_string(),
+                training: None,
             };
             checkpoint::save(&net, &card, &out)?;
             println!("wrote {}", out.display());
             Ok(())
         }
         PolicyCommand::Recalibrate(a) => super::recalibrate::recalibrate(&a),
+        PolicyCommand::Table { sweeps, out } => {
+            let table = super::bar::markdown(&super::bar::read(&sweeps)?);
+            print!("{table}");
+            if let Some(out) = out {
+                std::fs::write(&out, &table)
+                    .map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", out.display()))?;
+            }
+            Ok(())
+        }
+        PolicyCommand::Fit {
+            weights,
+            data,
+            batches,
+            batch,
+            scale,
+        } => {
+            let dev = device::open(DeviceKind::Cpu)?;
+            let (net, _) = checkpoint::load(&weights, &dev)?;
+            let branch = net.config.branch_of(scale).ok_or_else(|| {
+                anyhow::anyhow!(
+                    "--scale {scale}: the checkpoint has scales {:?}",
+                    net.config.scales
+                )
+            })?;
+            let set =
+                std::sync::Arc::new(policy::train::loader::TrainSet::open(&data, &net.config)?);
+            let groups = policy::train::fit::fit(&net, branch, &set, batches, batch, &dev);
+            println!(
+                "| frames | n | KL (nats) | argmax agrees | target brakes | net brakes | brake disagrees |"
+            );
+            println!("| --- | --- | --- | --- | --- | --- | --- |");
+            for g in groups {
+                println!(
+                    "| {} | {} | {:.3} | {:.1} % | {:.1} % | {:.1} % | {:.1} % |",
+                    g.name,
+                    g.n,
+                    g.kl,
+                    100.0 * g.argmax_agree,
+                    100.0 * g.target_brakes,
+                    100.0 * g.net_brakes,
+                    100.0 * g.brake_disagree
+                );
+            }
+            Ok(())
+        }
         PolicyCommand::Info { weights } => {
             let (cfg, card) = checkpoint::read_manifest(&weights)?;
             println!(
@@ -139,87 +211,6 @@ pub fn run_policy(args: PolicyArgs) -> Result<()> {
             Ok(())
         }
     }
-}
-
-/// `mrdrive train ...`
-#[derive(Debug, Args)]
-pub struct TrainArgs {
-    /// Train on a synthetic toy batch (a smoke run: the loss must fall).
-    #[arg(long)]
-    synthetic: bool,
-    /// Steps.
-    #[arg(long, default_value_t = 30)]
-    steps: usize,
-    /// Batch size.
-    #[arg(long, default_value_t = 8)]
-    batch: usize,
-    /// Network preset.
-    #[arg(long, default_value = "tiny")]
-    preset: Preset,
-    /// Scale set R, comma-separated.
-    #[arg(long, value_delimiter = ',', default_value = "0.75,1.0")]
-    scales: Vec<f32>,
-    /// Learning rate.
-    #[arg(long, default_value_t = 1e-3)]
-    lr: f64,
-    /// Seed (initialisation and data).
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
-    /// Device: cpu, wgpu or cuda (GPU devices need a build with that cargo feature).
-    #[arg(long, default_value = "cpu")]
-    device: DeviceKind,
-}
-
-/// Runs `mrdrive train`.
-pub fn run_train(args: TrainArgs) -> Result<()> {
-    if !args.synthetic {
-        bail!(
-            "only `mrdrive train --synthetic` exists so far: the datasets and the training pipeline come with the data issue"
-        );
-    }
-    let run = SmokeRun {
-        config: args.preset.config(&args.scales),
-        batch: args.batch,
-        steps: args.steps,
-        lr: args.lr,
-        seed: args.seed,
-    };
-    println!(
-        "synthetic multi-resolution training: {} scales {:?}, batch {}, {} steps (one fixed toy batch)",
-        run.config.depth.name(),
-        run.config.scales,
-        run.batch,
-        run.steps
-    );
-    let dev = device::open(args.device)?.autodiff();
-    let outcome = train_on_toy_batch(&run, &dev, |r| {
-        let per: Vec<String> = r
-            .per_scale
-            .iter()
-            .zip(&run.config.scales)
-            .map(|(l, s)| format!("{s}x {l:.4}"))
-            .collect();
-        println!(
-            "step {:>4}  loss {:.4}  ({})",
-            r.step,
-            r.loss,
-            per.join(", ")
-        );
-    })?;
-    println!(
-        "loss {:.4} -> {:.4} ({})",
-        outcome.first_loss,
-        outcome.last_loss,
-        if outcome.fell() {
-            "falling"
-        } else {
-            "NOT falling"
-        }
-    );
-    if !outcome.fell() {
-        bail!("the loss did not fall on the toy batch");
-    }
-    Ok(())
 }
 
 #[derive(Debug, Subcommand)]

@@ -23,6 +23,8 @@ pub struct RunArgs {
     pub scale: Option<f64>,
     #[command(flatten)]
     pub traffic: TrafficFlags,
+    #[command(flatten)]
+    pub driver: DriverFlags,
     /// Write the result record as JSON to this file.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -67,13 +69,44 @@ impl TrafficFlags {
             seed: self.seed,
             vehicles: self.vehicles,
             pedestrians: self.pedestrians,
+            driver: None,
+        }
+    }
+}
+
+/// The driver given on the command line over a scenario's `[driver]`.
+#[derive(Args, Debug, Clone, Default)]
+pub struct DriverFlags {
+    /// Drive with this policy checkpoint (e.g. models/ra.safetensors), over the scenario's driver.
+    #[arg(long, conflicts_with = "expert")]
+    pub checkpoint: Option<PathBuf>,
+    /// Drive with the privileged expert, over the scenario's driver.
+    #[arg(long)]
+    pub expert: bool,
+}
+
+impl DriverFlags {
+    /// The driver these flags name, if any.
+    pub fn driver(&self) -> Option<sim::scenario::DriverSpec> {
+        use sim::scenario::{DriverKind, DriverSpec};
+        if self.expert {
+            Some(DriverSpec::default())
+        } else {
+            self.checkpoint.as_ref().map(|c| DriverSpec {
+                kind: DriverKind::Policy,
+                checkpoint: Some(c.clone()),
+                device: None,
+            })
         }
     }
 }
 
 /// Runs `run`.
 pub fn run(a: RunArgs) -> anyhow::Result<()> {
-    let overrides = a.traffic.overrides(a.delay_ms);
+    let overrides = Overrides {
+        driver: a.driver.driver(),
+        ..a.traffic.overrides(a.delay_ms)
+    };
     let bar = if a.quiet {
         indicatif::ProgressBar::hidden()
     } else {

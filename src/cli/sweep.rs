@@ -67,6 +67,8 @@ pub struct SweepRunArgs {
     /// Also record an MCAP log per run (in OUT/logs).
     #[arg(long)]
     pub record: bool,
+    #[command(flatten)]
+    pub driver: super::run::DriverFlags,
 }
 
 fn parse_density(text: &str) -> anyhow::Result<(u32, u32)> {
@@ -150,13 +152,17 @@ fn run_sweep(a: SweepRunArgs) -> anyhow::Result<()> {
             .map(|d| parse_density(d).map(Some))
             .collect::<anyhow::Result<_>>()?
     };
-    let plan = SweepPlan::cross(
+    let mut plan = SweepPlan::cross(
         &a.scenarios,
         &opt(a.delays),
         &opt(a.scales),
         &densities,
         &parse_seeds(&a.seeds)?,
     );
+    let driver = a.driver.driver();
+    for r in &mut plan.runs {
+        r.driver = driver.clone();
+    }
     let (index, count) = match &a.shard {
         Some(s) => sweep::parse_shard(s)?,
         None => (0, 1),

@@ -8,6 +8,7 @@
 //! | `ci` | what `.ci/run` runs: formatting, then `test` with every skip turned into a failure |
 //! | `lint` | `cargo fmt --check` and `cargo clippy --all-targets -- -D warnings` (run before committing; kept out of CI because it needs a second, check-mode build of every dependency) |
 //! | `data [--quick]` | collects and labels the two datasets of the study into `data/original` and `data/retarget` (resumable; regenerates them bit for bit; `--quick`: 2 short episodes each, for a smoke run) |
+//! | `train [--quick]` | the paper's pipeline, skipping what is done: `data`, then `mrdrive train` for the Original, NRA 0.75, NRA 1.0 and RA (resumable), then the closed-loop bar (`mrdrive sweep` of `scenarios/paper/` at Tc = 50 ms, D = 0, three densities, per model and for the expert) into `models/closed-loop.md`; `--quick`: tiny datasets, 4 steps per stage, one density, into `out/train-quick` |
 //! | `bless` | rewrites the regression suite's golden files after a deliberate change |
 //! | `gpu-test [FEATURES]` | the policy crate's tests built with burn's GPU backends (default `wgpu`; `wgpu,cuda` for both), in `target/gpu` so the main build is kept; lavapipe is enough for `wgpu`, CUDA needs an NVIDIA GPU |
 //!
@@ -36,6 +37,7 @@ const PYTHON_PACKAGES: &[&str] = &[
     "jsonschema==4.26.0",
     "safetensors==0.8.0",
     "numpy==2.4.6",
+    "gymnasium==1.4.0",
 ];
 
 fn main() -> ExitCode {
@@ -49,10 +51,11 @@ fn main() -> ExitCode {
         Some("lint") => lint(&root),
         Some("bless") => bless(&root),
         Some("data") => setup(&root).and_then(|env| data(&root, &env, &args[1..])),
+        Some("train") => setup(&root).and_then(|env| train(&root, &env, &args[1..])),
         Some("gpu-test") => setup(&root).and_then(|env| gpu_test(&root, &env, &args[1..])),
         _ => {
             eprintln!(
-                "usage: cargo xtask <setup|run|test|ci|lint|bless|data|gpu-test> [ARGS]\n\nSee xtask/src/main.rs for what each task does."
+                "usage: cargo xtask <setup|run|test|ci|lint|bless|data|train|gpu-test> [ARGS]\n\nSee xtask/src/main.rs for what each task does."
             );
             return ExitCode::from(2);
         }
@@ -321,6 +324,115 @@ fn data(root: &Path, env: &Env, args: &[String]) -> Result<(), String> {
             eprintln!("xtask: {e}");
         });
     }
+    Ok(())
+}
+
+/// The drivers of the closed-loop bar: (sweep folder, checkpoint or expert, fixed scale).
+const BAR: &[(&str, Option<&str>, &str)] = &[
+    ("expert", None, "1.0"),
+    ("original@1.0", Some("original"), "1.0"),
+    ("nra-0.75@0.75", Some("nra-0.75"), "0.75"),
+    ("nra-1.0@1.0", Some("nra-1.0"), "1.0"),
+    ("ra@0.75", Some("ra"), "0.75"),
+    ("ra@1.0", Some("ra"), "1.0"),
+];
+
+fn train(root: &Path, env: &Env, args: &[String]) -> Result<(), String> {
+    let quick = args.iter().any(|a| a == "--quick");
+    data(root, env, if quick { args } else { &[] })?;
+    let vars = borrow(env);
+    let bin = root.join("target/release/mrdrive");
+    let bin = bin.to_str().ok_or("the target path is not UTF-8")?;
+    let (suffix, base) = if quick {
+        ("-quick", "out/train-quick")
+    } else {
+        ("", ".")
+    };
+    let models = format!("{base}/models");
+    let runs = format!("{base}/runs");
+    // The Original in two phases (docs/training.md): WoR's recipe, then the same network
+    // on command-balanced draws with a quarter of the standing frames.
+    let original_data = format!("data/original{suffix}");
+    let wor_runs = format!("{runs}/wor");
+    let wor_model = format!("{wor_runs}/original.safetensors");
+    let (wor_steps, more_steps) = if quick { ("4", "4") } else { ("2300", "2000") };
+    let toy = ["--batch", "4", "--recalibrate-batches", "2"];
+    let mut phase1 = vec![
+        bin,
+        "train",
+        "--stage",
+        "original",
+        "--data",
+        &original_data,
+    ];
+    phase1.extend([
+        "--runs", &wor_runs, "--out", &wor_runs, "--steps", wor_steps,
+    ]);
+    let mut phase2 = vec![
+        bin,
+        "train",
+        "--stage",
+        "original",
+        "--data",
+        &original_data,
+    ];
+    phase2.extend(["--runs", &runs, "--out", &models, "--steps", more_steps]);
+    phase2.extend([
+        "--init",
+        &wor_model,
+        "--standing-keep",
+        "0.25",
+        "--balanced",
+        "true",
+    ]);
+    for mut cmd in [phase1, phase2] {
+        if quick {
+            cmd.extend(toy);
+        }
+        status_in(root, &cmd, &vars)?;
+    }
+    let retarget_data = format!("data/retarget{suffix}");
+    for stage in ["nra-0.75", "nra-1.0", "ra"] {
+        let mut cmd = vec![bin, "train", "--stage", stage, "--data", &retarget_data];
+        cmd.extend(["--runs", &runs, "--out", &models]);
+        if quick {
+            cmd.extend(toy);
+            cmd.extend(["--steps", "4", "--unfreeze-every", "1"]);
+        }
+        status_in(root, &cmd, &vars)?;
+    }
+    let scenarios = [
+        "scenarios/paper/town01_route0.toml",
+        "scenarios/paper/town01_route1.toml",
+        "scenarios/paper/town02_route0.toml",
+        "scenarios/paper/town02_route1.toml",
+    ];
+    let densities = if quick { "0:0" } else { "0:0,5:10,20:40" };
+    let sweeps = format!("{base}/out/bar");
+    for &(label, model, scale) in BAR {
+        let out = format!("{sweeps}/{label}");
+        let checkpoint = model.map(|m| format!("{models}/{m}.safetensors"));
+        let mut cmd = vec![bin, "sweep"];
+        cmd.extend(scenarios);
+        cmd.extend(["--delays", "0", "--scales", scale, "--densities", densities]);
+        cmd.extend(["--seeds", "0", "--out", &out]);
+        match &checkpoint {
+            Some(c) => cmd.extend(["--checkpoint", c.as_str()]),
+            None => cmd.push("--expert"),
+        }
+        if quick {
+            // The quick pipeline checks the plumbing: one short scenario suffices.
+            cmd.retain(|a| !a.contains("town0") || a.ends_with("town01_route0.toml"));
+        }
+        status_in(root, &cmd, &vars)?;
+    }
+    let table = format!("{models}/closed-loop.md");
+    status_in(
+        root,
+        &[bin, "policy", "table", &sweeps, "--out", &table],
+        &vars,
+    )?;
+    eprintln!("xtask: the closed-loop table is in {table}");
     Ok(())
 }
 

@@ -34,8 +34,12 @@ use dataset::labels::LABEL_VERSION;
 use rand::RngExt;
 
 use super::augment::{AugmentConfig, Sample as Pixels, augment, mix, sample_rng};
+use super::losses::command_weights;
 use super::multires::Batch;
 use crate::model::PolicyConfig;
+
+/// Below this speed a frame counts as standing (metres per second).
+pub const STANDING_MPS: f32 = 0.5;
 
 /// How the loader samples and augments.
 #[derive(Debug, Clone, PartialEq)]
@@ -48,8 +52,15 @@ pub struct LoaderConfig {
     pub augment: Option<AugmentConfig>,
     /// Draw commands evenly instead of visiting every sample once per epoch.
     pub balanced: bool,
+    /// The share of standing frames (ego below [`STANDING_MPS`]) kept, in [0, 1]: a
+    /// fixed subset chosen by the seed (1 keeps all). Waiting at red lights fills a third
+    /// of our data; fewer of those frames weaken the "junction ahead: brake" prior.
+    pub standing_keep: f64,
     /// The first epoch (to resume a run where it stopped).
     pub first_epoch: u64,
+    /// Batches of the first epoch to leave out (to resume a run mid-epoch); the
+    /// batches that follow are the same as in an uninterrupted stream.
+    pub first_batch: usize,
     /// Epochs to stream; `None` streams until the loader is dropped.
     pub epochs: Option<u64>,
     /// Batches prepared ahead of the training step (over all workers).
@@ -69,7 +80,9 @@ impl LoaderConfig {
             seed,
             augment: Some(AugmentConfig::default()),
             balanced: false,
+            standing_keep: 1.0,
             first_epoch: 0,
+            first_batch: 0,
             epochs: None,
             queue: 4,
             workers: 1,
@@ -266,6 +279,11 @@ impl TrainSet {
         })
     }
 
+    /// The ego's speed at a sample's frame (metres per second).
+    pub fn speed_mps(&self, s: &SampleRef) -> f32 {
+        self.parts[s.episode as usize].shard.state.ego[s.frame as usize].speed
+    }
+
     /// Samples per command (`world::Command` as index).
     pub fn per_command(&self) -> [usize; NUM_COMMANDS] {
         let mut n = [0; NUM_COMMANDS];
@@ -275,14 +293,33 @@ impl TrainSet {
         n
     }
 
+    /// Whether sample `s` is used under `cfg.standing_keep` (the same answer for every
+    /// view of a frame and every epoch).
+    pub fn kept(&self, cfg: &LoaderConfig, s: &SampleRef) -> bool {
+        if cfg.standing_keep >= 1.0 || self.speed_mps(s) >= STANDING_MPS {
+            return true;
+        }
+        let frame = (u64::from(s.episode) << 32) | u64::from(s.frame);
+        let u = (mix(cfg.seed ^ 0x57a4d, frame) >> 11) as f64 / (1u64 << 53) as f64;
+        u < cfg.standing_keep
+    }
+
+    /// Samples per epoch under `cfg` (those [`TrainSet::kept`]).
+    pub fn epoch_len(&self, cfg: &LoaderConfig) -> usize {
+        self.samples.iter().filter(|s| self.kept(cfg, s)).count()
+    }
+
     /// The order of epoch `epoch`: positions in [`TrainSet::samples`].
     pub fn epoch_order(&self, cfg: &LoaderConfig, epoch: u64) -> Vec<usize> {
         let mut rng = sample_rng(cfg.seed, epoch);
-        let n = self.samples.len();
+        let pool: Vec<usize> = (0..self.samples.len())
+            .filter(|&i| self.kept(cfg, &self.samples[i]))
+            .collect();
+        let n = pool.len();
         if cfg.balanced {
             let mut by_command: Vec<Vec<usize>> = vec![Vec::new(); NUM_COMMANDS];
-            for (i, s) in self.samples.iter().enumerate() {
-                by_command[usize::from(s.command)].push(i);
+            for &i in &pool {
+                by_command[usize::from(self.samples[i].command)].push(i);
             }
             by_command.retain(|c| !c.is_empty());
             (0..n)
@@ -292,7 +329,7 @@ impl TrainSet {
                 })
                 .collect()
         } else {
-            let mut order: Vec<usize> = (0..n).collect();
+            let mut order = pool;
             for i in (1..n).rev() {
                 order.swap(i, rng.random_range(0..=i));
             }
@@ -384,6 +421,16 @@ impl HostBatch {
                 device,
             ),
             seg: Tensor::from_data(TensorData::new(self.seg.clone(), [n, h, w]), device),
+            cmd_weights: Tensor::from_data(
+                TensorData::new(
+                    self.samples
+                        .iter()
+                        .flat_map(|s| command_weights(s.command))
+                        .collect::<Vec<f32>>(),
+                    [n, NUM_COMMANDS],
+                ),
+                device,
+            ),
         }
     }
 }
@@ -402,7 +449,7 @@ impl Loader {
     /// Starts the workers. `set` is shared with them; `config` says how to normalise.
     pub fn start(set: Arc<TrainSet>, config: &PolicyConfig, cfg: LoaderConfig) -> Loader {
         let batch = cfg.batch.max(1);
-        let batches_per_epoch = set.samples.len() / batch;
+        let batches_per_epoch = set.epoch_len(&cfg) / batch;
         let n = cfg.workers.max(1);
         let mut rx = Vec::with_capacity(n);
         let mut workers = Vec::with_capacity(n);
@@ -454,7 +501,12 @@ fn produce(
             return;
         }
         let order = set.epoch_order(cfg, epoch);
-        for (b, at) in order.chunks_exact(batch).enumerate() {
+        let skip = if epoch == cfg.first_epoch {
+            cfg.first_batch
+        } else {
+            0
+        };
+        for (b, at) in order.chunks_exact(batch).enumerate().skip(skip) {
             if g % n == w {
                 let hb = set.host_batch(config, cfg, epoch, (b * batch) as u64, at);
                 if tx.send(hb).is_err() {
@@ -572,6 +624,18 @@ mod tests {
             },
         );
         assert_eq!(three, a, "three workers give the same stream");
+        // Resuming at epoch 1, batch 3 streams exactly the rest of the stream.
+        let resumed = all(
+            open(),
+            LoaderConfig {
+                first_epoch: 1,
+                first_batch: 3,
+                epochs: Some(1),
+                workers: 2,
+                ..cfg(7)
+            },
+        );
+        assert_eq!(resumed, a[8 + 3..].to_vec());
         // Each epoch visits each sample at most once, and the epochs differ.
         let first: Vec<SampleRef> = a[..8].iter().flat_map(|b| b.samples.clone()).collect();
         let mut dedup = first.clone();

@@ -8,24 +8,64 @@ use burn::tensor::ops::{InterpolateMode, InterpolateOptions};
 /// WoR's temperature for the Boltzmann targets `softmax(Q / T)`.
 pub const TEMPERATURE: f32 = 0.01;
 
-/// `KL(p || softmax(z))` summed over the last dim for target log-probabilities `log_p`,
-/// averaged over every other dim.
-fn kl_last_dim(log_p: Tensor<4>, z: Tensor<4>) -> Tensor<1> {
+/// WoR's command grouping (`rails/rails.py`, `train_main`): the weight of each
+/// command's KL for a frame whose route command is `command` (`world::Command` as u8:
+/// 0 LEFT, 1 RIGHT, 2 STRAIGHT, 3 LANEFOLLOW, 4/5 CHANGELANE).
+///
+/// WoR adds two terms per frame: `turn` (mean of the KLs of commands 0-3) on turn
+/// frames, else `follow` (command 3); plus `lane` (mean of commands 3-5) on lane-change
+/// frames, else `follow`. A follow frame therefore weighs command 3 twice.
+pub fn command_weights(command: u8) -> [f32; 6] {
+    let mut w = [0.0f32; 6];
+    match command {
+        0..=2 => {
+            for c in w.iter_mut().take(4) {
+                *c += 0.25;
+            }
+        }
+        _ => w[3] += 1.0,
+    }
+    match command {
+        4 | 5 => {
+            for c in &mut w[3..6] {
+                *c += 1.0 / 3.0;
+            }
+        }
+        _ => w[3] += 1.0,
+    }
+    w
+}
+
+/// `KL(p || softmax(z))` for target log-probabilities `log_p` `[B, C, S, A]`, averaged
+/// over the speed bins and the actions as WoR's `kl_div(...).mean(dim=[2, 3])`: `[B, C]`.
+fn kl_per_command(log_p: Tensor<4>, z: Tensor<4>) -> Tensor<2> {
+    let [b, c, _, _] = z.dims();
     let log_q = log_softmax(z, 3);
     let p = log_p.clone().exp();
-    (p * (log_p - log_q)).sum_dim(3).mean()
+    (p * (log_p - log_q))
+        .mean_dim(3)
+        .mean_dim(2)
+        .reshape([b, c])
 }
 
-/// Action loss: `KL(softmax(Q / T) || softmax(z))` over the 28 actions, for every command and
-/// speed bin, averaged over batch, commands and bins. `q`, `z`: `[B, commands, bins, 28]`.
-pub fn action_kl(z: Tensor<4>, q: Tensor<4>, temperature: f32) -> Tensor<1> {
-    kl_last_dim(log_softmax(q.div_scalar(temperature), 3), z)
+/// Action loss: `KL(softmax(Q / T) || softmax(z))` per command (averaged over speed bins
+/// and the 28 actions), weighted per sample by `weights` `[B, commands]` (see
+/// [`command_weights`]), summed over commands and averaged over the batch.
+/// `q`, `z`: `[B, commands, bins, 28]`.
+pub fn action_kl(z: Tensor<4>, q: Tensor<4>, weights: Tensor<2>, temperature: f32) -> Tensor<1> {
+    let kl = kl_per_command(log_softmax(q.div_scalar(temperature), 3), z);
+    (kl * weights).sum_dim(1).mean()
 }
 
-/// Teacher knowledge distillation: `KL(softmax(zT) || softmax(z))` over the 28 actions,
-/// averaged like [`action_kl`]; the teacher's logits carry no gradient.
+/// Teacher knowledge distillation: `KL(softmax(zT) || softmax(z))` summed over commands,
+/// speed bins and actions and divided by the batch, as TimeParam does (WOR.md §5: much
+/// larger than the action term); the teacher's logits carry no gradient.
 pub fn kd_kl(z: Tensor<4>, teacher_z: Tensor<4>) -> Tensor<1> {
-    kl_last_dim(log_softmax(teacher_z.detach(), 3), z)
+    let [b, _, _, _] = z.dims();
+    let log_p = log_softmax(teacher_z.detach(), 3);
+    let log_q = log_softmax(z, 3);
+    let p = log_p.clone().exp();
+    (p * (log_p - log_q)).sum().div_scalar(b as f32)
 }
 
 /// Feature matching: `||f - fT||^2 / D`, averaged over the batch (`[B, D]`).
@@ -58,6 +98,22 @@ mod tests {
         t.into_data().try_to_vec::<f32>().unwrap()[0]
     }
 
+    fn follow_weights(n: usize, device: &Device) -> Tensor<2> {
+        let w: Vec<f32> = (0..n).flat_map(|_| command_weights(3)).collect();
+        Tensor::from_data(TensorData::new(w, [n, 6]), device)
+    }
+
+    #[test]
+    fn command_weights_follow_wor() {
+        assert_eq!(command_weights(3), [0.0, 0.0, 0.0, 2.0, 0.0, 0.0]);
+        assert_eq!(command_weights(0), [0.25, 0.25, 0.25, 1.25, 0.0, 0.0]);
+        let lane = command_weights(5);
+        assert!((lane[3] - 4.0 / 3.0).abs() < 1e-6 && (lane[4] - 1.0 / 3.0).abs() < 1e-6);
+        for c in 0..6 {
+            assert!((command_weights(c).iter().sum::<f32>() - 2.0).abs() < 1e-6);
+        }
+    }
+
     #[test]
     fn action_kl_is_zero_at_the_target_and_matches_a_hand_computation() {
         let device = Device::flex();
@@ -67,25 +123,37 @@ mod tests {
             &device,
         );
         // z = Q / T gives exactly the target distribution.
-        assert!(
-            scalar(action_kl(
-                q.clone().div_scalar(TEMPERATURE),
-                q.clone(),
-                TEMPERATURE
-            ))
-            .abs()
-                < 1e-5
-        );
-        // One cell by hand: target one-hot-ish (Q/T = [0, ln 3]) over 2 of 28 actions...
-        let mut qv = vec![-1e3f32; 28];
-        qv[0] = 0.0;
-        qv[1] = 3f32.ln() * TEMPERATURE;
-        let zv = vec![0.0f32; 28];
-        let q = Tensor::<4>::from_data(TensorData::new(qv, [1, 1, 1, 28]), &device);
-        let z = Tensor::<4>::from_data(TensorData::new(zv, [1, 1, 1, 28]), &device);
-        // p = (1/4, 3/4), q = 1/28 each: KL = 1/4 ln(28/4) + 3/4 ln(3*28/4).
-        let expected = 0.25 * (7.0f32).ln() + 0.75 * (21.0f32).ln();
-        assert!((scalar(action_kl(z, q, TEMPERATURE)) - expected).abs() < 1e-4);
+        let z = q.clone().div_scalar(TEMPERATURE);
+        assert!(scalar(action_kl(z, q, follow_weights(2, &device), TEMPERATURE)).abs() < 1e-5);
+        // One cell by hand: target (Q/T = [0, ln 3]) over 2 of 28 actions, in command 3
+        // and speed bin 0 of a follow frame; every other cell has target = output.
+        let mut qv = vec![0.0f32; 6 * 4 * 28];
+        for (i, v) in qv.iter_mut().enumerate() {
+            let (cell, a) = (i / 28, i % 28);
+            if cell == 3 * 4 && a >= 2 {
+                *v = -1e3;
+            }
+        }
+        qv[3 * 4 * 28 + 1] = 3f32.ln() * TEMPERATURE;
+        let zv: Vec<f32> = qv
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| {
+                if i / 28 == 3 * 4 {
+                    0.0
+                } else {
+                    v / TEMPERATURE
+                }
+            })
+            .collect();
+        let q = Tensor::<4>::from_data(TensorData::new(qv, [1, 6, 4, 28]), &device);
+        let z = Tensor::<4>::from_data(TensorData::new(zv, [1, 6, 4, 28]), &device);
+        // p = (1/4, 3/4), q = 1/28 each: KL = 1/4 ln(28/4) + 3/4 ln(3*28/4), averaged over
+        // 28 actions and 4 bins, weighted 2 (a follow frame).
+        let cell = 0.25 * (7.0f32).ln() + 0.75 * (21.0f32).ln();
+        let expected = 2.0 * cell / (28.0 * 4.0);
+        let got = scalar(action_kl(z, q, follow_weights(1, &device), TEMPERATURE));
+        assert!((got - expected).abs() < 1e-5, "{got} vs {expected}");
     }
 
     #[test]
@@ -97,7 +165,14 @@ mod tests {
             &device,
         );
         assert!(scalar(kd_kl(z.clone(), z.clone())).abs() < 1e-5);
-        assert!(scalar(kd_kl(z.clone(), z.mul_scalar(2.0))) > 1e-3);
+        assert!(scalar(kd_kl(z.clone(), z.clone().mul_scalar(2.0))) > 1e-3);
+        // Summed over cells, divided by the batch: two copies of a sample give the same loss.
+        let one = scalar(kd_kl(z.clone(), z.clone().mul_scalar(2.0)));
+        let two = scalar(kd_kl(
+            Tensor::cat(vec![z.clone(), z.clone()], 0),
+            Tensor::cat(vec![z.clone().mul_scalar(2.0), z.mul_scalar(2.0)], 0),
+        ));
+        assert!((one - two).abs() < 1e-4 * one.max(1.0));
         let f = Tensor::<2>::from_data(
             TensorData::new(vec![1.0f32, 2.0, 3.0, 4.0], [1, 4]),
             &device,

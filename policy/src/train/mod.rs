@@ -4,6 +4,7 @@
 //! synthetic toy batch with the smoke run that trains on it.
 
 pub mod augment;
+pub mod fit;
 pub mod loader;
 pub mod losses;
 pub mod multires;
@@ -11,7 +12,9 @@ pub mod presets;
 pub mod recalibrate;
 pub mod recalibrate_scenes;
 pub mod resize;
+pub mod stage;
 pub mod synthetic;
 
 pub use multires::{Batch, MultiResTrainer, TrainConfig};
 pub use presets::Preset;
+pub use stage::{StageSpec, run_stage};

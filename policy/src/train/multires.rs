@@ -4,14 +4,21 @@
 //! forward, compute the loss; average the losses over R; one backward pass and
 //! one Adam step. Optionally: the action head frozen, a frozen teacher (the
 //! 1.0x original model on the same images) for KD and feature matching, and
-//! progressive unfreezing of the backbone's convolutions layer4 -> layer1.
+//! progressive unfreezing of the backbone's convolutions layer4 -> layer1 with
+//! a new Adam per unfreezing stage (TimeParam's recipe, WOR.md §5).
+//!
+//! The trainer's state (network with its parameter ids, Adam's moments, the
+//! step) saves to and resumes from a folder, and a resumed run continues bit
+//! for bit (see the tests).
 
 use super::losses::{TEMPERATURE, action_kl, feature_mse, kd_kl, seg_ce};
 use super::resize::resize_to_scale;
 use crate::model::PolicyNet;
 use burn::module::Module;
-use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
+use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer, OptimizerRecord};
 use burn::prelude::*;
+use burn::store::{BurnpackStore, ModuleSnapshot};
+use std::path::{Path, PathBuf};
 
 /// One training batch at scale 1.0.
 #[derive(Debug, Clone)]
@@ -22,10 +29,13 @@ pub struct Batch {
     pub q: Tensor<4>,
     /// Segmentation labels `[B, H0, W0]` (class ids).
     pub seg: Tensor<3, Int>,
+    /// Per-sample weight of each command's action loss `[B, commands]`
+    /// ([`super::losses::command_weights`] of the frame's route command).
+    pub cmd_weights: Tensor<2>,
 }
 
 /// Settings of the multi-resolution step.
-#[derive(Config, Debug)]
+#[derive(Config, Debug, PartialEq)]
 pub struct TrainConfig {
     /// Adam learning rate (TimeParam retargeting: 1.5e-4; WoR training: 3e-4).
     #[config(default = 1.5e-4)]
@@ -46,7 +56,8 @@ pub struct TrainConfig {
     #[config(default = true)]
     pub freeze_action_head: bool,
     /// Progressive unfreezing: every this many steps one more backbone stage (layer4 first,
-    /// then layer3, layer2, layer1 with the stem) gets trainable convolutions. None: all trainable.
+    /// then layer3, layer2, layer1) gets trainable convolutions, with a new Adam each time;
+    /// the stem stays frozen (TimeParam). None: everything trainable, one Adam.
     #[config(default = "None")]
     pub unfreeze_every: Option<usize>,
 }
@@ -55,6 +66,19 @@ impl Default for TrainConfig {
     fn default() -> Self {
         TrainConfig::new()
     }
+}
+
+/// The terms of a step's loss, each averaged over the scales trained (unweighted).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct LossParts {
+    /// Action KL against the Boltzmann targets.
+    pub act: f32,
+    /// Segmentation cross-entropy (0 when the decoder is off).
+    pub seg: f32,
+    /// KL to the teacher's actions (0 without a teacher).
+    pub kd: f32,
+    /// Feature MSE to the teacher (0 without a teacher).
+    pub feat: f32,
 }
 
 /// Losses of one step.
@@ -66,9 +90,31 @@ pub struct StepReport {
     pub per_scale: Vec<f32>,
     /// The averaged loss that was back-propagated.
     pub loss: f32,
+    /// Its terms, averaged over the scales.
+    pub parts: LossParts,
     /// Backbone stages with trainable convolutions (4 = all).
     pub unfrozen_stages: usize,
 }
+
+/// The trainer's state could not be saved or restored.
+#[derive(Debug, thiserror::Error)]
+pub enum StateError {
+    /// A state file could not be written or read.
+    #[error("{path}: {problem}; fix: {fix}")]
+    File {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        problem: String,
+        /// What would fix it.
+        fix: &'static str,
+    },
+}
+
+/// The network's state file in a state folder (weights with their parameter ids).
+pub const NET_FILE: &str = "net.bpk";
+/// Adam's state file in a state folder.
+pub const OPTIM_FILE: &str = "adam.bpk";
 
 /// Holds the student, the optional frozen teacher and the optimizer state.
 pub struct MultiResTrainer {
@@ -105,11 +151,16 @@ impl MultiResTrainer {
             teacher,
             optim: AdamConfig::new().init(),
             step: 0,
-            unfrozen: 4,
+            unfrozen: usize::MAX,
             config,
         };
         trainer.apply_unfreezing();
         trainer
+    }
+
+    /// Steps taken so far (the index of the next step).
+    pub fn steps_done(&self) -> usize {
+        self.step
     }
 
     /// Backbone stages with trainable convolutions at step `step`.
@@ -120,18 +171,76 @@ impl MultiResTrainer {
         }
     }
 
+    /// Sets the trainable stages for the current step; a new stage gets a new Adam.
     fn apply_unfreezing(&mut self) {
         let want = self.unfrozen_at(self.step);
-        if want == self.unfrozen && self.step > 0 {
+        if want == self.unfrozen {
             return;
         }
+        let progressive = self.config.unfreeze_every.is_some_and(|e| e > 0);
         let mut backbone = self.net.backbone.clone();
         for stage in 1..=4 {
             backbone = backbone.set_stage_trainable(stage, stage > 4 - want);
         }
-        backbone = backbone.set_stage_trainable(0, want == 4);
+        backbone = backbone.set_stage_trainable(0, !progressive);
         self.net.backbone = backbone;
         self.unfrozen = want;
+        self.optim = AdamConfig::new().init();
+    }
+
+    /// Saves the network (with its parameter ids) and Adam's state into `dir`.
+    pub fn save_state(&self, dir: &Path) -> Result<(), StateError> {
+        self.net.sync_running_stats();
+        let path = dir.join(NET_FILE);
+        let mut store = BurnpackStore::from_file(&path).overwrite(true);
+        self.net
+            .save_into(&mut store)
+            .map_err(|e| StateError::File {
+                path: path.clone(),
+                problem: format!("could not write: {e}"),
+                fix: "check the folder exists, is writable and the disk has room",
+            })?;
+        let path = dir.join(OPTIM_FILE);
+        self.optim
+            .to_record()
+            .save(&path)
+            .map_err(|e| StateError::File {
+                path,
+                problem: format!("could not write: {e}"),
+                fix: "check the folder exists, is writable and the disk has room",
+            })
+    }
+
+    /// A trainer that continues where [`MultiResTrainer::save_state`] left off after `step`
+    /// steps: `net` must have the saved network's architecture (its weights and parameter
+    /// ids are read from `dir`).
+    pub fn resume(
+        net: PolicyNet,
+        teacher: Option<PolicyNet>,
+        config: TrainConfig,
+        device: &Device,
+        dir: &Path,
+        step: usize,
+    ) -> Result<Self, StateError> {
+        let mut net = net;
+        let path = dir.join(NET_FILE);
+        let mut store = BurnpackStore::from_file(&path);
+        net.load_from(&mut store).map_err(|e| StateError::File {
+            path: path.clone(),
+            problem: format!("does not fit the network: {e}"),
+            fix: "delete the run folder to start the stage again",
+        })?;
+        let mut trainer = MultiResTrainer::new(net, teacher, config, device);
+        trainer.step = step;
+        trainer.apply_unfreezing();
+        let path = dir.join(OPTIM_FILE);
+        let record = OptimizerRecord::load(&path).map_err(|e| StateError::File {
+            path,
+            problem: format!("unreadable optimizer state: {e}"),
+            fix: "delete the run folder to start the stage again",
+        })?;
+        trainer.optim = AdamConfig::new().init().load_record(record);
+        Ok(trainer)
     }
 
     /// One multi-resolution step over every scale of the network's R.
@@ -150,34 +259,48 @@ impl MultiResTrainer {
         });
         let mut total: Option<Tensor<1>> = None;
         let mut per_scale = Vec::with_capacity(branches.len());
+        let mut parts = LossParts::default();
+        let n = branches.len() as f32;
+        let value = |t: &Tensor<1>| t.clone().into_scalar::<f32>();
         for &b in branches {
             let r = self.net.config.scales[b];
             let x = resize_to_scale(batch.images.clone(), r);
             let out = self.net.forward(x, b, cfg.seg_weight > 0.0);
-            let mut loss = action_kl(out.action_logits.clone(), batch.q.clone(), cfg.temperature);
+            let act = action_kl(
+                out.action_logits.clone(),
+                batch.q.clone(),
+                batch.cmd_weights.clone(),
+                cfg.temperature,
+            );
+            parts.act += value(&act) / n;
+            let mut loss = act;
             if let Some(seg) = out.seg_logits {
-                loss = loss + seg_ce(seg, batch.seg.clone()).mul_scalar(cfg.seg_weight);
+                let seg = seg_ce(seg, batch.seg.clone());
+                parts.seg += value(&seg) / n;
+                loss = loss + seg.mul_scalar(cfg.seg_weight);
             }
             if let Some((tz, tf)) = &teacher_out {
-                loss = loss + kd_kl(out.action_logits, tz.clone()).mul_scalar(cfg.kd_weight);
-                loss = loss + feature_mse(out.features, tf.clone()).mul_scalar(cfg.feat_weight);
+                let kd = kd_kl(out.action_logits, tz.clone());
+                let feat = feature_mse(out.features, tf.clone());
+                parts.kd += value(&kd) / n;
+                parts.feat += value(&feat) / n;
+                loss = loss + kd.mul_scalar(cfg.kd_weight) + feat.mul_scalar(cfg.feat_weight);
             }
-            per_scale.push(loss.clone().into_scalar::<f32>());
+            per_scale.push(value(&loss));
             total = Some(match total {
                 Some(t) => t + loss,
                 None => loss,
             });
         }
-        let total = total
-            .expect("at least one branch")
-            .div_scalar(branches.len() as f32);
-        let loss = total.clone().into_scalar::<f32>();
+        let total = total.expect("at least one branch").div_scalar(n);
+        let loss = value(&total);
         let grads = GradientsParams::from_grads(total.backward(), &self.net);
         self.net = self.optim.step(self.config.lr, self.net.clone(), grads);
         let report = StepReport {
             step: self.step,
             per_scale,
             loss,
+            parts,
             unfrozen_stages: self.unfrozen,
         };
         self.step += 1;
@@ -316,11 +439,93 @@ mod tests {
             changed_at.push((0..5).map(|i| now[i] != prev[i]).collect::<Vec<_>>());
             prev = now;
         }
-        // Steps 0-1: layer4 only; 2-3: + layer3; 4-5: + layer2; 6-7: + layer1 and the stem.
+        // Steps 0-1: layer4 only; 2-3: + layer3; 4-5: + layer2; 6-7: + layer1; the stem never.
         assert_eq!(changed_at[0], vec![false, false, false, true, false]);
         assert_eq!(changed_at[2], vec![false, false, true, true, false]);
         assert_eq!(changed_at[4], vec![false, true, true, true, false]);
-        assert_eq!(changed_at[6], vec![true, true, true, true, true]);
+        assert_eq!(changed_at[6], vec![true, true, true, true, false]);
+    }
+
+    fn fingerprint(n: &PolicyNet) -> Vec<Vec<f32>> {
+        n.sync_running_stats();
+        vec![
+            vals(n.backbone.conv1.weight.val()),
+            vals(n.backbone.layer1[0].conv1.weight.val()),
+            vals(n.backbone.layer4[0].conv2.weight.val()),
+            vals(
+                n.backbone.layer3[0].bn1.branches[0]
+                    .running_mean
+                    .value_sync(),
+            ),
+            vals(
+                n.backbone.layer3[0].bn1.branches[1]
+                    .running_var
+                    .value_sync(),
+            ),
+            vals(n.seg_head.bn2.branches[1].gamma.val()),
+            vals(n.action_head.fc1.weight.val()),
+        ]
+    }
+
+    #[test]
+    fn a_resumed_trainer_continues_bit_for_bit() {
+        let device = Device::flex().autodiff();
+        device.seed(25);
+        let cfg = tiny();
+        let teacher = cfg.clone().with_scales(vec![1.0]).init(&device);
+        let student = cfg.init(&device);
+        let batches: Vec<Batch> = (0..5)
+            .map(|k| toy_batch(&cfg, 3, 40 + k, &device))
+            .collect();
+        // Unfreezing every 2 steps: the resume point (3) lies inside a stage, and a new
+        // Adam starts at step 4 in both runs.
+        let tc = TrainConfig::new()
+            .with_lr(1e-2)
+            .with_unfreeze_every(Some(2));
+        let mut straight =
+            MultiResTrainer::new(student.clone(), Some(teacher.clone()), tc.clone(), &device);
+        let losses: Vec<f32> = batches.iter().map(|b| straight.step(b).loss).collect();
+
+        let dir = tempfile::tempdir().unwrap();
+        let mut first =
+            MultiResTrainer::new(student.clone(), Some(teacher.clone()), tc.clone(), &device);
+        for b in &batches[..3] {
+            first.step(b);
+        }
+        first.save_state(dir.path()).unwrap();
+        drop(first);
+        let mut resumed =
+            MultiResTrainer::resume(cfg.init(&device), Some(teacher), tc, &device, dir.path(), 3)
+                .unwrap();
+        assert_eq!(resumed.steps_done(), 3);
+        let rest: Vec<f32> = batches[3..].iter().map(|b| resumed.step(b).loss).collect();
+        assert_eq!(rest, losses[3..].to_vec());
+        assert_eq!(fingerprint(&resumed.net), fingerprint(&straight.net));
+    }
+
+    #[test]
+    fn a_state_of_another_network_is_refused_with_the_file_named() {
+        let device = Device::flex().autodiff();
+        device.seed(26);
+        let dir = tempfile::tempdir().unwrap();
+        let tr = MultiResTrainer::new(tiny().init(&device), None, TrainConfig::new(), &device);
+        tr.save_state(dir.path()).unwrap();
+        let other = tiny().with_scales(vec![1.0]).with_input_width(96);
+        let wider = PolicyConfig {
+            widths: [8, 8, 16, 16],
+            ..other
+        };
+        let err = MultiResTrainer::resume(
+            wider.init(&device),
+            None,
+            TrainConfig::new(),
+            &device,
+            dir.path(),
+            1,
+        )
+        .err()
+        .expect("a different network is refused");
+        assert!(err.to_string().contains(NET_FILE), "{err}");
     }
 
     #[test]

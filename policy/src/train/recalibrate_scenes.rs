@@ -258,6 +258,7 @@ pub fn recalibrate_on_scenarios(
             names.join(", ")
         ),
         source: weights.display().to_string(),
+        training: card.training.clone(),
     };
     Ok(Recalibrated {
         net,

@@ -2,10 +2,11 @@
 //! labels from a seeded ChaCha8 generator), and the smoke run itself
 //! (`mrdrive train --synthetic`): a fresh network must fit one toy batch.
 
+use super::losses::command_weights;
 use super::multires::{Batch, MultiResTrainer, StepReport, TrainConfig};
 use crate::model::{ConfigError, PolicyConfig};
 use burn::prelude::*;
-use dataset::action::NUM_ACTIONS;
+use dataset::action::{NUM_ACTIONS, NUM_COMMANDS};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -56,6 +57,16 @@ pub fn toy_batch(config: &PolicyConfig, n: usize, seed: u64, device: &Device) ->
             }
         }
     }
+    // Mostly LANEFOLLOW, as in the datasets, with a turn now and then.
+    let cmd_weights: Vec<f32> = (0..n)
+        .flat_map(|_| {
+            command_weights(if rng.random_bool(0.25) {
+                rng.random_range(0..3)
+            } else {
+                3
+            })
+        })
+        .collect();
     Batch {
         images: Tensor::from_data(TensorData::new(images, [n, 3, h, w]), device),
         q: Tensor::from_data(
@@ -66,6 +77,7 @@ pub fn toy_batch(config: &PolicyConfig, n: usize, seed: u64, device: &Device) ->
             device,
         ),
         seg: Tensor::from_data(TensorData::new(seg, [n, h, w]), device),
+        cmd_weights: Tensor::from_data(TensorData::new(cmd_weights, [n, NUM_COMMANDS]), device),
     }
 }
 

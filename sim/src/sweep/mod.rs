@@ -23,6 +23,7 @@ pub mod execute;
 pub mod folder;
 pub mod merge;
 pub mod plan;
+pub mod stats;
 pub mod tables;
 
 pub use error::SweepError;

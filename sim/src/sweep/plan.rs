@@ -20,6 +20,9 @@ pub struct RunSpec {
     pub density: Option<(u32, u32)>,
     /// Traffic seed.
     pub seed: u64,
+    /// Who drives, over the scenario's `[driver]`; `None` keeps the scenario's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub driver: Option<crate::scenario::DriverSpec>,
 }
 
 impl RunSpec {
@@ -48,6 +51,7 @@ impl RunSpec {
             seed: Some(self.seed),
             vehicles: self.density.map(|d| d.0),
             pedestrians: self.density.map(|d| d.1),
+            driver: self.driver.clone(),
         }
     }
 }
@@ -80,6 +84,7 @@ impl SweepPlan {
                                 scale,
                                 density,
                                 seed,
+                                driver: None,
                             });
                         }
                     }
@@ -152,5 +157,26 @@ mod tests {
         assert_eq!(o.delay_ms, Some(100.0));
         assert_eq!(o.seed, Some(2));
         assert_eq!((o.vehicles, o.pedestrians), (Some(5), Some(10)));
+        assert_eq!(o.driver, None);
+        // A driver named for the sweep replaces the scenario's, and survives the plan file.
+        let policy = crate::scenario::DriverSpec {
+            kind: crate::scenario::DriverKind::Policy,
+            checkpoint: Some("models/ra.safetensors".into()),
+            device: None,
+        };
+        let spec = RunSpec {
+            driver: Some(policy.clone()),
+            ..spec.clone()
+        };
+        let json = serde_json::to_string(&spec).unwrap();
+        let back: RunSpec = serde_json::from_str(&json).unwrap();
+        assert_eq!(back, spec);
+        let scenario = crate::scenario::Scenario::from_toml_str(
+            "[map]\nfile = \"m.xodr\"\n[route]\nfile = \"r.toml\"\nid = 0\n",
+            std::path::Path::new("/s"),
+        )
+        .unwrap();
+        assert_eq!(scenario.driver.kind, crate::scenario::DriverKind::Expert);
+        assert_eq!(spec.overrides().apply(&scenario).driver, policy);
     }
 }

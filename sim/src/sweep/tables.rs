@@ -7,6 +7,7 @@ use std::fmt;
 
 use serde::Serialize;
 
+use super::stats::{Z95, wilson};
 use super::{SweepDir, SweepError, read_records};
 use crate::monitors::InfractionKind::{LaneCrossing, RedLight};
 use crate::record::RunRecord;
@@ -105,8 +106,12 @@ pub struct SummaryRow {
     pub runs: usize,
     /// Share of runs that succeeded (percent).
     pub success_pct: f64,
+    /// Its Wilson 95 % interval (percent).
+    pub success_ci: (f64, f64),
     /// Share of runs with at least one collision (percent).
     pub collision_pct: f64,
+    /// Its Wilson 95 % interval (percent).
+    pub collision_ci: (f64, f64),
     /// Route completion, mean and sd (percent).
     pub completion: (f64, f64),
     /// Driving score, mean and sd (percent).
@@ -153,14 +158,21 @@ pub fn summarise(
             let of = |f: &dyn Fn(&RunRecord) -> f64| {
                 mean_sd(&recs.iter().map(|r| f(r)).collect::<Vec<_>>())
             };
-            let pct = |f: &dyn Fn(&RunRecord) -> bool| {
-                100.0 * recs.iter().filter(|r| f(r)).count() as f64 / n as f64
+            let count = |f: &dyn Fn(&RunRecord) -> bool| recs.iter().filter(|r| f(r)).count();
+            let pct = |k: usize| 100.0 * k as f64 / n as f64;
+            let ci = |k: usize| {
+                let (lo, hi) = wilson(k, n, Z95);
+                (100.0 * lo, 100.0 * hi)
             };
+            let success = count(&|r| r.result.success);
+            let collided = count(&|r| r.result.collisions() > 0);
             SummaryRow {
                 key,
                 runs: n,
-                success_pct: pct(&|r| r.result.success),
-                collision_pct: pct(&|r| r.result.collisions() > 0),
+                success_pct: pct(success),
+                success_ci: ci(success),
+                collision_pct: pct(collided),
+                collision_ci: ci(collided),
                 completion: of(&|r| r.result.completion_pct),
                 driving_score: of(&|r| r.result.driving_score),
                 lane_crossings: of(&|r| f64::from(r.result.count(LaneCrossing))),
@@ -175,14 +187,14 @@ pub fn summarise(
 /// The aggregate table in Markdown, one column per key field.
 pub fn summary_markdown(rows: &[SummaryRow]) -> String {
     let mut s = String::from(
-        "| scenario | driver | selector | D (ms) | Tc (ms) | vehicles:pedestrians | runs | success % | collision % | completion % | driving score | lane crossings | red lights | red lights (total) |\n\
+        "| scenario | driver | selector | D (ms) | Tc (ms) | vehicles:pedestrians | runs | success % [95 % CI] | collision % [95 % CI] | completion % | driving score | lane crossings | red lights | red lights (total) |\n\
          | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
     );
     let pm = |(m, sd): (f64, f64)| format!("{m:.2} ± {sd:.2}");
     for r in rows {
         let k = &r.key;
         s += &format!(
-            "| {} | {} | {} | {} | {} | {}:{} | {} | {:.2} | {:.2} | {} | {} | {} | {} | {} |\n",
+            "| {} | {} | {} | {} | {} | {}:{} | {} | {:.2} [{:.0}, {:.0}] | {:.2} [{:.0}, {:.0}] | {} | {} | {} | {} | {} |\n",
             k.scenario.as_deref().unwrap_or("all"),
             k.driver,
             k.selector,
@@ -192,7 +204,11 @@ pub fn summary_markdown(rows: &[SummaryRow]) -> String {
             k.pedestrians,
             r.runs,
             r.success_pct,
+            r.success_ci.0,
+            r.success_ci.1,
             r.collision_pct,
+            r.collision_ci.0,
+            r.collision_ci.1,
             pm(r.completion),
             pm(r.driving_score),
             pm(r.lane_crossings),
@@ -216,7 +232,11 @@ pub fn summary_csv(rows: &[SummaryRow]) -> Result<String, SweepError> {
         "pedestrians",
         "runs",
         "success_pct",
+        "success_ci_low",
+        "success_ci_high",
         "collision_pct",
+        "collision_ci_low",
+        "collision_ci_high",
         "completion_mean",
         "completion_sd",
         "driving_score_mean",
@@ -242,7 +262,11 @@ pub fn summary_csv(rows: &[SummaryRow]) -> Result<String, SweepError> {
             k.pedestrians.to_string(),
             r.runs.to_string(),
             f(r.success_pct),
+            f(r.success_ci.0),
+            f(r.success_ci.1),
             f(r.collision_pct),
+            f(r.collision_ci.0),
+            f(r.collision_ci.1),
             f(r.completion.0),
             f(r.completion.1),
             f(r.driving_score.0),
@@ -321,9 +345,11 @@ mod tests {
         assert_eq!(d100.red_lights, (2.0, 0.0));
         assert_eq!(d100.red_lights_total, 8);
         assert_eq!(d100.success_pct, 50.0);
+        // 2 of 4: Wilson's 95 % interval, [15.0, 85.0] %.
+        assert!((d100.success_ci.0 - 15.0).abs() < 0.1 && (d100.success_ci.1 - 85.0).abs() < 0.1);
         let md = summary_markdown(&rows);
         assert!(
-            md.contains("| all | expert | Some(1.0) | 100 | 50 | 5:10 | 4 | 50.00 |"),
+            md.contains("| all | expert | Some(1.0) | 100 | 50 | 5:10 | 4 | 50.00 [15, 85] |"),
             "{md}"
         );
         let csv = summary_csv(&rows).unwrap();

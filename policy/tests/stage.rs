@@ -1,0 +1,174 @@
+//! A training stage on a tiny synthetic dataset: kill and resume, skip when done,
+//! refuse other settings, retarget from a teacher.
+//!
+//! burn seeds its initialisers from one global RNG, so the two tests take a lock:
+//! a parallel test drawing from it would change the other's initial weights.
+
+use burn::prelude::*;
+use dataset::synthetic::{self, SyntheticSpec};
+use policy::checkpoint;
+use policy::train::stage::{FINAL_FILE, LOSSES_FILE, StageSpec, run_stage};
+use policy::train::{Preset, TrainConfig};
+use std::path::Path;
+use std::sync::Mutex;
+
+static SEEDED: Mutex<()> = Mutex::new(());
+
+fn tiny_data() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    let mut spec = SyntheticSpec::tiny(2, 14);
+    spec.s0 = [96, 48];
+    synthetic::write(dir.path(), &spec).unwrap();
+    dir
+}
+
+fn tiny_original(data: &Path) -> StageSpec {
+    StageSpec {
+        batch: 4,
+        steps: 6,
+        checkpoint_every: 2,
+        ..StageSpec::original(data, Preset::Tiny)
+    }
+}
+
+fn rows(dir: &Path) -> Vec<String> {
+    std::fs::read_to_string(dir.join(LOSSES_FILE))
+        .unwrap()
+        .lines()
+        .map(String::from)
+        .collect()
+}
+
+#[test]
+fn a_killed_stage_resumes_bit_for_bit_and_a_done_stage_is_skipped() {
+    let _seeded = SEEDED.lock().unwrap_or_else(|e| e.into_inner());
+    let data = tiny_data();
+    let device = Device::flex().autodiff();
+    let spec = tiny_original(data.path());
+    let straight = tempfile::tempdir().unwrap();
+    let out = run_stage(&spec, straight.path(), &device, |_| {}).unwrap();
+    assert_eq!(out.steps_now, 6);
+    // "Killed" during step index 2: the checkpoint after 2 steps stands, row 2 was
+    // written.
+    let killed = tempfile::tempdir().unwrap();
+    let mut seen = 0;
+    let _ = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        run_stage(&spec, killed.path(), &device, |u| {
+            seen += 1;
+            if u.report.step == 2 {
+                panic!("killed");
+            }
+        })
+    }));
+    assert_eq!(seen, 3);
+    let resumed = run_stage(&spec, killed.path(), &device, |_| {}).unwrap();
+    assert_eq!(
+        resumed.steps_now, 4,
+        "resumes from the checkpoint at step 2"
+    );
+    let strip = |rows: Vec<String>| -> Vec<String> {
+        // Drop the timing columns (samples/s, wall time).
+        rows.iter()
+            .map(|r| r.rsplitn(3, ',').nth(2).unwrap().to_string())
+            .collect()
+    };
+    assert_eq!(strip(rows(killed.path())), strip(rows(straight.path())));
+    let a = std::fs::read(straight.path().join(FINAL_FILE)).unwrap();
+    let b = std::fs::read(killed.path().join(FINAL_FILE)).unwrap();
+    let (a, b) = (
+        safetensors::SafeTensors::deserialize(&a).unwrap(),
+        safetensors::SafeTensors::deserialize(&b).unwrap(),
+    );
+    let mut names = a.names();
+    names.sort();
+    assert!(names.len() > 20);
+    for name in names {
+        assert!(
+            a.tensor(name).unwrap().data() == b.tensor(name).unwrap().data(),
+            "{name} differs"
+        );
+    }
+    // Done: nothing to do.
+    let again = run_stage(&spec, killed.path(), &device, |_| {}).unwrap();
+    assert_eq!(again.steps_now, 0);
+    // Extended: it continues as if it had been asked for more steps from the start.
+    let longer = StageSpec {
+        steps: 8,
+        ..spec.clone()
+    };
+    let more = run_stage(&longer, killed.path(), &device, |_| {}).unwrap();
+    assert_eq!(more.steps_now, 2);
+    let straight8 = tempfile::tempdir().unwrap();
+    run_stage(&longer, straight8.path(), &device, |_| {}).unwrap();
+    assert_eq!(strip(rows(killed.path())), strip(rows(straight8.path())));
+}
+
+#[test]
+fn another_configuration_is_refused_by_name_and_a_retarget_trains_from_the_teacher() {
+    let _seeded = SEEDED.lock().unwrap_or_else(|e| e.into_inner());
+    let data = tiny_data();
+    let device = Device::flex().autodiff();
+    let spec = tiny_original(data.path());
+    let run = tempfile::tempdir().unwrap();
+    let original = run_stage(&spec, run.path(), &device, |_| {}).unwrap();
+    // The fit report looks at every sample drawn, once, in its group.
+    let (net, _) = checkpoint::load(&original.checkpoint, &Device::flex()).unwrap();
+    let set = std::sync::Arc::new(
+        policy::train::loader::TrainSet::open(data.path(), &net.config).unwrap(),
+    );
+    let groups = policy::train::fit::fit(&net, 0, &set, 3, 4, &Device::flex());
+    assert_eq!(groups.len(), 4);
+    assert_eq!(groups.iter().map(|g| g.n).sum::<usize>(), 12);
+    for g in &groups {
+        assert!(
+            g.kl >= 0.0 && (0.0..=1.0).contains(&g.argmax_agree),
+            "{g:?}"
+        );
+    }
+    let other = StageSpec {
+        train: spec.train.clone().with_lr(1e-3),
+        ..spec.clone()
+    };
+    let e = run_stage(&other, run.path(), &device, |_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("`train`") && e.contains("spec.json"), "{e}");
+
+    let ra = StageSpec {
+        batch: 4,
+        steps: 4,
+        recalibrate_batches: 2,
+        train: TrainConfig::new().with_unfreeze_every(Some(2)),
+        ..StageSpec::retarget(
+            "ra",
+            &[0.75, 1.0],
+            data.path(),
+            &original.checkpoint,
+            Preset::Tiny,
+        )
+    };
+    let ra_dir = tempfile::tempdir().unwrap();
+    let mut unfrozen = vec![];
+    let out = run_stage(&ra, ra_dir.path(), &device, |u| {
+        assert_eq!(u.report.per_scale.len(), 2);
+        assert!(u.report.parts.kd >= 0.0 && u.report.parts.feat >= 0.0);
+        unfrozen.push(u.report.unfrozen_stages);
+    })
+    .unwrap();
+    assert_eq!(unfrozen, vec![1, 1, 2, 2]);
+    let (net, card) = checkpoint::load(&out.checkpoint, &device).unwrap();
+    assert_eq!(net.config.scales, vec![0.75, 1.0]);
+    assert!(card.trained && card.training.is_some());
+    // A teacher of another size is refused by name.
+    let bad = StageSpec {
+        preset: "cpu".into(),
+        ..ra.clone()
+    };
+    let e = run_stage(&bad, tempfile::tempdir().unwrap().path(), &device, |_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("final.safetensors") && e.contains("teacher"),
+        "{e}"
+    );
+}
