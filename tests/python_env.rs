@@ -35,6 +35,7 @@ impl Driver for Scripted {
         DriverNeeds {
             camera: true,
             privileged: false,
+            labels: false,
         }
     }
     fn act(&mut self, _obs: &Observation<'_>) -> VehicleControl {

@@ -40,6 +40,7 @@ impl Driver for LabelDriver {
         DriverNeeds {
             camera: false,
             privileged: true,
+            labels: false,
         }
     }
 

@@ -177,6 +177,7 @@ mod tests {
                     command: Command::LaneFollow,
                     scale: 1.0,
                     image: None,
+                    labels: None,
                     privileged: None,
                 })
             })

@@ -212,6 +212,7 @@ impl Driver for PolicyDriver {
         DriverNeeds {
             camera: true,
             privileged: false,
+            labels: false,
         }
     }
 
@@ -279,6 +280,7 @@ mod tests {
                 command: Command::LaneFollow,
                 scale,
                 image: Some(&img),
+                labels: None,
                 privileged: None,
             };
             let ca = a.act(&obs);
@@ -405,6 +407,7 @@ mod tests {
             command: Command::Left,
             scale: 1.0,
             image: None,
+            labels: None,
             privileged: None,
         };
         assert_eq!(d.act(&obs).brake, 1.0);

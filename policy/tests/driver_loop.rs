@@ -62,6 +62,7 @@ fn a_checkpoint_drives_a_scripted_approach_with_each_selector() {
                 command: Command::LaneFollow,
                 scale,
                 image: Some(&image),
+                labels: None,
                 privileged: None,
             };
             let c = driver.act(&obs);

@@ -114,4 +114,13 @@ def image_of(obs: dict[str, Any] | None, payload: bytes) -> np.ndarray:
     """The RGB8 image of an answer, H x W x 3 (a view of the payload's bytes)."""
     if not obs or not payload:
         return np.zeros((0, 0, 3), np.uint8)
-    return np.frombuffer(payload, np.uint8).reshape(obs["height"], obs["width"], 3)
+    h, w = obs["height"], obs["width"]
+    return np.frombuffer(payload, np.uint8, count=h * w * 3).reshape(h, w, 3)
+
+
+def classes_of(obs: dict[str, Any] | None, payload: bytes) -> np.ndarray:
+    """The class image of an answer (WoR's ids 0-5), H x W, when it holds one."""
+    if not obs or not obs.get("classes"):
+        return np.zeros((0, 0), np.uint8)
+    h, w = obs["height"], obs["width"]
+    return np.frombuffer(payload, np.uint8, count=h * w, offset=h * w * 3).reshape(h, w)

@@ -16,7 +16,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from .client import Server, ServerError, image_of
+from .client import Server, ServerError, classes_of, image_of
 
 #: Route commands (CARLA's RoadOption - 1), the values of `obs["command"]`.
 COMMANDS = ("LEFT", "RIGHT", "STRAIGHT", "LANEFOLLOW", "CHANGELANELEFT", "CHANGELANERIGHT")
@@ -42,6 +42,11 @@ class MrdriveEnv(gym.Env):
         binary: the mrdrive executable (default: $MRDRIVE_BIN, the repository's build, PATH).
         camera: False renders nothing: "image" stays black (for agents that do not
             look, and for timing the simulator without its camera).
+        classes: add "classes", the rig's class image (WoR's 6 ids: background, road,
+            lane marking, vehicle, pedestrian, traffic light), uint8 H x W.
+        privileged: add "ego_pose" (x, y in metres, heading in radians), "route_s"
+            (metres along the route) and "completion" (percent): exact state, for
+            privileged agents and reward shaping.
 
     Observation (a dict): "image" (uint8 H x W x 3, the stitched rig image at the
     scale in force; when the scale can change, it is placed top-left in an S0-sized
@@ -74,6 +79,8 @@ class MrdriveEnv(gym.Env):
         binary: str | os.PathLike | None = None,
         render_mode: str | None = None,
         camera: bool = True,
+        classes: bool = False,
+        privileged: bool = False,
     ):
         if actions not in ("continuous", "discrete"):
             raise ValueError(f"actions={actions!r}: use 'continuous' or 'discrete'")
@@ -91,6 +98,8 @@ class MrdriveEnv(gym.Env):
         self.record = str(Path(record).resolve()) if record else None
         self.render_mode = render_mode
         self.camera = bool(camera)
+        self.classes = bool(classes) and self.camera
+        self.privileged = bool(privileged)
         self._server = Server(binary)
         scales = list(self.agent_scales or ([scale] if scale is not None else []))
         spec, _ = self._server.request({"op": "spec", "scenario": self.scenario, "scales": scales})
@@ -100,8 +109,16 @@ class MrdriveEnv(gym.Env):
         else:
             h, w = h0, w0
         self._image_shape = (h, w, 3)
+        extra = {}
+        if self.classes:
+            extra["classes"] = spaces.Box(0, 5, self._image_shape[:2], np.uint8)
+        if self.privileged:
+            extra["ego_pose"] = spaces.Box(-1e6, 1e6, (3,), np.float32)
+            extra["route_s"] = spaces.Box(0.0, 1e6, (1,), np.float32)
+            extra["completion"] = spaces.Box(0.0, 100.0, (1,), np.float32)
         self.observation_space = spaces.Dict(
             {
+                **extra,
                 "image": spaces.Box(0, 255, self._image_shape, np.uint8),
                 "image_hw": spaces.Box(0, max(h, w), (2,), np.int64),
                 "speed": spaces.Box(0.0, 100.0, (1,), np.float32),
@@ -123,7 +140,7 @@ class MrdriveEnv(gym.Env):
         self._last_obs: dict[str, Any] | None = None
         self._running = False
 
-    def _observation(self, obs: dict[str, Any], payload: bytes) -> dict[str, Any]:
+    def _observation(self, obs: dict[str, Any], payload: bytes, info: dict[str, Any]) -> dict[str, Any]:
         img = image_of(obs, payload)
         h, w = img.shape[:2]
         if img.shape == self._image_shape:
@@ -132,7 +149,18 @@ class MrdriveEnv(gym.Env):
             image = np.zeros(self._image_shape, np.uint8)
             image[:h, :w] = img
         self._last_image = image
+        extra = {}
+        if self.classes:
+            classes = np.zeros(self._image_shape[:2], np.uint8)
+            c = classes_of(obs, payload)
+            classes[: c.shape[0], : c.shape[1]] = c
+            extra["classes"] = classes
+        if self.privileged:
+            extra["ego_pose"] = np.array(info["ego_pose"], np.float32)
+            extra["route_s"] = np.array([info["route_s"]], np.float32)
+            extra["completion"] = np.array([min(max(info["completion_pct"], 0.0), 100.0)], np.float32)
         return {
+            **extra,
             "image": image,
             "image_hw": np.array([h, w], np.int64),
             "speed": np.array([obs["speed_mps"]], np.float32),
@@ -151,13 +179,14 @@ class MrdriveEnv(gym.Env):
             "agent_scale": bool(self.agent_scales),
             "record": self.record,
             "camera": self.camera,
+            "classes": self.classes,
             **self.overrides,
         }
         answer, payload = self._server.request(message)
         if answer["done"]:
             raise ServerError("the episode ended before its first control boundary")
         self._running = True
-        self._last_obs = self._observation(answer["obs"], payload)
+        self._last_obs = self._observation(answer["obs"], payload, answer["info"])
         return self._last_obs, answer["info"]
 
     def _control(self, action) -> dict[str, Any]:
@@ -201,7 +230,7 @@ class MrdriveEnv(gym.Env):
             record = info["record"]["result"]
             truncated = record.get("termination") == "route_timeout"
             return self._last_obs, float(answer["reward"]), not truncated, truncated, info
-        self._last_obs = self._observation(answer["obs"], payload)
+        self._last_obs = self._observation(answer["obs"], payload, info)
         return self._last_obs, float(answer["reward"]), False, False, info
 
     def render(self):

@@ -45,6 +45,19 @@ class EnvTest(unittest.TestCase):
         env = self.make(scale=0.75)
         check_env(env, skip_render_check=True)
 
+    def test_the_class_image_and_the_privileged_state_are_options(self):
+        env = self.make(scale=0.75, classes=True, privileged=True)
+        check_env(env, skip_render_check=True)
+        obs, _ = env.reset(seed=3)
+        for _ in range(10):
+            obs, *_ = env.step(np.array([0.0, 0.5, 0.0], np.float32))
+        c = obs["classes"]
+        self.assertEqual(c.shape, obs["image"].shape[:2])
+        self.assertTrue((c == 1).mean() > 0.05, "road is in view")
+        self.assertTrue(c.max() <= 5)
+        self.assertGreater(float(obs["route_s"][0]), 0.0)
+        self.assertEqual(obs["ego_pose"].shape, (3,))
+
     def test_make_registers_the_id(self):
         env = gym.make(mrdrive_gym.ENV_ID, scenario=str(DEFAULT), scale=0.75, vehicles=0, pedestrians=0)
         self.addCleanup(env.close)

@@ -28,6 +28,9 @@ pub struct Observation<'a> {
     pub scale: f32,
     /// The stitched camera rig image at that scale, if the driver asked for it.
     pub image: Option<&'a RgbImage>,
+    /// The rig's class image at that scale in the label palette
+    /// (`sim::render::labels`), if the driver asked for it.
+    pub labels: Option<&'a RgbImage>,
     /// The simulator's exact state, for drivers that declare they need it.
     pub privileged: Option<&'a Privileged<'a>>,
 }
@@ -61,6 +64,9 @@ pub struct DriverNeeds {
     pub camera: bool,
     /// It reads the simulator's exact state (the expert).
     pub privileged: bool,
+    /// It wants the rig's class image beside the colour image (for an external agent
+    /// that learns segmentation; rendered in the same pass).
+    pub labels: bool,
 }
 
 /// Anything that turns observations into controls: the expert, a CNN policy,

@@ -183,6 +183,7 @@ impl Driver for Expert {
         DriverNeeds {
             camera: false,
             privileged: true,
+            labels: false,
         }
     }
 

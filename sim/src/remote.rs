@@ -39,6 +39,9 @@ pub struct Snapshot {
     /// The stitched rig image, RGB8 row-major (`height * width * 3` bytes); empty when
     /// the run has no camera.
     pub image: Vec<u8>,
+    /// WoR's class id (0-5) of every pixel, row-major (`height * width` bytes); empty
+    /// unless asked for.
+    pub classes: Vec<u8>,
     /// What happened since the previous boundary.
     pub since: Since,
 }
@@ -119,8 +122,8 @@ pub struct RunEnds {
 
 /// A new remote run: the agent's [`Link`] and the run's ends. The run's first scale
 /// is `scale` until the agent asks for another; without `camera`, nothing is rendered
-/// and the snapshots carry no image.
-pub fn remote(scale: f32, camera: bool) -> (Link, RunEnds) {
+/// and the snapshots carry no image; with `classes`, they carry the class image too.
+pub fn remote(scale: f32, camera: bool, classes: bool) -> (Link, RunEnds) {
     let (obs_tx, obs_rx) = sync_channel(2);
     let (ctl_tx, ctl_rx) = sync_channel(1);
     let shared: Shared = Arc::default();
@@ -136,6 +139,7 @@ pub fn remote(scale: f32, camera: bool) -> (Link, RunEnds) {
             done: obs_tx.clone(),
             driver: RemoteDriver {
                 camera,
+                classes: camera && classes,
                 to_agent: obs_tx,
                 from_agent: ctl_rx,
                 shared: shared.clone(),
@@ -156,6 +160,7 @@ pub struct Aborted;
 /// A driver whose controls come from the agent.
 pub struct RemoteDriver {
     camera: bool,
+    classes: bool,
     to_agent: SyncSender<Event>,
     from_agent: Receiver<VehicleControl>,
     shared: Shared,
@@ -176,6 +181,7 @@ impl Driver for RemoteDriver {
         DriverNeeds {
             camera: self.camera,
             privileged: false,
+            labels: self.classes,
         }
     }
 
@@ -197,6 +203,10 @@ impl Driver for RemoteDriver {
             scale: obs.scale,
             size,
             image,
+            classes: obs
+                .labels
+                .map(|l| crate::render::classes::wor_of_label_rgb(&l.data))
+                .unwrap_or_default(),
             since,
         };
         if self.to_agent.send(Event::Observe(snapshot)).is_err() {

@@ -34,7 +34,7 @@ use world::{ActorKind, ActorSnapshot, LightIdx, LightState, Town, Vec2};
 
 use crate::camera::{Camera, CameraFrame};
 use crate::delay::{DelayLine, DelayTiming};
-use crate::driver::{Driver, Observation, Privileged, VehicleControl};
+use crate::driver::{Driver, Observation, Privileged, RgbImage, VehicleControl};
 use crate::monitors::score::driving_score;
 use crate::monitors::{
     ContactKind, EgoContact, EgoPose, EgoTick, Infraction, InfractionKind, Monitors,
@@ -398,6 +398,8 @@ pub fn run(
     let mut new_infractions: Vec<Infraction> = Vec::new();
     let mut snapshots: Vec<ActorSnapshot> = Vec::new();
     let mut ahead_path: Vec<Vec2> = Vec::with_capacity(64);
+    // The class image of a driver that asks for it, reused at every boundary.
+    let mut labels_image = RgbImage::default();
     let mut contacts: Vec<EgoContact> = Vec::new();
     let max_ticks = max_ticks
         .unwrap_or(u64::MAX)
@@ -424,6 +426,7 @@ pub fn run(
             }
             let scale = controls.scale;
             *controls.scale_counts.entry(scale.to_bits()).or_default() += 1;
+            let mut labelled = false;
             let image = match camera.as_mut() {
                 Some(cam) if needs.camera => {
                     let frame = CameraFrame {
@@ -432,7 +435,17 @@ pub fn run(
                         lights: &world.light_states,
                     };
                     // Borrowed from the camera until the driver has acted: no copy.
-                    Some(cam.render(&frame, scale).map_err(RunError::Camera)?)
+                    let with_labels = needs
+                        .labels
+                        .then(|| cam.render_labelled(&frame, scale, &mut labels_image))
+                        .flatten();
+                    match with_labels {
+                        Some(rendered) => {
+                            labelled = true;
+                            Some(rendered.map_err(RunError::Camera)?)
+                        }
+                        None => Some(cam.render(&frame, scale).map_err(RunError::Camera)?),
+                    }
                 }
                 _ => None,
             };
@@ -467,6 +480,7 @@ pub fn run(
                 command: route.command_ahead(route_index, 0.0),
                 scale: scale as f32,
                 image,
+                labels: labelled.then_some(&labels_image),
                 privileged: needs.privileged.then_some(&privileged),
             };
             let started = Instant::now();

@@ -9,10 +9,11 @@
 //! Requests (`op`):
 //! - `reset`: `{"op": "reset", "scenario": PATH, "seed": u64|null, "delay_ms":
 //!   f64|null, "vehicles": u32|null, "pedestrians": u32|null, "scale": f64|null,
-//!   "agent_scale": bool, "camera": bool, "record": PATH|null}`: ends any episode under way and starts
+//!   "agent_scale": bool, "camera": bool, "classes": bool, "record": PATH|null}`: ends any episode under way and starts
 //!   one; the answer is the first observation. `scale` fixes the input scale (or,
 //!   with `agent_scale`, is the first one); null keeps the scenario's selector.
-//!   `camera: false` renders nothing (observations without an image).
+//!   `camera: false` renders nothing (observations without an image); `classes: true`
+//!   adds the class image (WoR's ids 0-5, one byte a pixel) after the RGB bytes.
 //! - `step`: `{"op": "step", "control": [steer, throttle, brake], "scale": f64|null}`:
 //!   the control for the observation just sent (steer in [-1, 1], throttle and brake
 //!   in [0, 1]), or `"action": J` for WoR's discrete action J (0..27,
@@ -202,7 +203,8 @@ fn start(req: &Value) -> Result<(Episode, Value, Vec<u8>)> {
         .unwrap_or(false);
     let record = req.get("record").and_then(Value::as_str).map(PathBuf::from);
     let camera = req.get("camera").and_then(Value::as_bool).unwrap_or(true);
-    let (link, ends) = remote::remote(scale.unwrap_or(1.0) as f32, camera);
+    let classes = req.get("classes").and_then(Value::as_bool).unwrap_or(false);
+    let (link, ends) = remote::remote(scale.unwrap_or(1.0) as f32, camera, classes);
     let thread = std::thread::Builder::new()
         .name("mrdrive-serve-run".into())
         .spawn(move || {
@@ -257,6 +259,7 @@ fn obs_json(s: &Snapshot) -> Value {
         "scale": s.scale,
         "height": s.size.0,
         "width": s.size.1,
+        "classes": !s.classes.is_empty(),
     })
 }
 
@@ -274,7 +277,9 @@ impl Episode {
                     "done": false,
                     "info": since_json(&snap.since),
                 });
-                Ok((answer, snap.image))
+                let mut payload = snap.image;
+                payload.extend_from_slice(&snap.classes);
+                Ok((answer, payload))
             }
             Ok(Event::Done(Ok(run))) => {
                 let mut since = self.link.drain();

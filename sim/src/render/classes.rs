@@ -189,6 +189,22 @@ pub fn label_rgb(id: ClassId) -> [u8; 3] {
     class_info(id).map_or([0, 0, 0], |c| c.label_rgb)
 }
 
+/// WoR's class ids (0-5) of a class image painted in label colours ([`label_rgb`]);
+/// a colour of no class reads as background.
+pub fn wor_of_label_rgb(rgb: &[u8]) -> Vec<u8> {
+    let table: Vec<([u8; 3], u8)> = (0..CLASS_COUNT as ClassId)
+        .map(|id| (label_rgb(id), to_wor(id) as u8))
+        .collect();
+    rgb.chunks_exact(3)
+        .map(|px| {
+            table
+                .iter()
+                .find(|(c, _)| c[..] == *px)
+                .map_or(WorClass::Background as u8, |&(_, w)| w)
+        })
+        .collect()
+}
+
 /// The colour of a WoR class id (0-5) in pictures of class images: its
 /// main class's label colour (road, lane marking, vehicle, pedestrian,
 /// traffic-light pole), black for background and for ids past 5.
@@ -228,6 +244,11 @@ mod tests {
     fn wor_mapping_folds_as_protocol_says() {
         assert_eq!(to_wor(SKY), WorClass::Background);
         assert_eq!(to_wor(ROAD), WorClass::Road);
+        let painted: Vec<u8> = [ROAD, VEHICLE, SKY].iter().flat_map(|&c| label_rgb(c)).collect();
+        assert_eq!(
+            wor_of_label_rgb(&painted),
+            vec![WorClass::Road as u8, WorClass::Vehicle as u8, WorClass::Background as u8]
+        );
         assert_eq!(to_wor(LANE_MARKING), WorClass::LaneMarking);
         assert_eq!(to_wor(CROSSWALK), WorClass::LaneMarking);
         assert_eq!(to_wor(VEHICLE), WorClass::Vehicle);
