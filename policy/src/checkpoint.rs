@@ -54,6 +54,19 @@ pub struct TrainingRecord {
     pub wall_s: f64,
     /// The machine it trained on.
     pub machine: String,
+    /// The checkpoint it started from, if not a fresh initialisation or a teacher.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub init: Option<String>,
+    /// Whether commands were drawn evenly.
+    #[serde(default)]
+    pub balanced: bool,
+    /// The share of standing frames kept.
+    #[serde(default = "one")]
+    pub standing_keep: f64,
+}
+
+fn one() -> f64 {
+    1.0
 }
 
 impl ModelCard {

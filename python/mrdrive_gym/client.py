@@ -24,10 +24,12 @@ class ServerError(RuntimeError):
 
 def find_binary(explicit: str | os.PathLike | None = None) -> str:
     """The `mrdrive` executable: `explicit`, $MRDRIVE_BIN, the repository's
-    target/release/mrdrive (this package sits in <repo>/python), or `mrdrive` on PATH."""
+    target/release/mrdrive (when this package is used from <repo>/python, or the working
+    folder is the repository), or `mrdrive` on PATH."""
     candidates = [explicit, os.environ.get("MRDRIVE_BIN")]
     repo = Path(__file__).resolve().parents[2]
     candidates.append(repo / "target" / "release" / "mrdrive")
+    candidates.append(Path.cwd() / "target" / "release" / "mrdrive")
     for c in candidates:
         if c and Path(c).is_file() and os.access(c, os.X_OK):
             return str(c)

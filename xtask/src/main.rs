@@ -357,7 +357,7 @@ fn train(root: &Path, env: &Env, args: &[String]) -> Result<(), String> {
     let wor_model = format!("{wor_runs}/original.safetensors");
     let (wor_steps, more_steps) = if quick { ("4", "4") } else { ("2300", "2000") };
     let toy = ["--batch", "4", "--recalibrate-batches", "2"];
-    let mut phase1 = vec![
+    let original = [
         bin,
         "train",
         "--stage",
@@ -365,17 +365,11 @@ fn train(root: &Path, env: &Env, args: &[String]) -> Result<(), String> {
         "--data",
         &original_data,
     ];
+    let mut phase1 = original.to_vec();
     phase1.extend([
         "--runs", &wor_runs, "--out", &wor_runs, "--steps", wor_steps,
     ]);
-    let mut phase2 = vec![
-        bin,
-        "train",
-        "--stage",
-        "original",
-        "--data",
-        &original_data,
-    ];
+    let mut phase2 = original.to_vec();
     phase2.extend(["--runs", &runs, "--out", &models, "--steps", more_steps]);
     phase2.extend([
         "--init",

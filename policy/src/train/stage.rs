@@ -474,6 +474,9 @@ pub fn run_stage(
             losses: "see losses.csv beside the run".into(),
             wall_s: wall_before,
             machine: machine(),
+            init: spec.init.as_ref().map(|p| p.display().to_string()),
+            balanced: spec.balanced,
+            standing_keep: spec.standing_keep,
         }),
     };
     checkpoint::save(&net, &card, &final_path)?;
@@ -486,16 +489,36 @@ pub fn run_stage(
 
 /// A sentence on what the stage's network is.
 fn describe(spec: &StageSpec) -> String {
+    let sampling = format!(
+        "{}{}",
+        if spec.balanced {
+            ", commands drawn evenly"
+        } else {
+            ", every sample once per epoch"
+        },
+        if spec.standing_keep < 1.0 {
+            format!(", {} of the standing frames", spec.standing_keep)
+        } else {
+            String::new()
+        }
+    );
     match (&spec.teacher, spec.scales.as_slice()) {
-        (None, _) => format!(
-            "Original: single-resolution {} policy trained from scratch on world-on-rails action values (WoR's recipe)",
-            spec.preset
-        ),
+        (None, _) => match &spec.init {
+            None => format!(
+                "Original: single-resolution {} policy trained from scratch on world-on-rails action values (WoR's loss{sampling})",
+                spec.preset
+            ),
+            Some(init) => format!(
+                "Original: single-resolution {} policy, continued from {} on world-on-rails action values (WoR's loss{sampling})",
+                spec.preset,
+                init.display()
+            ),
+        },
         (Some(_), [r]) => format!(
-            "NRA {r}: the Original retargeted to {r}x without BN banks (TimeParam's recipe)"
+            "NRA {r}: the Original retargeted to {r}x without BN banks (TimeParam's recipe{sampling})"
         ),
         (Some(_), rs) => format!(
-            "RA {rs:?}: the Original retargeted to every scale at once with one BN branch per scale (multi-resolution step)"
+            "RA {rs:?}: the Original retargeted to every scale at once with one BN branch per scale (multi-resolution step{sampling})"
         ),
     }
 }

@@ -244,10 +244,17 @@ mod tests {
     fn wor_mapping_folds_as_protocol_says() {
         assert_eq!(to_wor(SKY), WorClass::Background);
         assert_eq!(to_wor(ROAD), WorClass::Road);
-        let painted: Vec<u8> = [ROAD, VEHICLE, SKY].iter().flat_map(|&c| label_rgb(c)).collect();
+        let painted: Vec<u8> = [ROAD, VEHICLE, SKY]
+            .iter()
+            .flat_map(|&c| label_rgb(c))
+            .collect();
         assert_eq!(
             wor_of_label_rgb(&painted),
-            vec![WorClass::Road as u8, WorClass::Vehicle as u8, WorClass::Background as u8]
+            vec![
+                WorClass::Road as u8,
+                WorClass::Vehicle as u8,
+                WorClass::Background as u8
+            ]
         );
         assert_eq!(to_wor(LANE_MARKING), WorClass::LaneMarking);
         assert_eq!(to_wor(CROSSWALK), WorClass::LaneMarking);
