@@ -58,6 +58,20 @@ class EnvTest(unittest.TestCase):
         self.assertGreater(float(obs["route_s"][0]), 0.0)
         self.assertEqual(obs["ego_pose"].shape, (3,))
 
+    def test_an_episode_records_an_mcap_log(self):
+        with tempfile.TemporaryDirectory() as d:
+            log = Path(d) / "episode.mcap"
+            env = self.make(scale=1.0, vehicles=0, pedestrians=0, record=log)
+            env.reset(seed=0)
+            done = False
+            while not done:  # held brake: the 40 s low-speed timeout ends it
+                _, _, term, trunc, info = env.step(np.array([0.0, 0.0, 1.0], np.float32))
+                done = term or trunc
+            self.assertEqual(info["record"]["result"]["termination"], "low_speed_timeout")
+            data = log.read_bytes()
+            self.assertTrue(data.startswith(b"\x89MCAP0\r\n") and data.endswith(b"\x89MCAP0\r\n"))
+            self.assertGreater(len(data), 10_000)
+
     def test_make_registers_the_id(self):
         env = gym.make(mrdrive_gym.ENV_ID, scenario=str(DEFAULT), scale=0.75, vehicles=0, pedestrians=0)
         self.addCleanup(env.close)
