@@ -31,9 +31,9 @@ use crate::format::{
     ActorRow, DataError, EgoRow, Episode, Index, Labels, Q_PER_VIEW, RouteSpec, Shard, write_atomic,
 };
 
-/// The ego's speed by `frame mod 5` (metres per second): one in each bin
+/// The ego's speed by `frame mod 5` (metres per second): one standing, one in each bin
 /// of `mrdrive data info`'s histogram.
-pub const SPEEDS_MPS: [f32; 5] = [0.5, 2.0, 4.0, 6.0, 8.0];
+pub const SPEEDS_MPS: [f32; 5] = [0.0, 2.0, 4.0, 6.0, 8.0];
 /// The route's id in the index.
 pub const ROUTE_ID: &str = "east";
 /// The map name recorded in the index (not a file: readers that need the

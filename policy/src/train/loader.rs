@@ -656,6 +656,48 @@ mod tests {
     }
 
     #[test]
+    fn standing_frames_are_thinned_by_a_fixed_seeded_subset() {
+        let dir = write(2, 40);
+        let set = TrainSet::open(dir.path(), &config()).unwrap();
+        let standing = set
+            .samples
+            .iter()
+            .filter(|s| set.speed_mps(s) < STANDING_MPS)
+            .count();
+        assert!(standing > 0 && standing < set.samples.len());
+        let all = LoaderConfig::new(5, 3);
+        assert_eq!(set.epoch_len(&all), set.samples.len());
+        let none = LoaderConfig {
+            standing_keep: 0.0,
+            ..all.clone()
+        };
+        assert_eq!(set.epoch_len(&none), set.samples.len() - standing);
+        assert!(
+            set.epoch_order(&none, 0)
+                .iter()
+                .all(|&i| set.speed_mps(&set.samples[i]) >= STANDING_MPS)
+        );
+        let half = LoaderConfig {
+            standing_keep: 0.5,
+            ..all
+        };
+        let kept = set.epoch_len(&half) - (set.samples.len() - standing);
+        assert!(kept > 0 && kept < standing, "{kept} of {standing}");
+        // The same frames in every epoch, and all views of a frame together.
+        let frames = |e| {
+            let mut f: Vec<(u32, u32)> = set
+                .epoch_order(&half, e)
+                .iter()
+                .map(|&i| (set.samples[i].episode, set.samples[i].frame))
+                .collect();
+            f.sort();
+            f
+        };
+        assert_eq!(frames(0), frames(1));
+        assert_eq!(kept % 3, 0);
+    }
+
+    #[test]
     fn balanced_sampling_draws_each_command_about_equally() {
         let dir = write(2, 40);
         let set = TrainSet::open(dir.path(), &config()).unwrap();
