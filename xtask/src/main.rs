@@ -9,6 +9,7 @@
 //! | `lint` | `cargo fmt --check` and `cargo clippy --all-targets -- -D warnings` (run before committing; kept out of CI because it needs a second, check-mode build of every dependency) |
 //! | `data [--quick]` | collects and labels the two datasets of the study into `data/original` and `data/retarget` (resumable; regenerates them bit for bit; `--quick`: 2 short episodes each, for a smoke run) |
 //! | `train [--quick]` | the paper's pipeline, skipping what is done: `data`, then `mrdrive train` for the Original, NRA 0.75, NRA 1.0 and RA (resumable), then the closed-loop bar (`mrdrive sweep` of `scenarios/paper/` at Tc = 50 ms, D = 0, three densities, per model and for the expert) into `models/closed-loop.md`; `--quick`: tiny datasets, 4 steps per stage, one density, into `out/train-quick` |
+//! | `bench` | every benchmark on this machine, in one go: physics + traffic ticks/s (20 vehicles, 40 pedestrians), rig frames/s per scale (gen01, Town01), policy inference per scale (fused and burn) and training samples/s, closed-loop real-time factors (expert without and with the rig, RA with the oracle), PyTorch's reference when a Python with torch is found (`MRDRIVE_TORCH_PYTHON`, else `.venv`), peak memory per command; writes `docs/bench.md` |
 //! | `bless` | rewrites the regression suite's golden files after a deliberate change |
 //! | `gpu-test [FEATURES]` | the policy crate's tests built with burn's GPU backends (default `wgpu`; `wgpu,cuda` for both), in `target/gpu` so the main build is kept; lavapipe is enough for `wgpu`, CUDA needs an NVIDIA GPU |
 //!
@@ -52,10 +53,11 @@ fn main() -> ExitCode {
         Some("bless") => bless(&root),
         Some("data") => setup(&root).and_then(|env| data(&root, &env, &args[1..])),
         Some("train") => setup(&root).and_then(|env| train(&root, &env, &args[1..])),
+        Some("bench") => setup(&root).and_then(|env| bench(&root, &env)),
         Some("gpu-test") => setup(&root).and_then(|env| gpu_test(&root, &env, &args[1..])),
         _ => {
             eprintln!(
-                "usage: cargo xtask <setup|run|test|ci|lint|bless|data|train|gpu-test> [ARGS]\n\nSee xtask/src/main.rs for what each task does."
+                "usage: cargo xtask <setup|run|test|ci|lint|bless|data|train|bench|gpu-test> [ARGS]\n\nSee xtask/src/main.rs for what each task does."
             );
             return ExitCode::from(2);
         }
@@ -430,6 +432,247 @@ fn train(root: &Path, env: &Env, args: &[String]) -> Result<(), String> {
     Ok(())
 }
 
+/// Runs `cmd` in `dir` under `/usr/bin/time` when it exists; returns its output (stdout
+/// then stderr, minus the renderer's XDG noise) and its peak resident memory (MiB).
+fn measured(
+    dir: &Path,
+    cmd: &[&str],
+    vars: &[(&str, &str)],
+) -> Result<(String, Option<f64>), String> {
+    let timed = Path::new("/usr/bin/time").exists();
+    let mut full: Vec<&str> = Vec::new();
+    if timed {
+        full.extend(["/usr/bin/time", "-f", "PEAK_RSS_KB %M"]);
+    }
+    full.extend(cmd);
+    let (program, args) = full.split_first().ok_or("empty command")?;
+    let out = Command::new(program)
+        .args(args)
+        .current_dir(dir)
+        .envs(vars.iter().copied())
+        .output()
+        .map_err(|e| format!("`{}` could not start: {e}", cmd.join(" ")))?;
+    let text =
+        String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
+    if !out.status.success() {
+        return Err(format!(
+            "`{}` failed ({}):\n{text}",
+            cmd.join(" "),
+            out.status
+        ));
+    }
+    let mut peak = None;
+    let mut kept = String::new();
+    for line in text.lines() {
+        if let Some(kb) = line.strip_prefix("PEAK_RSS_KB ") {
+            peak = kb.trim().parse::<f64>().ok().map(|kb| kb / 1024.0);
+        } else if !line.contains("XDG_RUNTIME_DIR") {
+            kept += line;
+            kept.push('\n');
+        }
+    }
+    Ok((kept, peak))
+}
+
+/// The real-time factor in a result record written by `mrdrive run --json`.
+fn rtf_of(json: &str) -> Option<f64> {
+    let at = json.find("\"real_time_factor\"")?;
+    let rest = json[at..].split_once(':')?.1;
+    let end = rest.find([',', '}'])?;
+    rest[..end].trim().parse().ok()
+}
+
+fn bench(root: &Path, env: &Env) -> Result<(), String> {
+    let vars = borrow(env);
+    status_in(root, &["cargo", "build", "--release"], &vars)?;
+    let bin = root.join("target/release/mrdrive");
+    let bin = bin.to_str().ok_or("the target path is not UTF-8")?;
+    let shell = |c: &[&str]| -> String {
+        Command::new(c[0])
+            .args(&c[1..])
+            .output()
+            .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+            .unwrap_or_default()
+    };
+    let cpu = shell(&[
+        "sh",
+        "-c",
+        "grep -m1 'model name' /proc/cpuinfo | cut -d: -f2",
+    ]);
+    let mut md = format!(
+        "# Benchmarks\n\nMade by `cargo xtask bench` on {} UTC: {}, {} cores, {} GiB; `{}`.\n\
+         Figures vary by 10-30 % run to run on a shared machine: read ratios.\n\n",
+        shell(&["date", "-u", "+%Y-%m-%d %H:%M"]),
+        cpu,
+        shell(&["nproc"]),
+        shell(&["sh", "-c", "free -g | awk '/Mem:/{print $2}'"]),
+        shell(&[bin, "--version"]),
+    );
+    let carla = root.join("../shared/carla/Town01.xodr").exists();
+    let tmp = std::env::temp_dir().join(format!("mrdrive-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).map_err(|e| e.to_string())?;
+    let json = |name: &str| tmp.join(name).display().to_string();
+    let (j1, j2, j3) = (json("expert.json"), json("rig.json"), json("ra.json"));
+    let mut steps: Vec<(&str, Vec<&str>)> = vec![
+        (
+            "Physics and traffic: 20 vehicles, 40 pedestrians, 2 simulated minutes on gen01",
+            vec![
+                bin,
+                "traffic",
+                "soak",
+                "--map",
+                "maps/gen01.xodr",
+                "--minutes",
+                "2",
+                "--seed",
+                "1",
+            ],
+        ),
+        (
+            "Camera rig frames/s per scale along the default scenario (gen01)",
+            vec![
+                bin,
+                "bench",
+                "render",
+                "--frames",
+                "60",
+                "--repeats",
+                "3",
+                "--scenario",
+                "scenarios/default.toml",
+            ],
+        ),
+    ];
+    if carla {
+        steps.push((
+            "Camera rig frames/s per scale along Town01 route 0",
+            vec![
+                bin,
+                "bench",
+                "render",
+                "--frames",
+                "60",
+                "--repeats",
+                "3",
+                "--scenario",
+                "scenarios/paper/town01_route0.toml",
+            ],
+        ));
+    }
+    steps.extend([
+        (
+            "Policy inference per scale (fused and burn) and training samples/s",
+            vec![
+                bin,
+                "bench",
+                "policy",
+                "--quick",
+                "--repeats",
+                "10",
+                "--train-steps",
+                "5",
+            ],
+        ),
+        (
+            "Closed loop: the expert, no camera (scenarios/default.toml)",
+            vec![
+                bin,
+                "run",
+                "scenarios/default.toml",
+                "--quiet",
+                "--json",
+                &j1,
+            ],
+        ),
+        (
+            "Closed loop: the expert with the rig rendered every frame",
+            vec![
+                bin,
+                "run",
+                "scenarios/default.toml",
+                "--quiet",
+                "--camera",
+                "--json",
+                &j2,
+            ],
+        ),
+        (
+            "Closed loop: the RA policy with the oracle selector (scenarios/policy_oracle.toml)",
+            vec![
+                bin,
+                "run",
+                "scenarios/policy_oracle.toml",
+                "--quiet",
+                "--json",
+                &j3,
+            ],
+        ),
+    ]);
+    for (what, cmd) in &steps {
+        eprintln!("xtask bench: {what}");
+        let (out, peak) = measured(root, cmd, &vars)?;
+        md += &format!(
+            "## {what}\n\n`mrdrive {}`",
+            cmd[1..]
+                .join(" ")
+                .replace(&tmp.display().to_string(), "out")
+        );
+        if let Some(p) = peak {
+            md += &format!(", peak memory {p:.0} MiB");
+        }
+        let out = out.replace(&tmp.display().to_string(), "out");
+        md += &format!("\n\n```text\n{out}```\n\n");
+    }
+    let rtf = |p: &str| std::fs::read_to_string(p).ok().as_deref().and_then(rtf_of);
+    md += "## Real-time factors\n\n| run | simulated s per wall s |\n| --- | --- |\n";
+    for (what, p) in [
+        ("expert, no camera", &j1),
+        ("expert, rig every frame", &j2),
+        ("RA + oracle (rig at the selector's scale)", &j3),
+    ] {
+        md += &format!(
+            "| {what} | {} |\n",
+            rtf(p).map_or("?".into(), |r| format!("{r:.1}"))
+        );
+    }
+    let torch_python = std::env::var("MRDRIVE_TORCH_PYTHON")
+        .ok()
+        .or_else(|| Some(root.join(".venv/bin/python").display().to_string()))
+        .filter(|p| {
+            Command::new(p)
+                .args(["-c", "import torch"])
+                .output()
+                .is_ok_and(|o| o.status.success())
+        });
+    md += "\n## PyTorch's reference\n\n";
+    match torch_python {
+        Some(py) => {
+            let (out, _) = measured(
+                root,
+                &[
+                    &py,
+                    "bench/torch_reference.py",
+                    "--quick",
+                    "--repeats",
+                    "10",
+                    "--train-steps",
+                    "5",
+                ],
+                &vars,
+            )?;
+            md += &format!(
+                "`python bench/torch_reference.py --quick --repeats 10 --train-steps 5`\n\n```text\n{out}```\n"
+            );
+        }
+        None => md += "Not run: no Python with torch (set MRDRIVE_TORCH_PYTHON to one).\n",
+    }
+    let _ = std::fs::remove_dir_all(&tmp);
+    let path = root.join("docs/bench.md");
+    std::fs::write(&path, md).map_err(|e| format!("{}: {e}", path.display()))?;
+    eprintln!("xtask bench: wrote {}", path.display());
+    Ok(())
+}
+
 fn bless(root: &Path) -> Result<(), String> {
     status_in(
         root,
@@ -463,6 +706,13 @@ fn status_in(dir: &Path, cmd: &[&str], vars: &[(&str, &str)]) -> Result<(), Stri
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_real_time_factor_is_read_from_a_record() {
+        let json = r#"{"result": {}, "perf": {"wall_s": 2.0, "real_time_factor": 312.5, "traffic_s": 0.1}}"#;
+        assert_eq!(rtf_of(json), Some(312.5));
+        assert_eq!(rtf_of("{}"), None);
+    }
 
     #[test]
     fn the_skip_report_counts_each_skip_and_says_why() {
