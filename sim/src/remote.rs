@@ -100,11 +100,16 @@ pub struct Link {
 impl Link {
     /// What happened since the last snapshot, emptied (for the episode's last step).
     pub fn drain(&self) -> Since {
-        let mut s = self.shared.lock().unwrap_or_else(|e| e.into_inner());
-        let out = s.clone();
-        s.infractions.clear();
-        out
+        take_since(&self.shared)
     }
+}
+
+/// What happened since the last call: the state now, and the infractions, which it empties.
+fn take_since(shared: &Shared) -> Since {
+    let mut s = shared.lock().unwrap_or_else(|e| e.into_inner());
+    let out = s.clone();
+    s.infractions.clear();
+    out
 }
 
 /// The run's ends: the driver, the observer, the selector (each goes into the run),
@@ -186,12 +191,7 @@ impl Driver for RemoteDriver {
     }
 
     fn act(&mut self, obs: &Observation<'_>) -> VehicleControl {
-        let since = {
-            let mut s = self.shared.lock().unwrap_or_else(|e| e.into_inner());
-            let out = s.clone();
-            s.infractions.clear();
-            out
-        };
+        let since = take_since(&self.shared);
         let (size, image) = match obs.image {
             Some(img) => ((img.height, img.width), img.data.clone()),
             None => ((0, 0), Vec::new()),

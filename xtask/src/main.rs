@@ -513,6 +513,11 @@ fn bench(root: &Path, env: &Env) -> Result<(), String> {
     std::fs::create_dir_all(&tmp).map_err(|e| e.to_string())?;
     let json = |name: &str| tmp.join(name).display().to_string();
     let (j1, j2, j3) = (json("expert.json"), json("rig.json"), json("ra.json"));
+    let render_along = |scenario: &'static str| -> Vec<&str> {
+        let mut c = vec![bin, "bench", "render", "--frames", "60", "--repeats", "3"];
+        c.extend(["--scenario", scenario]);
+        c
+    };
     let mut steps: Vec<(&str, Vec<&str>)> = vec![
         (
             "Physics and traffic: 20 vehicles, 40 pedestrians, 2 simulated minutes on gen01",
@@ -530,33 +535,13 @@ fn bench(root: &Path, env: &Env) -> Result<(), String> {
         ),
         (
             "Camera rig frames/s per scale along the default scenario (gen01)",
-            vec![
-                bin,
-                "bench",
-                "render",
-                "--frames",
-                "60",
-                "--repeats",
-                "3",
-                "--scenario",
-                "scenarios/default.toml",
-            ],
+            render_along("scenarios/default.toml"),
         ),
     ];
     if carla {
         steps.push((
             "Camera rig frames/s per scale along Town01 route 0",
-            vec![
-                bin,
-                "bench",
-                "render",
-                "--frames",
-                "60",
-                "--repeats",
-                "3",
-                "--scenario",
-                "scenarios/paper/town01_route0.toml",
-            ],
+            render_along("scenarios/paper/town01_route0.toml"),
         ));
     }
     steps.extend([

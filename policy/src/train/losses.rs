@@ -40,12 +40,14 @@ pub fn command_weights(command: u8) -> [f32; 6] {
 /// over the speed bins and the actions as WoR's `kl_div(...).mean(dim=[2, 3])`: `[B, C]`.
 fn kl_per_command(log_p: Tensor<4>, z: Tensor<4>) -> Tensor<2> {
     let [b, c, _, _] = z.dims();
+    kl_terms(log_p, z).mean_dim(3).mean_dim(2).reshape([b, c])
+}
+
+/// The terms `p (log p - log softmax(z))` of `KL(p || softmax(z))` over the last dim.
+fn kl_terms(log_p: Tensor<4>, z: Tensor<4>) -> Tensor<4> {
     let log_q = log_softmax(z, 3);
     let p = log_p.clone().exp();
-    (p * (log_p - log_q))
-        .mean_dim(3)
-        .mean_dim(2)
-        .reshape([b, c])
+    p * (log_p - log_q)
 }
 
 /// Action loss: `KL(softmax(Q / T) || softmax(z))` per command (averaged over speed bins
@@ -62,10 +64,9 @@ pub fn action_kl(z: Tensor<4>, q: Tensor<4>, weights: Tensor<2>, temperature: f3
 /// larger than the action term); the teacher's logits carry no gradient.
 pub fn kd_kl(z: Tensor<4>, teacher_z: Tensor<4>) -> Tensor<1> {
     let [b, _, _, _] = z.dims();
-    let log_p = log_softmax(teacher_z.detach(), 3);
-    let log_q = log_softmax(z, 3);
-    let p = log_p.clone().exp();
-    (p * (log_p - log_q)).sum().div_scalar(b as f32)
+    kl_terms(log_softmax(teacher_z.detach(), 3), z)
+        .sum()
+        .div_scalar(b as f32)
 }
 
 /// Feature matching: `||f - fT||^2 / D`, averaged over the batch (`[B, D]`).

@@ -239,10 +239,10 @@ pub enum StageError {
     /// The saved trainer state is unusable.
     #[error(transparent)]
     State(#[from] StateError),
-    /// The teacher does not fit the stage.
+    /// A teacher or initial checkpoint does not fit the stage.
     #[error("{path}: {problem}; fix: {fix}")]
-    Teacher {
-        /// The teacher checkpoint.
+    Misfit {
+        /// The teacher or initial checkpoint.
         path: PathBuf,
         /// What is wrong.
         problem: String,
@@ -325,7 +325,7 @@ pub fn run_stage(
                         &config.scales,
                     )
                 {
-                    return Err(StageError::Teacher {
+                    return Err(StageError::Misfit {
                         path: path.clone(),
                         problem: "the initial weights are of another network than the stage trains"
                             .into(),
@@ -380,7 +380,6 @@ pub fn run_stage(
         },
     );
     let started = Instant::now();
-    let mut last_save = Instant::now();
     for step in done..spec.steps {
         let Some(batch) = loader.next_batch(device) else {
             break;
@@ -433,7 +432,6 @@ pub fn run_stage(
                 training: None,
             };
             checkpoint::save(&trainer.net.valid(), &card, &run_dir.join(LATEST_FILE))?;
-            last_save = Instant::now();
         }
         on_step(&StepUpdate {
             report: &report,
@@ -442,7 +440,6 @@ pub fn run_stage(
             checkpointed: last || due,
         });
     }
-    let _ = last_save;
     drop(loader);
     wall_before += started.elapsed().as_secs_f64();
     let trainer_steps = trainer.steps_done();
@@ -544,7 +541,7 @@ fn check_teacher(
     path: &Path,
 ) -> Result<(), StageError> {
     let t = &teacher.config;
-    let fail = |problem: String| StageError::Teacher {
+    let fail = |problem: String| StageError::Misfit {
         path: path.to_path_buf(),
         problem,
         fix: "train the Original first (`mrdrive train --stage original`) with the same preset"

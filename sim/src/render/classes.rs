@@ -192,9 +192,13 @@ pub fn label_rgb(id: ClassId) -> [u8; 3] {
 /// WoR's class ids (0-5) of a class image painted in label colours ([`label_rgb`]);
 /// a colour of no class reads as background.
 pub fn wor_of_label_rgb(rgb: &[u8]) -> Vec<u8> {
-    let table: Vec<([u8; 3], u8)> = (0..CLASS_COUNT as ClassId)
-        .map(|id| (label_rgb(id), to_wor(id) as u8))
-        .collect();
+    // Built once: this runs on every frame of an agent that asks for classes.
+    static TABLE: std::sync::OnceLock<Vec<([u8; 3], u8)>> = std::sync::OnceLock::new();
+    let table = TABLE.get_or_init(|| {
+        (0..CLASS_COUNT as ClassId)
+            .map(|id| (label_rgb(id), to_wor(id) as u8))
+            .collect()
+    });
     rgb.chunks_exact(3)
         .map(|px| {
             table
