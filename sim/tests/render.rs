@@ -262,3 +262,48 @@ fn bad_scale_is_an_error_not_a_panic() {
         .unwrap_err();
     assert!(err.to_string().contains("scale 0"), "{err}");
 }
+
+/// In CARLA's towns, a car waiting for a red light where the expert waits
+/// (its front bumper `stop_margin_m` before the stop line) sees that red
+/// lamp in one of the rig's cameras: the cue to go again is in the picture.
+#[test]
+fn a_car_waiting_at_a_carla_stop_line_sees_its_red_lamp() {
+    let Some(dir) =
+        world::testdata::carla_dir("a_car_waiting_at_a_carla_stop_line_sees_its_red_lamp")
+    else {
+        return;
+    };
+    let rig = RigConfig::cpu_default();
+    let size = rig.size_at(1.0).unwrap();
+    let margin_m = sim::expert::ExpertParams::default().stop_margin_m;
+    let length_m = 4.79;
+    for name in ["Town01", "Town02"] {
+        let (town, _) =
+            world::load_xodr_file(dir.join(format!("{name}.xodr")), &Default::default()).unwrap();
+        let mut r = Renderer::new(&town, rig, 1).expect("a device");
+        let red = vec![LightState::Red; town.lights.len()];
+        let mut checked = 0;
+        for line in world::rules::stop_lines::StopLines::new(&town).all() {
+            let fwd = Vec2::from_angle(line.heading);
+            let centre = line.position - fwd * (margin_m + 0.5 * length_m);
+            let ego = EgoPose {
+                position: centre.extend(0.0),
+                heading: line.heading,
+            };
+            let lamp = lamp_center(r.scene(), line.light.0 as usize, LightState::Red).unwrap();
+            let (_, labels) = r.render_rig(&ego, &[], &red, 1.0).unwrap();
+            let seen = rig
+                .views(&ego, size)
+                .iter()
+                .filter_map(|v| v.project(lamp))
+                .any(|px| class_at(labels, px) == classes::LAMP_RED);
+            assert!(
+                seen,
+                "{name}: light {} is not in view from its stop line",
+                town.lights[line.light.0 as usize].od_id
+            );
+            checked += 1;
+        }
+        assert!(checked >= 24, "{name}: {checked} stop lines");
+    }
+}

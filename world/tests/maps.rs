@@ -16,7 +16,9 @@ fn carla_towns_load_with_all_their_lights() {
             load_xodr_file(dir.join(format!("{name}.xodr")), &LoadOptions::default()).unwrap();
         assert_eq!(town.lights.len(), lights, "{name}");
         assert_eq!(town.junctions.len(), junctions, "{name}");
-        // Every light belongs to a junction and has a stop line at the junction entry.
+        // Every light belongs to a junction and has a stop line on a lane
+        // entering it, at the light's pole (or at the junction's entry where
+        // the pole stands beside it), and its lamps face that lane's traffic.
         for l in &town.lights {
             assert!(
                 l.junction.is_some(),
@@ -37,7 +39,25 @@ fn carla_towns_load_with_all_their_lights() {
                         .any(|s| town.lane(*s).junction == l.junction),
                     "{name}: stop line not at its junction's entry"
                 );
-                assert!((sl.s - lane.length_m()).abs() < 1e-3);
+                let setback = lane.length_m() - sl.s;
+                assert!(
+                    (-1e-3..world::map::opendrive::MAX_POLE_SETBACK_M).contains(&setback),
+                    "{name} light {}: stop line {setback} m before the junction",
+                    l.od_id
+                );
+                let driving = glam::Vec2::from_angle(lane.heading_at(sl.s));
+                let centre = (sl.ends[0] + sl.ends[1]).truncate() * 0.5;
+                let pole_ahead = (l.position.truncate() - centre).dot(driving);
+                assert!(
+                    setback < 1e-3 || pole_ahead.abs() < 0.05,
+                    "{name} light {}: pole {pole_ahead} m from its stop line",
+                    l.od_id
+                );
+                assert!(
+                    glam::Vec2::from_angle(l.heading).dot(driving) < -0.99,
+                    "{name} light {} faces away from its lane",
+                    l.od_id
+                );
                 // The stop line spans the lane: its ends are a lane width apart.
                 let w = sl.ends[0].distance(sl.ends[1]);
                 assert!((w - lane.width_at(sl.s)).abs() < 0.05, "{w}");

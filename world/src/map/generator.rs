@@ -514,7 +514,7 @@ mod tests {
     }
 
     #[test]
-    fn stop_lines_sit_at_the_junction_entry_and_markings_bound_the_lane() {
+    fn stop_lines_sit_at_the_light_before_the_junction_and_markings_bound_the_lane() {
         use crate::road::geometry::{OrientedBox, box_touches_polyline, crosses_stop_line};
         use glam::Vec2;
         // Nodes at x = 0, 60, 120 and y = 0, 60; junction squares 10 m half size.
@@ -532,34 +532,37 @@ mod tests {
         )
         .unwrap();
         // The eastbound lane of the street from (0, 0) to (60, 0) runs along
-        // y = -1.75 and enters the T junction at (60, 0) at x = 50.
+        // y = -1.75 and enters the T junction at (60, 0) at x = 50; its
+        // light's pole stands 1 m before that, and so does the stop line.
         let sl = town
             .lights
             .iter()
             .flat_map(|l| l.stop_lines.iter())
-            .find(|sl| sl.ends[0].truncate().distance(Vec2::new(50.0, 0.0)) < 0.5)
-            .expect("a stop line at (50, 0)");
+            .find(|sl| sl.ends[0].truncate().distance(Vec2::new(49.0, 0.0)) < 0.5)
+            .expect("a stop line at (49, 0)");
         assert!(
-            sl.ends[0].truncate().distance(Vec2::new(50.0, 0.0)) < 0.02,
+            sl.ends[0].truncate().distance(Vec2::new(49.0, 0.0)) < 0.02,
             "left end {:?}",
             sl.ends[0]
         );
         assert!(
-            sl.ends[1].truncate().distance(Vec2::new(50.0, -3.5)) < 0.02,
+            sl.ends[1].truncate().distance(Vec2::new(49.0, -3.5)) < 0.02,
             "right end {:?}",
             sl.ends[1]
         );
         let lane = town.lane(sl.lane);
-        assert!((sl.s - lane.length_m()).abs() < 1e-3 && (lane.length_m() - 40.0).abs() < 0.01);
+        assert!(
+            (sl.s - (lane.length_m() - 1.0)).abs() < 1e-3 && (lane.length_m() - 40.0).abs() < 0.01
+        );
         let ends = [sl.ends[0].truncate(), sl.ends[1].truncate()];
         assert!(crosses_stop_line(
-            Vec2::new(49.8, -1.75),
-            Vec2::new(50.2, -1.75),
+            Vec2::new(48.8, -1.75),
+            Vec2::new(49.2, -1.75),
             ends
         ));
         assert!(!crosses_stop_line(
-            Vec2::new(49.0, -1.75),
-            Vec2::new(49.9, -1.75),
+            Vec2::new(48.0, -1.75),
+            Vec2::new(48.9, -1.75),
             ends
         ));
         // A 4.8 m x 2.1 m car centred in that lane touches no marking; moved

@@ -7,11 +7,28 @@ use std::collections::{BTreeMap, HashMap};
 
 use super::load::{LoadOptions, LoadReport, UnsignalledJunctions};
 use super::{Builder, p3};
+use glam::Vec2;
+
 use crate::map::{JunctionIdx, LaneIdx, LightIdx, StopLine, TrafficLight};
+use crate::road::geometry::project_to_polyline;
+
+/// The heading that faces the traffic arriving at a stop line (radians,
+/// counter-clockwise from +x): against the driving direction, which runs
+/// from the line's left end to its right end turned a quarter counter-clockwise.
+fn facing_traffic(line: &StopLine) -> f32 {
+    let driving = (line.ends[1] - line.ends[0]).truncate().perp();
+    (-driving).y.atan2((-driving).x)
+}
 
 /// Height of a light's lamp housing above its pole's foot, as maps rarely
 /// give it (metres).
 pub const DEFAULT_LIGHT_HEAD_HEIGHT_M: f32 = 3.0;
+
+/// How far before the end of its approach lane a light's pole may stand and
+/// still carry the stop line (metres). Town01's poles stand 0-5 m before the
+/// junction; a pole farther back than this is taken to be misplaced and the
+/// line stays at the lane's end.
+pub const MAX_POLE_SETBACK_M: f32 = 8.0;
 
 impl Builder<'_> {
     /// The lane whose end is the stop line for traffic on `lane`: walk forward
@@ -42,17 +59,41 @@ impl Builder<'_> {
         Some(l)
     }
 
-    fn stop_line(&self, lane: LaneIdx) -> StopLine {
+    /// The stop line of an approach lane: where the lane passes the light's
+    /// pole, as CARLA's trigger volumes stand at the light, so that a car
+    /// waiting at the line still has the light in view. Without a pole, or
+    /// with one beside the junction or more than [`MAX_POLE_SETBACK_M`]
+    /// before it, the line is at the lane's end, where the junction begins.
+    fn stop_line(&self, lane: LaneIdx, pole: Option<Vec2>) -> StopLine {
         let dl = &self.town.lanes[lane.0 as usize];
         let n = dl.centerline.len();
-        let end = dl.centerline[n - 1];
-        let dir = (end - dl.centerline[n - 2]).truncate().normalize_or_zero();
-        let left = dir.perp();
-        let hw = dl.width[n - 1] * 0.5;
+        let end_s = dl.s[n - 1];
+        let at_pole = pole
+            .and_then(|p| project_to_polyline(&dl.centerline, p))
+            .filter(|pr| pr.s < end_s && pr.s > end_s - MAX_POLE_SETBACK_M && pr.segment + 1 < n);
+        let (centre, dir, width, s) = match at_pole {
+            Some(pr) => {
+                let (a, b) = (dl.centerline[pr.segment], dl.centerline[pr.segment + 1]);
+                let w =
+                    dl.width[pr.segment] + (dl.width[pr.segment + 1] - dl.width[pr.segment]) * pr.t;
+                (a.lerp(b, pr.t), (b - a).truncate(), w, pr.s)
+            }
+            None => (
+                dl.centerline[n - 1],
+                (dl.centerline[n - 1] - dl.centerline[n - 2]).truncate(),
+                dl.width[n - 1],
+                end_s,
+            ),
+        };
+        let left = dir.normalize_or_zero().perp();
+        let hw = width * 0.5;
         StopLine {
             lane,
-            s: dl.s[n - 1],
-            ends: [end + (left * hw).extend(0.0), end - (left * hw).extend(0.0)],
+            s,
+            ends: [
+                centre + (left * hw).extend(0.0),
+                centre - (left * hw).extend(0.0),
+            ],
         }
     }
 
@@ -108,14 +149,23 @@ impl Builder<'_> {
                 .and_then(|(j, _)| self.junction_of.get(j).copied())
                 .or_else(|| stop_lanes.iter().find_map(|l| self.junction_after(*l)));
             let group = from_ctrl.and_then(|(_, s)| s).unwrap_or(u32::MAX);
-            let stop_lines = stop_lanes.iter().map(|l| self.stop_line(*l)).collect();
+            let pole = p3(sig.position).truncate();
+            let stop_lines: Vec<StopLine> = stop_lanes
+                .iter()
+                .map(|l| self.stop_line(*l, Some(pole)))
+                .collect();
+            // The lamps face the traffic they stop. Maps disagree on how
+            // `orientation` and `hOffset` combine (read by the standard, half
+            // of CARLA Town01's lights, those with orientation "-", would turn
+            // their backs on their lanes), so the lanes decide.
+            let heading = stop_lines.first().map_or(sig.heading, facing_traffic);
             self.town.lights.push(TrafficLight {
                 od_id: od_ids
                     .get(&sig.id)
                     .cloned()
                     .unwrap_or_else(|| sig.name.clone()),
                 position: p3(sig.position),
-                heading: sig.heading,
+                heading,
                 head_height_m: DEFAULT_LIGHT_HEAD_HEIGHT_M,
                 junction,
                 group,
@@ -180,7 +230,8 @@ impl Builder<'_> {
                 continue;
             }
             for (g, (road, lanes)) in roads.iter().enumerate() {
-                let stop_lines: Vec<StopLine> = lanes.iter().map(|l| self.stop_line(*l)).collect();
+                let stop_lines: Vec<StopLine> =
+                    lanes.iter().map(|l| self.stop_line(*l, None)).collect();
                 // Pole beside the rightmost stop line's right end, facing traffic.
                 let across = (stop_lines[0].ends[1] - stop_lines[0].ends[0])
                     .truncate()

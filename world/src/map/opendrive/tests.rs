@@ -222,6 +222,52 @@ fn a_signal_stops_its_lanes_traffic_at_the_lane_end() {
 }
 
 #[test]
+fn a_pole_before_the_lane_end_carries_the_stop_line_and_lamps_face_the_traffic() {
+    // The same light 5 m before the end of its lanes: the lines move to the
+    // pole, so a car waiting at them still has the light in view.
+    let signal = r#"<signal s="90" t="-5""#;
+    let xml = road_xml("3.5").replace(signal, r#"<signal s="95" t="-5""#);
+    let (town, _) = load_xodr_str(&xml, "tiny", &LoadOptions::default()).unwrap();
+    let light = &town.lights[0];
+    assert_eq!(light.stop_lines.len(), 2);
+    for sl in &light.stop_lines {
+        assert!((sl.s - (town.lane(sl.lane).length_m() - 5.0)).abs() < 1e-3);
+        assert!(
+            sl.ends.iter().all(|e| (e.x - 95.0).abs() < 1e-3),
+            "{:?}",
+            sl.ends
+        );
+    }
+    // The lamps face the traffic of the lanes they stop, whatever
+    // orientation and hOffset say (CARLA's "-" signals would otherwise turn
+    // their backs on it): "+" stops the +x lanes, "-" the -x lane.
+    for (orientation, h_offset) in [("+", "3.141593"), ("+", "0"), ("-", "0")] {
+        let xml = road_xml("3.5")
+            .replace(
+                r#"orientation="+""#,
+                &format!(r#"orientation="{orientation}""#),
+            )
+            .replace(r#"hOffset="3.141593""#, &format!(r#"hOffset="{h_offset}""#));
+        let (town, _) = load_xodr_str(&xml, "tiny", &LoadOptions::default()).unwrap();
+        let light = &town.lights[0];
+        let facing = Vec2::from_angle(light.heading);
+        assert!(!light.stop_lines.is_empty());
+        for sl in &light.stop_lines {
+            let driving = Vec2::from_angle(town.lane(sl.lane).heading_at(sl.s));
+            let want = if orientation == "+" { 1.0 } else { -1.0 };
+            assert!(
+                (driving.x - want).abs() < 1e-3,
+                "{orientation}: {driving:?}"
+            );
+            assert!(
+                facing.dot(driving) < -0.999,
+                "{orientation} {h_offset}: {facing:?}"
+            );
+        }
+    }
+}
+
+#[test]
 fn unsignalled_junctions_get_one_light_per_approach_only_when_asked() {
     let p = GridTownParams {
         name: "g".into(),
