@@ -63,10 +63,17 @@ pub struct TrainingRecord {
     /// The share of standing frames kept.
     #[serde(default = "one")]
     pub standing_keep: f64,
+    /// Copies of each starting frame (standing, target goes) per epoch.
+    #[serde(default = "one_copy")]
+    pub start_repeat: usize,
 }
 
 fn one() -> f64 {
     1.0
+}
+
+fn one_copy() -> usize {
+    1
 }
 
 impl ModelCard {

@@ -53,6 +53,10 @@ pub struct TrainArgs {
     /// The share of standing frames (< 0.5 m/s) to keep, in [0, 1] [default: the recipe's, 1].
     #[arg(long)]
     standing_keep: Option<f64>,
+    /// Copies of each kept starting frame (standing, target goes: a light turned green)
+    /// per epoch [default: the recipe's, 1].
+    #[arg(long)]
+    start_repeat: Option<usize>,
     /// Draw commands evenly [default: the recipe's: no for the Original, yes for retargeting].
     #[arg(long)]
     balanced: Option<bool>,
@@ -144,6 +148,12 @@ fn spec_of(args: &TrainArgs, stage: &str) -> Result<StageSpec> {
             bail!("--standing-keep {v}: a share in [0, 1]");
         }
         spec.standing_keep = v;
+    }
+    if let Some(v) = args.start_repeat {
+        if v == 0 {
+            bail!("--start-repeat 0: at least 1 (1 draws each starting frame once per epoch)");
+        }
+        spec.start_repeat = v;
     }
     if let Some(v) = args.balanced {
         spec.balanced = v;

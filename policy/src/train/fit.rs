@@ -11,7 +11,7 @@ use super::losses::TEMPERATURE;
 use crate::model::PolicyNet;
 use burn::prelude::*;
 use dataset::action::{BRAKE, NUM_ACTIONS, NUM_COMMANDS, NUM_SPEED_BINS};
-use dataset::decode::{interpolate_speed, softmax};
+use dataset::decode::{BRAKE_THRESHOLD, interpolate_speed, softmax};
 use std::sync::Arc;
 
 /// The statistics of one group of samples.
@@ -88,7 +88,10 @@ pub fn fit(
                     .max_by(|&a, &b| p[a].total_cmp(&p[b]))
                     .unwrap_or(0)
             };
-            let (tb, nb) = (target[BRAKE] > 0.5, pred[BRAKE] > 0.5);
+            let (tb, nb) = (
+                target[BRAKE] > BRAKE_THRESHOLD,
+                pred[BRAKE] > BRAKE_THRESHOLD,
+            );
             let g = usize::from(speed >= 0.5) * 2 + usize::from(c < 3);
             let a = &mut acc[g];
             a[0] += 1.0;

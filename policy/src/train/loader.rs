@@ -28,13 +28,14 @@ use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::thread::JoinHandle;
 
 use burn::prelude::*;
-use dataset::action::{NUM_ACTIONS, NUM_COMMANDS, NUM_SPEED_BINS};
+use dataset::action::{BRAKE, NUM_ACTIONS, NUM_COMMANDS, NUM_SPEED_BINS};
+use dataset::decode::{BRAKE_THRESHOLD, interpolate_speed, softmax};
 use dataset::format::{DataError, INDEX_FILE, Index, MappedLabels, MappedShard, Q_PER_VIEW};
 use dataset::labels::LABEL_VERSION;
 use rand::RngExt;
 
 use super::augment::{AugmentConfig, Sample as Pixels, augment, mix, sample_rng};
-use super::losses::command_weights;
+use super::losses::{TEMPERATURE, command_weights};
 use super::multires::Batch;
 use crate::model::PolicyConfig;
 
@@ -56,6 +57,10 @@ pub struct LoaderConfig {
     /// fixed subset chosen by the seed (1 keeps all). Waiting at red lights fills a third
     /// of our data; fewer of those frames weaken the "junction ahead: brake" prior.
     pub standing_keep: f64,
+    /// How many times each kept starting frame ([`TrainSet::starts`]: standing, and
+    /// the target goes, as when the light has just turned green) appears per epoch (1:
+    /// once). They are about one standing frame in 25.
+    pub start_repeat: usize,
     /// The first epoch (to resume a run where it stopped).
     pub first_epoch: u64,
     /// Batches of the first epoch to leave out (to resume a run mid-epoch); the
@@ -81,6 +86,7 @@ impl LoaderConfig {
             augment: Some(AugmentConfig::default()),
             balanced: false,
             standing_keep: 1.0,
+            start_repeat: 1,
             first_epoch: 0,
             first_batch: 0,
             epochs: None,
@@ -293,6 +299,25 @@ impl TrainSet {
         n
     }
 
+    /// Whether sample `s` is a starting frame: the ego stands (below
+    /// [`STANDING_MPS`]) and its target, softmax(Q / T) at its command and speed, puts
+    /// at most [`BRAKE_THRESHOLD`] on the brake (`policy fit`'s rule).
+    pub fn starts(&self, s: &SampleRef) -> bool {
+        let speed = self.speed_mps(s);
+        if speed >= STANDING_MPS {
+            return false;
+        }
+        let mut q = vec![0.0; Q_PER_VIEW];
+        let part = &self.parts[s.episode as usize];
+        part.labels
+            .q_into(s.frame as usize, usize::from(s.view), &mut q);
+        let c = usize::from(s.command);
+        let bins: [[f32; NUM_ACTIONS]; NUM_SPEED_BINS] = std::array::from_fn(|k| {
+            std::array::from_fn(|j| q[(c * NUM_SPEED_BINS + k) * NUM_ACTIONS + j] / TEMPERATURE)
+        });
+        softmax(&interpolate_speed(&bins, speed))[BRAKE] <= BRAKE_THRESHOLD
+    }
+
     /// Whether sample `s` is used under `cfg.standing_keep` (the same answer for every
     /// view of a frame and every epoch).
     pub fn kept(&self, cfg: &LoaderConfig, s: &SampleRef) -> bool {
@@ -304,17 +329,33 @@ impl TrainSet {
         u < cfg.standing_keep
     }
 
-    /// Samples per epoch under `cfg` (those [`TrainSet::kept`]).
+    /// Samples per epoch under `cfg`: those [`TrainSet::kept`], each starting frame
+    /// `start_repeat` times.
     pub fn epoch_len(&self, cfg: &LoaderConfig) -> usize {
-        self.samples.iter().filter(|s| self.kept(cfg, s)).count()
+        self.pool(cfg).len()
+    }
+
+    /// The positions in [`TrainSet::samples`] one epoch draws from, in sample order.
+    fn pool(&self, cfg: &LoaderConfig) -> Vec<usize> {
+        let mut pool = Vec::with_capacity(self.samples.len());
+        for (i, s) in self.samples.iter().enumerate() {
+            if !self.kept(cfg, s) {
+                continue;
+            }
+            let copies = if cfg.start_repeat > 1 && self.starts(s) {
+                cfg.start_repeat
+            } else {
+                1
+            };
+            pool.extend(std::iter::repeat_n(i, copies));
+        }
+        pool
     }
 
     /// The order of epoch `epoch`: positions in [`TrainSet::samples`].
     pub fn epoch_order(&self, cfg: &LoaderConfig, epoch: u64) -> Vec<usize> {
         let mut rng = sample_rng(cfg.seed, epoch);
-        let pool: Vec<usize> = (0..self.samples.len())
-            .filter(|&i| self.kept(cfg, &self.samples[i]))
-            .collect();
+        let pool = self.pool(cfg);
         let n = pool.len();
         if cfg.balanced {
             let mut by_command: Vec<Vec<usize>> = vec![Vec::new(); NUM_COMMANDS];
@@ -656,33 +697,36 @@ mod tests {
     }
 
     #[test]
-    fn standing_frames_are_thinned_by_a_fixed_seeded_subset() {
+    fn standing_frames_are_thinned_by_a_fixed_seeded_subset_and_starting_frames_repeat() {
         let dir = write(2, 40);
         let set = TrainSet::open(dir.path(), &config()).unwrap();
-        let standing = set
-            .samples
-            .iter()
-            .filter(|s| set.speed_mps(s) < STANDING_MPS)
-            .count();
-        assert!(standing > 0 && standing < set.samples.len());
+        let standing = |s: &SampleRef| set.speed_mps(s) < STANDING_MPS;
+        // The synthetic ego stands every 5th frame; its target brakes at red lights
+        // (frames 0-9, 20-29) and goes at green (10-19, 30-34).
+        for s in &set.samples {
+            let green = (s.frame / 10) % 2 == 1;
+            assert_eq!(set.starts(s), standing(s) && green, "{s:?}");
+        }
+        let standing_n = set.samples.iter().filter(|s| standing(s)).count();
+        assert!(standing_n > 0 && standing_n < set.samples.len());
         let all = LoaderConfig::new(5, 3);
         assert_eq!(set.epoch_len(&all), set.samples.len());
         let none = LoaderConfig {
             standing_keep: 0.0,
             ..all.clone()
         };
-        assert_eq!(set.epoch_len(&none), set.samples.len() - standing);
+        assert_eq!(set.epoch_len(&none), set.samples.len() - standing_n);
         assert!(
             set.epoch_order(&none, 0)
                 .iter()
-                .all(|&i| set.speed_mps(&set.samples[i]) >= STANDING_MPS)
+                .all(|&i| !standing(&set.samples[i]))
         );
         let half = LoaderConfig {
             standing_keep: 0.5,
-            ..all
+            ..all.clone()
         };
-        let kept = set.epoch_len(&half) - (set.samples.len() - standing);
-        assert!(kept > 0 && kept < standing, "{kept} of {standing}");
+        let kept = set.epoch_len(&half) - (set.samples.len() - standing_n);
+        assert!(kept > 0 && kept < standing_n, "{kept} of {standing_n}");
         // The same frames in every epoch, and all views of a frame together.
         let frames = |e| {
             let mut f: Vec<(u32, u32)> = set
@@ -695,6 +739,30 @@ mod tests {
         };
         assert_eq!(frames(0), frames(1));
         assert_eq!(kept % 3, 0);
+        // Each kept starting frame three times an epoch, in either sampling.
+        let starting = set
+            .samples
+            .iter()
+            .filter(|s| set.starts(s) && set.kept(&all, s))
+            .count();
+        assert!(starting > 0);
+        for balanced in [false, true] {
+            let thrice = LoaderConfig {
+                start_repeat: 3,
+                balanced,
+                ..all.clone()
+            };
+            assert_eq!(set.epoch_len(&thrice), set.samples.len() + 2 * starting);
+            let order = set.epoch_order(&thrice, 0);
+            assert_eq!(order.len(), set.epoch_len(&thrice));
+            if !balanced {
+                let starts = order
+                    .iter()
+                    .filter(|&&i| set.starts(&set.samples[i]))
+                    .count();
+                assert_eq!(starts, 3 * starting);
+            }
+        }
     }
 
     #[test]

@@ -65,6 +65,9 @@ pub struct StageSpec {
     /// The share of standing frames kept ([`LoaderConfig::standing_keep`]; 1: all, WoR).
     #[serde(default = "one")]
     pub standing_keep: f64,
+    /// Copies of each starting frame per epoch ([`LoaderConfig::start_repeat`]; 1: WoR).
+    #[serde(default = "one_copy")]
+    pub start_repeat: usize,
     /// Start from this checkpoint's weights instead of a fresh initialisation (same
     /// network; e.g. to go on from a shipped model when a run's state is lost).
     #[serde(default)]
@@ -95,6 +98,7 @@ impl StageSpec {
             balanced: false,
             augment: true,
             standing_keep: 1.0,
+            start_repeat: 1,
             init: None,
             recalibrate_batches: 0,
             checkpoint_every: 100,
@@ -127,6 +131,7 @@ impl StageSpec {
             balanced: true,
             augment: true,
             standing_keep: 1.0,
+            start_repeat: 1,
             init: None,
             recalibrate_batches: 50,
             checkpoint_every: 50,
@@ -164,6 +169,10 @@ impl StageSpec {
 
 fn one() -> f64 {
     1.0
+}
+
+fn one_copy() -> usize {
+    1
 }
 
 /// Where a stage stands, saved with each checkpoint.
@@ -367,6 +376,7 @@ pub fn run_stage(
         augment: spec.augment.then(Default::default),
         balanced: spec.balanced,
         standing_keep: spec.standing_keep,
+        start_repeat: spec.start_repeat,
         ..LoaderConfig::new(spec.batch, spec.seed)
     };
     let per_epoch = (set.epoch_len(&loader_cfg) / spec.batch.max(1)).max(1);
@@ -474,6 +484,7 @@ pub fn run_stage(
             init: spec.init.as_ref().map(|p| p.display().to_string()),
             balanced: spec.balanced,
             standing_keep: spec.standing_keep,
+            start_repeat: spec.start_repeat,
         }),
     };
     checkpoint::save(&net, &card, &final_path)?;
@@ -487,7 +498,7 @@ pub fn run_stage(
 /// A sentence on what the stage's network is.
 fn describe(spec: &StageSpec) -> String {
     let sampling = format!(
-        "{}{}",
+        "{}{}{}",
         if spec.balanced {
             ", commands drawn evenly"
         } else {
@@ -495,6 +506,11 @@ fn describe(spec: &StageSpec) -> String {
         },
         if spec.standing_keep < 1.0 {
             format!(", {} of the standing frames", spec.standing_keep)
+        } else {
+            String::new()
+        },
+        if spec.start_repeat > 1 {
+            format!(", starting frames {} times", spec.start_repeat)
         } else {
             String::new()
         }
@@ -700,6 +716,7 @@ fn recalibrate_on(
         augment: None,
         balanced: spec.balanced,
         standing_keep: spec.standing_keep,
+        start_repeat: spec.start_repeat,
         epochs: None,
         ..LoaderConfig::new(spec.batch, spec.seed ^ 0x5ca1e)
     };
