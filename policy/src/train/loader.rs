@@ -307,7 +307,7 @@ impl TrainSet {
         if speed >= STANDING_MPS {
             return false;
         }
-        let mut q = vec![0.0; Q_PER_VIEW];
+        let mut q = [0.0; Q_PER_VIEW];
         let part = &self.parts[s.episode as usize];
         part.labels
             .q_into(s.frame as usize, usize::from(s.view), &mut q);
