@@ -47,6 +47,8 @@ enum Command {
     Run(cli::run::RunArgs),
     /// Run the cross product of scenarios, delays, scales, densities and seeds.
     Sweep(cli::sweep::SweepArgs),
+    /// The paper's tables and figures from the shipped checkpoints (resumable; --quick: a smoke test).
+    Paper(cli::paper::PaperArgs),
     /// Maps: summary, picture, town generator.
     #[command(subcommand)]
     Map(cli::map::MapCommand),
@@ -98,6 +100,7 @@ fn run() -> anyhow::Result<()> {
     match Cli::parse().command {
         Command::Run(a) => cli::run::run(a),
         Command::Sweep(a) => cli::sweep::run(a),
+        Command::Paper(a) => cli::paper::run(a),
         Command::Map(c) => cli::map::run(c),
         Command::Routes(a) => cli::routes::run(a),
         Command::Traffic(a) => cli::traffic::run(a),

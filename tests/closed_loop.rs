@@ -274,3 +274,40 @@ fn a_policy_checkpoint_drives_a_scenario_through_its_camera() {
         "latency above L_high"
     );
 }
+
+#[test]
+fn latency_jitter_spreads_the_latency_and_is_reproducible() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = |name: &str, jitter: f64, seed: u64| {
+        let scenario = selector_scenario(
+            tmp.path(),
+            name,
+            &format!(
+                "[resolution]\nselector = \"fixed\"\nscale = 0.75\n[traffic]\nseed = {seed}\n"
+            ),
+            20.0,
+        );
+        // The jitter goes into the [timing] section the helper writes.
+        let text = std::fs::read_to_string(&scenario).unwrap().replace(
+            "[timing]\n",
+            &format!("[timing]\nlatency_jitter = {jitter:?}\n"),
+        );
+        std::fs::write(&scenario, text).unwrap();
+        run_json(
+            &[scenario.to_str().unwrap()],
+            &tmp.path().join(format!("{name}.json")),
+        )["result"]
+            .clone()
+    };
+    let steady = run("steady", 0.0, 1);
+    assert_eq!(steady["max_latency_ms"].as_f64().unwrap(), 50.0);
+    let a = run("a", 0.3, 1);
+    let b = run("b", 0.3, 1);
+    let other = run("other", 0.3, 2);
+    let max = |r: &serde_json::Value| r["max_latency_ms"].as_f64().unwrap();
+    // ~200 boundaries: the largest of as many log-normal draws (sigma 0.3) is
+    // well above the median.
+    assert!(max(&a) > 60.0, "{}", max(&a));
+    assert_eq!(a, b, "same seed, same jitter draws, same run");
+    assert_ne!(max(&a), max(&other), "another seed draws other latencies");
+}

@@ -21,6 +21,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 use world::agents::pedestrian::PedestrianParams;
 use world::map::{LoadOptions, UnsignalledJunctions, load_xodr_file};
 use world::physics::Party;
@@ -182,8 +184,24 @@ pub fn timing_at(scenario: &Scenario, scale: f64) -> (DelayTiming, f64) {
     )
 }
 
+/// The NPC traffic a scenario spawns: its densities and seed, on its tick.
+pub fn traffic_config(scenario: &Scenario) -> TrafficConfig {
+    let defaults = TrafficConfig::default();
+    TrafficConfig {
+        vehicles: scenario.traffic.vehicles as usize,
+        pedestrians: scenario.traffic.pedestrians as usize,
+        seed: scenario.traffic.seed,
+        tick_s: scenario.timing.tick_s as f32,
+        pedestrian: PedestrianParams {
+            cross_factor: scenario.traffic.cross_factor,
+            ..defaults.pedestrian
+        },
+        ..defaults
+    }
+}
+
 /// Where the ego starts: the route's first point.
-fn ego_start(route: &DenseRoute) -> Result<EgoStart, RunError> {
+pub fn ego_start(route: &DenseRoute) -> Result<EgoStart, RunError> {
     let p = route
         .points
         .first()
@@ -239,6 +257,32 @@ fn selector_input(
     }
 }
 
+/// The log-normal spread of the execution latency (`timing.latency_jitter`):
+/// a factor with mean 1 drawn at each control boundary from its own seeded
+/// generator, so jitter never changes the traffic's random draws.
+struct Jitter {
+    sigma: f64,
+    rng: ChaCha8Rng,
+}
+
+impl Jitter {
+    fn new(scenario: &Scenario) -> Option<Jitter> {
+        let sigma = scenario.timing.latency_jitter;
+        (sigma > 0.0).then(|| Jitter {
+            sigma,
+            rng: ChaCha8Rng::seed_from_u64(scenario.traffic.seed ^ 0x6a69_7474_6572),
+        })
+    }
+
+    /// The next factor: exp(sigma z - sigma^2 / 2), z standard normal (Box-Muller).
+    fn factor(&mut self) -> f64 {
+        let u1: f64 = 1.0 - self.rng.random::<f64>();
+        let u2: f64 = self.rng.random::<f64>();
+        let z = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
+        (self.sigma * z - self.sigma * self.sigma / 2.0).exp()
+    }
+}
+
 /// The control side of the loop: the scale in force, the delay line and
 /// the latencies seen.
 struct Controls {
@@ -248,6 +292,7 @@ struct Controls {
     delay: DelayLine,
     /// Boundaries at each scale (keyed by the scale's bits).
     scale_counts: BTreeMap<u64, u64>,
+    jitter: Option<Jitter>,
 }
 
 impl Controls {
@@ -261,6 +306,25 @@ impl Controls {
             max_latency_ms: latency_ms,
             delay: DelayLine::new(timing),
             scale_counts: BTreeMap::new(),
+            jitter: Jitter::new(scenario),
+        }
+    }
+
+    /// At a boundary: a new scale's latency, or with jitter a new draw of
+    /// the current one, put in force from this boundary on.
+    fn retime(&mut self, scenario: &Scenario, new_scale: f64) {
+        let changed = new_scale != self.scale;
+        self.scale = new_scale;
+        if let Some(j) = self.jitter.as_mut() {
+            let t = &scenario.timing;
+            let l = t
+                .delay_ms
+                .max(scenario.latency_ms_at(new_scale) * j.factor());
+            let timing = DelayTiming::from_period_and_latency(t.control_period_ms, l, t.tick_s);
+            self.set_latency(timing, l);
+        } else if changed {
+            let (t, l) = timing_at(scenario, new_scale);
+            self.set_latency(t, l);
         }
     }
 
@@ -296,19 +360,8 @@ struct World {
 
 impl World {
     fn new(scenario: &Scenario, prepared: &Prepared) -> Result<World, RunError> {
-        let defaults = TrafficConfig::default();
         let seed = scenario.traffic.seed;
-        let cfg = TrafficConfig {
-            vehicles: scenario.traffic.vehicles as usize,
-            pedestrians: scenario.traffic.pedestrians as usize,
-            seed,
-            tick_s: scenario.timing.tick_s as f32,
-            pedestrian: PedestrianParams {
-                cross_factor: scenario.traffic.cross_factor,
-                ..defaults.pedestrian
-            },
-            ..defaults
-        };
+        let cfg = traffic_config(scenario);
         let town = prepared.town.clone();
         let traffic = Traffic::new(town.clone(), cfg, Some(ego_start(&prepared.route)?));
         let lights = LightController::new(&town, LightTiming::default(), seed ^ 0x6c69_6768_7473);
@@ -419,11 +472,7 @@ pub fn run(
         if controls.delay.is_boundary(tick) {
             let input = selector_input(route, route_index, &ego, &stops);
             let new_scale = f64::from(selector.select(&input));
-            if new_scale != controls.scale {
-                controls.scale = new_scale;
-                let (t, l) = timing_at(scenario, new_scale);
-                controls.set_latency(t, l);
-            }
+            controls.retime(scenario, new_scale);
             let scale = controls.scale;
             *controls.scale_counts.entry(scale.to_bits()).or_default() += 1;
             let mut labelled = false;

@@ -6,6 +6,7 @@ pub mod collect;
 pub mod data;
 pub mod log;
 pub mod map;
+pub mod paper;
 pub mod plot;
 pub mod policy;
 pub mod recalibrate;

@@ -4,21 +4,6 @@ use anyhow::{Context, Result, bail};
 use plotters::prelude::*;
 use std::path::Path;
 
-/// Registers the embedded DejaVu Sans as plotters' "sans-serif" (no system fonts needed).
-pub fn register_fonts() {
-    static ONCE: std::sync::Once = std::sync::Once::new();
-    ONCE.call_once(|| {
-        for style in [FontStyle::Normal, FontStyle::Bold] {
-            let bytes = match style {
-                FontStyle::Bold => dejavu::sans::bold(),
-                _ => dejavu::sans::regular(),
-            };
-            // Only fails on bytes that are not a font; these are.
-            let _ = plotters::style::register_font("sans-serif", style, bytes);
-        }
-    });
-}
-
 /// Plots the columns `loss`, `act`, `seg`, `kd` and `feat` of a stage's `losses.csv`
 /// against the step (log scale, each smoothed over 50 steps) into `png`.
 pub fn loss_curves(csv: &Path, png: &Path, title: &str) -> Result<()> {
@@ -53,7 +38,7 @@ pub fn loss_curves(csv: &Path, png: &Path, title: &str) -> Result<()> {
         .flat_map(|(_, p)| p.iter().map(|q| q.1))
         .filter(|v| *v > 0.0 && v.is_finite())
         .fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)));
-    register_fonts();
+    experiments::figures::register_fonts();
     let root = BitMapBackend::new(png, (900, 500)).into_drawing_area();
     root.fill(&WHITE)?;
     let mut chart = ChartBuilder::on(&root)

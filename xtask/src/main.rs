@@ -10,6 +10,7 @@
 //! | `data [--quick]` | collects and labels the two datasets of the study into `data/original` and `data/retarget` (resumable; regenerates them bit for bit; `--quick`: 2 short episodes each, for a smoke run) |
 //! | `train [--quick]` | the paper's pipeline, skipping what is done: `data`, then `mrdrive train` for the Original, NRA 0.75, NRA 1.0 and RA (resumable), then the closed-loop bar (`mrdrive sweep` of `scenarios/paper/` at Tc = 50 ms, D = 0, three densities, per model and for the expert) into `models/closed-loop.md`; `--quick`: tiny datasets, 4 steps per stage, one density, into `out/train-quick` |
 //! | `bench` | every benchmark on this machine, in one go: physics + traffic ticks/s (20 vehicles, 40 pedestrians), rig frames/s per scale (gen01, Town01), policy inference per scale (fused and burn) and training samples/s, closed-loop real-time factors (expert without and with the rig, RA with the oracle), PyTorch's reference when a Python with torch is found (`MRDRIVE_TORCH_PYTHON`, else `.venv`), peak memory per command; writes `docs/bench.md` |
+//! | `paper [--quick] [--only ID,...]` | the paper's tables and figures from the shipped checkpoints: `mrdrive paper` (resumable sweeps into `out/paper/sweeps/`, then Tables I-III, Figs. 3-5, the latency frontier and the comparison page into `docs/paper/`); `--quick`: every table and figure at toy size into `out/paper-quick` (minutes) |
 //! | `bless` | rewrites the regression suite's golden files after a deliberate change |
 //! | `gpu-test [FEATURES]` | the policy crate's tests built with burn's GPU backends (default `wgpu`; `wgpu,cuda` for both), in `target/gpu` so the main build is kept; lavapipe is enough for `wgpu`, CUDA needs an NVIDIA GPU |
 //!
@@ -54,10 +55,11 @@ fn main() -> ExitCode {
         Some("data") => setup(&root).and_then(|env| data(&root, &env, &args[1..])),
         Some("train") => setup(&root).and_then(|env| train(&root, &env, &args[1..])),
         Some("bench") => setup(&root).and_then(|env| bench(&root, &env)),
+        Some("paper") => setup(&root).and_then(|env| paper(&root, &env, &args[1..])),
         Some("gpu-test") => setup(&root).and_then(|env| gpu_test(&root, &env, &args[1..])),
         _ => {
             eprintln!(
-                "usage: cargo xtask <setup|run|test|ci|lint|bless|data|train|bench|gpu-test> [ARGS]\n\nSee xtask/src/main.rs for what each task does."
+                "usage: cargo xtask <setup|run|test|ci|lint|bless|data|train|bench|paper|gpu-test> [ARGS]\n\nSee xtask/src/main.rs for what each task does."
             );
             return ExitCode::from(2);
         }
@@ -480,6 +482,19 @@ fn rtf_of(json: &str) -> Option<f64> {
     let rest = json[at..].split_once(':')?.1;
     let end = rest.find([',', '}'])?;
     rest[..end].trim().parse().ok()
+}
+
+/// `cargo xtask paper [--quick] [--only ID,...] [...]`: builds the release
+/// binary and runs `mrdrive paper` with the same arguments (the paper's
+/// tables and figures into `docs/paper/`, resumable; see `mrdrive paper --help`).
+fn paper(root: &Path, env: &Env, args: &[String]) -> Result<(), String> {
+    let vars = borrow(env);
+    status_in(root, &["cargo", "build", "--release"], &vars)?;
+    let bin = root.join("target/release/mrdrive");
+    let bin = bin.to_str().ok_or("the target path is not UTF-8")?;
+    let mut cmd = vec![bin, "paper"];
+    cmd.extend(args.iter().map(String::as_str));
+    status_in(root, &cmd, &vars)
 }
 
 fn bench(root: &Path, env: &Env) -> Result<(), String> {

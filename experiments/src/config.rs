@@ -1,0 +1,165 @@
+//! What a paper run covers: routes, densities, seeds, delays, scales, latency
+//! envelopes and the four checkpoints. [`PaperConfig::full`] is the paper's
+//! protocol with three seeds; [`PaperConfig::quick`] is a smoke test of every
+//! table and figure in a couple of minutes.
+
+use std::path::{Path, PathBuf};
+
+/// One evaluation route: a scenario file and the town and route it drives.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Route {
+    /// The scenario file (relative to the working folder, as a sweep plan keeps it).
+    pub scenario: PathBuf,
+    /// The town's name in tables ("Town01").
+    pub town: String,
+    /// The route's name in tables ("route 0").
+    pub route: String,
+}
+
+/// The checkpoints the paper compares.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Models {
+    /// The single-resolution network (1.0x).
+    pub original: PathBuf,
+    /// The Original retargeted to the low scale, no BN banks.
+    pub nra_low: PathBuf,
+    /// The Original retargeted to the high scale, no BN banks.
+    pub nra_high: PathBuf,
+    /// The multi-resolution network with a BN branch per scale.
+    pub ra: PathBuf,
+}
+
+/// A latency envelope of Table III: the high scale runs at `high_ms`, the
+/// low scale at `low_ms` (milliseconds).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Envelope {
+    /// Execution latency at the high scale, the worst case (milliseconds).
+    pub high_ms: f64,
+    /// Execution latency at the low scale (milliseconds).
+    pub low_ms: f64,
+}
+
+impl Envelope {
+    /// "100->50 ms".
+    pub fn label(&self) -> String {
+        format!("{}->{} ms", self.high_ms, self.low_ms)
+    }
+}
+
+/// Everything that fixes a paper run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PaperConfig {
+    /// The evaluation routes (two per town in the paper).
+    pub routes: Vec<Route>,
+    /// Target (vehicles, pedestrians) densities.
+    pub densities: Vec<(u32, u32)>,
+    /// Traffic seeds per (route, density); the seed also sets the lights' phases.
+    pub seeds: Vec<u64>,
+    /// Injected delays D of Fig. 5 (milliseconds); Table II runs at the first,
+    /// Fig. 3 and 4 at the first two.
+    pub delays_ms: Vec<f64>,
+    /// The low input scale (fraction of S0).
+    pub low: f64,
+    /// The high input scale (the training scale).
+    pub high: f64,
+    /// Table III's latency envelopes.
+    pub envelopes: Vec<Envelope>,
+    /// The checkpoints.
+    pub models: Models,
+    /// Log-normal spreads of the execution latency for the jitter
+    /// experiment (run under the first envelope; 0 is Table III itself).
+    pub jitters: Vec<f64>,
+    /// Resets per (route, density) for Table I.
+    pub resets: u64,
+    /// A cap on each run's simulated time (seconds), for smoke tests; `None`
+    /// keeps the scenarios' own timeouts.
+    pub timeout_s: Option<f64>,
+}
+
+impl PaperConfig {
+    /// The paper's protocol (PROTOCOL §2, §7) with three seeds per (route,
+    /// density); paths are relative to the workspace root.
+    pub fn full() -> Self {
+        let route = |town: &str, id: u32| Route {
+            scenario: PathBuf::from(format!(
+                "scenarios/paper/{}_route{id}.toml",
+                town.to_lowercase()
+            )),
+            town: town.to_string(),
+            route: format!("route {id}"),
+        };
+        let model = |name: &str| PathBuf::from(format!("models/{name}.safetensors"));
+        PaperConfig {
+            routes: vec![
+                route("Town01", 0),
+                route("Town01", 1),
+                route("Town02", 0),
+                route("Town02", 1),
+            ],
+            densities: vec![(0, 0), (5, 10), (20, 40)],
+            seeds: vec![0, 1, 2],
+            delays_ms: vec![0.0, 50.0, 100.0, 150.0, 200.0],
+            low: 0.75,
+            high: 1.0,
+            envelopes: vec![
+                Envelope {
+                    high_ms: 100.0,
+                    low_ms: 50.0,
+                },
+                Envelope {
+                    high_ms: 150.0,
+                    low_ms: 100.0,
+                },
+            ],
+            models: Models {
+                original: model("original"),
+                nra_low: model("nra-0.75"),
+                nra_high: model("nra-1.0"),
+                ra: model("ra"),
+            },
+            jitters: vec![0.25, 0.5],
+            resets: 10,
+            timeout_s: None,
+        }
+    }
+
+    /// A smoke test of every table and figure: Town01 route 0 only, two
+    /// densities, one seed, D in {0, 50, 100}, one envelope, one jitter,
+    /// runs capped at 8 simulated seconds, 2 resets for Table I.
+    pub fn quick() -> Self {
+        let full = Self::full();
+        PaperConfig {
+            routes: full.routes[..1].to_vec(),
+            densities: vec![(0, 0), (5, 10)],
+            seeds: vec![0],
+            delays_ms: vec![0.0, 50.0, 100.0],
+            envelopes: full.envelopes[..1].to_vec(),
+            jitters: vec![0.5],
+            resets: 2,
+            timeout_s: Some(8.0),
+            ..full
+        }
+    }
+
+    /// The towns in route order, each once.
+    pub fn towns(&self) -> Vec<String> {
+        let mut towns: Vec<String> = Vec::new();
+        for r in &self.routes {
+            if !towns.contains(&r.town) {
+                towns.push(r.town.clone());
+            }
+        }
+        towns
+    }
+
+    /// The route of a scenario file (base or derived from it), if it is one of ours.
+    pub fn route_of(&self, scenario: &Path) -> Option<&Route> {
+        let stem = scenario.file_stem()?.to_string_lossy().into_owned();
+        let base = stem.split("__").next().unwrap_or_default();
+        self.routes.iter().find(|r| {
+            r.scenario
+                .file_stem()
+                .is_some_and(|s| s.to_string_lossy() == base)
+        })
+    }
+}

@@ -1,0 +1,227 @@
+//! The paper's tables and figures, and the sweeps each one reads.
+
+use sim::scenario::SelectorKind;
+
+use crate::PaperError;
+use crate::config::PaperConfig;
+use crate::units::{Driver, Unit};
+
+/// One table or figure of the paper (or past it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Experiment {
+    /// Table I: realised traffic per route and density.
+    Table1,
+    /// Table II: success and collisions per town, D = 0, with the expert.
+    Table2,
+    /// Fig. 3: red-light infractions against scale at D = 0 and 50 ms.
+    Fig3,
+    /// Fig. 4: lane crossings against scale at D = 0 and 50 ms.
+    Fig4,
+    /// Fig. 5: success and collisions against D.
+    Fig5,
+    /// Table III: the oracle and map-lookahead switchers against fixed scales
+    /// under each latency envelope.
+    Table3,
+    /// Beyond the paper: success, collisions and red lights against the
+    /// worst-case latency, one point per fixed scale and per switcher.
+    Frontier,
+    /// Beyond the paper: fixed scales and switchers as the execution
+    /// latency spreads (log-normal jitter) under the first envelope.
+    Jitter,
+}
+
+impl Experiment {
+    /// Every experiment, in the order the page shows them.
+    pub const ALL: [Experiment; 8] = [
+        Experiment::Table1,
+        Experiment::Table2,
+        Experiment::Fig3,
+        Experiment::Fig4,
+        Experiment::Fig5,
+        Experiment::Table3,
+        Experiment::Frontier,
+        Experiment::Jitter,
+    ];
+
+    /// Its name on the command line and in file names.
+    pub fn id(self) -> &'static str {
+        match self {
+            Experiment::Table1 => "table1",
+            Experiment::Table2 => "table2",
+            Experiment::Fig3 => "fig3",
+            Experiment::Fig4 => "fig4",
+            Experiment::Fig5 => "fig5",
+            Experiment::Table3 => "table3",
+            Experiment::Frontier => "frontier",
+            Experiment::Jitter => "jitter",
+        }
+    }
+
+    /// Every name.
+    pub fn ids() -> Vec<&'static str> {
+        Self::ALL.iter().map(|e| e.id()).collect()
+    }
+
+    /// Parses a comma-separated `--only` list (empty: all).
+    pub fn parse_list(text: &str) -> Result<Vec<Experiment>, PaperError> {
+        let mut out = Vec::new();
+        for name in text.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+            let e = Self::ALL
+                .into_iter()
+                .find(|e| e.id() == name)
+                .ok_or_else(|| PaperError::UnknownExperiment { name: name.into() })?;
+            if !out.contains(&e) {
+                out.push(e);
+            }
+        }
+        if out.is_empty() {
+            out = Self::ALL.to_vec();
+        }
+        out.sort();
+        Ok(out)
+    }
+
+    /// The sweeps it reads (Table I reads none: it only spawns traffic).
+    pub fn units(self, cfg: &PaperConfig) -> Vec<Unit> {
+        let first_two: Vec<f64> = cfg.delays_ms.iter().copied().take(2).collect();
+        let d0 = cfg.delays_ms.first().copied().unwrap_or(0.0);
+        let compared = [Driver::NraLow, Driver::NraHigh, Driver::Ra];
+        let at = |drivers: &[Driver], delays: &[f64]| -> Vec<Unit> {
+            delays
+                .iter()
+                .flat_map(|&d| drivers.iter().map(move |&drv| Unit::fixed(drv, d)))
+                .collect()
+        };
+        match self {
+            Experiment::Table1 => Vec::new(),
+            Experiment::Table2 => at(&Driver::ALL, &[d0]),
+            Experiment::Fig3 | Experiment::Fig4 => at(&compared, &first_two),
+            Experiment::Fig5 => {
+                let mut u = at(&compared, &cfg.delays_ms);
+                u.extend(at(&[Driver::Expert], &cfg.delays_ms));
+                u
+            }
+            Experiment::Table3 | Experiment::Frontier => {
+                let mut u = Vec::new();
+                for e in &cfg.envelopes {
+                    for d in [e.low_ms, e.high_ms] {
+                        let fixed = Unit::fixed(Driver::Ra, d);
+                        if !u.contains(&fixed) {
+                            u.push(fixed);
+                        }
+                    }
+                }
+                for e in &cfg.envelopes {
+                    for s in [SelectorKind::Oracle, SelectorKind::Lookahead] {
+                        u.push(Unit::switch(s, *e));
+                    }
+                }
+                if self == Experiment::Frontier {
+                    for &d in &cfg.delays_ms {
+                        let fixed = Unit::fixed(Driver::Ra, d);
+                        if !u.contains(&fixed) {
+                            u.push(fixed);
+                        }
+                    }
+                }
+                u
+            }
+            Experiment::Jitter => {
+                let mut u = Vec::new();
+                if let Some(e) = cfg.envelopes.first() {
+                    u.extend(Experiment::Table3.units(cfg).into_iter().filter(|x| {
+                        x.selection
+                            == crate::units::Selection::Fixed {
+                                delay_ms: e.low_ms,
+                            }
+                            || x.selection
+                                == crate::units::Selection::Fixed {
+                                    delay_ms: e.high_ms,
+                                }
+                            || matches!(x.selection, crate::units::Selection::Switch { envelope, .. } if envelope == *e)
+                    }));
+                    for &j in &cfg.jitters {
+                        for s in [
+                            SelectorKind::Fixed,
+                            SelectorKind::Oracle,
+                            SelectorKind::Lookahead,
+                        ] {
+                            u.push(Unit::jittered(s, *e, j));
+                        }
+                    }
+                }
+                u
+            }
+        }
+    }
+}
+
+/// The units of several experiments, each once, cheapest-first within the
+/// order the experiments are given (so the first tables fill first).
+pub fn units_of(experiments: &[Experiment], cfg: &PaperConfig) -> Vec<Unit> {
+    let mut out: Vec<Unit> = Vec::new();
+    for e in experiments {
+        for u in e.units(cfg) {
+            if !out.contains(&u) {
+                out.push(u);
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn experiments_share_their_sweeps() {
+        let cfg = PaperConfig::full();
+        let ids = |units: Vec<Unit>| -> Vec<String> { units.iter().map(|u| u.id(&cfg)).collect() };
+        assert_eq!(
+            ids(Experiment::Table2.units(&cfg)),
+            [
+                "expert-d000",
+                "original-d000",
+                "nra-0.75-d000",
+                "nra-1.0-d000",
+                "ra-d000"
+            ]
+        );
+        assert_eq!(
+            ids(Experiment::Table3.units(&cfg)),
+            [
+                "ra-d050",
+                "ra-d100",
+                "ra-d150",
+                "ra-oracle-100-50",
+                "ra-lookahead-100-50",
+                "ra-oracle-150-100",
+                "ra-lookahead-150-100"
+            ]
+        );
+        let all = units_of(&Experiment::ALL, &cfg);
+        // 5 at D = 0, 3 policies x 4 more delays, the expert at 4 more, 4 switchers,
+        // 2 jitters x (fixed, oracle, lookahead).
+        assert_eq!(all.len(), 5 + 12 + 4 + 4 + 6);
+        assert_eq!(
+            ids(Experiment::Jitter.units(&cfg))[3..],
+            [
+                "ra-lookahead-100-50",
+                "ra-fixed-100-50-j0.25",
+                "ra-oracle-100-50-j0.25",
+                "ra-lookahead-100-50-j0.25",
+                "ra-fixed-100-50-j0.5",
+                "ra-oracle-100-50-j0.5",
+                "ra-lookahead-100-50-j0.5"
+            ]
+        );
+        assert_eq!(
+            Experiment::parse_list("fig5, table2,fig5").unwrap(),
+            [Experiment::Table2, Experiment::Fig5]
+        );
+        assert_eq!(Experiment::parse_list("").unwrap().len(), 8);
+        let e = Experiment::parse_list("fig9").unwrap_err().to_string();
+        assert!(e.contains("--only fig9") && e.contains("table3"), "{e}");
+    }
+}

@@ -1,0 +1,91 @@
+//! The paper's experiments (`mrdrive paper`, `cargo xtask paper`): which runs
+//! make each of its tables and figures, running them as resumable sweeps, and
+//! the tables, plots and the page that sets our numbers beside the paper's.
+//!
+//! - [`config`]: what a run covers ([`PaperConfig::full`], [`PaperConfig::quick`]).
+//! - [`units`]: the sweeps ([`Unit`]: one driver at one delay, or one
+//!   switcher under one envelope), each a folder `OUT/sweeps/ID/`.
+//! - [`experiment`]: the tables and figures ([`Experiment`]) and the units each needs.
+//! - [`results`]: the records of a unit, each beside its run's settings.
+//! - [`report`]: Tables I-III, the figures' data, CSV and Markdown.
+//! - [`figures`]: the plots (PNG and SVG).
+//! - [`page`]: `README.md`, our numbers beside the paper's.
+//! - [`run`]: running the units and writing everything.
+
+pub mod config;
+pub mod experiment;
+pub mod figures;
+pub mod page;
+pub mod report;
+pub mod results;
+pub mod run;
+pub mod units;
+
+use std::path::{Path, PathBuf};
+
+pub use config::{Envelope, Models, PaperConfig, Route};
+pub use experiment::Experiment;
+pub use run::{Progress, RunOptions, run_paper};
+pub use units::{Driver, Selection, Unit};
+
+/// What can go wrong in a paper run.
+#[derive(Debug, thiserror::Error)]
+pub enum PaperError {
+    /// A file or folder could not be used.
+    #[error("could not {action} {path}: {source}")]
+    Io {
+        /// What was being done.
+        action: &'static str,
+        /// The file or folder.
+        path: PathBuf,
+        /// Why it failed.
+        source: std::io::Error,
+    },
+    /// A scenario file to derive from is not what it should be.
+    #[error("scenario {path}: {problem}")]
+    Scenario {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong and how to fix it.
+        problem: String,
+    },
+    /// An experiment name on the command line is not one of ours.
+    #[error("--only {name}: no such experiment; choose from {}", Experiment::ids().join(", "))]
+    UnknownExperiment {
+        /// The name given.
+        name: String,
+    },
+    /// A sweep failed to prepare or to read.
+    #[error(transparent)]
+    Sweep(#[from] sim::sweep::SweepError),
+    /// Loading a route for Table I failed.
+    #[error("Table I, {path}: {problem}")]
+    TableOne {
+        /// The scenario file.
+        path: PathBuf,
+        /// What failed.
+        problem: String,
+    },
+    /// A plot could not be drawn or written.
+    #[error("plot {path}: {problem}")]
+    Plot {
+        /// The output file.
+        path: PathBuf,
+        /// What failed.
+        problem: String,
+    },
+    /// A CSV table could not be written.
+    #[error("CSV: {0}")]
+    Csv(#[from] csv::Error),
+}
+
+impl PaperError {
+    /// An I/O error on `path`.
+    pub fn io(action: &'static str, path: &Path, source: std::io::Error) -> Self {
+        PaperError::Io {
+            action,
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+}

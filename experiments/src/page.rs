@@ -1,0 +1,1141 @@
+//! The page (`docs/paper/README.md`) and every table and figure file beside
+//! it: our numbers next to the paper's, with the checks of the paper's
+//! shapes written out from the numbers.
+
+use std::path::PathBuf;
+
+use crate::PaperError;
+use crate::config::PaperConfig;
+use crate::experiment::Experiment;
+use crate::figures::{Panel, Point, Series, plot};
+use crate::report::{Cells, Comparison, Stats, Table, mean_sd_cell, paired_cell, rate_cell};
+use crate::results::{Results, Run};
+use crate::run::{RunOptions, WallLog};
+use crate::units::{Driver, Unit, scale_label, selector_name};
+use sim::scenario::SelectorKind;
+
+/// What the paper reports (its §IV), set beside ours.
+pub mod paper {
+    /// Table I, realised pedestrians (mean, sd) for targets (5, 10) and
+    /// (20, 40), per town and route (vehicles were always all spawned).
+    pub const TABLE1_PEDESTRIANS: [(&str, [[(f64, f64); 2]; 2]); 2] = [
+        (
+            "Town01",
+            [[(7.0, 1.5), (26.7, 3.1)], [(7.0, 1.5), (26.5, 3.1)]],
+        ),
+        (
+            "Town02",
+            [[(6.6, 1.4), (27.2, 2.9)], [(6.6, 1.4), (27.2, 2.9)]],
+        ),
+    ];
+    /// Table II: success (%) per town for Original, NRA 0.75, NRA 1.0, RA 0.75, RA 1.0.
+    pub const TABLE2_SUCCESS: [(&str, [f64; 5]); 2] =
+        [("Town01", [100.0; 5]), ("Town02", [100.0; 5])];
+    /// Table II: collision incidence (runs of 6) per town, same columns.
+    pub const TABLE2_COLLISIONS: [(&str, [u32; 5]); 2] =
+        [("Town01", [0, 0, 0, 0, 0]), ("Town02", [0, 1, 1, 1, 2])];
+    /// Table III per envelope (high, low ms): fixed low @ low, RA switcher,
+    /// fixed high @ high; each (success %, collision %, lane crossings mean,
+    /// sd, red lights total) over 12 runs.
+    pub const TABLE3: [((f64, f64), [(f64, f64, f64, f64, u32); 3]); 2] = [
+        (
+            (100.0, 50.0),
+            [
+                (100.0, 16.65, 6.67, 5.63, 42),
+                (100.0, 0.0, 5.50, 5.21, 15),
+                (91.65, 8.35, 9.84, 9.33, 14),
+            ],
+        ),
+        (
+            (150.0, 100.0),
+            [
+                (100.0, 25.0, 11.25, 9.14, 43),
+                (100.0, 0.0, 10.84, 9.10, 17),
+                (91.65, 58.35, 66.50, 76.01, 18),
+            ],
+        ),
+    ];
+    /// Fig. 5 in words (§IV-D).
+    pub const FIG5: &str = "with D <= 100 ms success stays at 91.65-100 % and collisions at 0-25 %; \
+        at D = 150 ms collisions jump and success begins to drop; at D = 200 ms success is 0-8.35 % \
+        and collisions 83-100 %, for NRA and RA at both scales";
+}
+
+/// A configuration of the comparisons: a unit, a fixed scale (or none) and its label.
+struct Config {
+    label: String,
+    unit: Unit,
+    scale: Option<f64>,
+}
+
+impl Config {
+    fn runs<'a>(
+        &self,
+        cfg: &PaperConfig,
+        results: &'a Results,
+        town: Option<&str>,
+    ) -> Vec<&'a Run> {
+        results.select(cfg, &self.unit, self.scale, town)
+    }
+
+    fn stats(&self, cfg: &PaperConfig, results: &Results, town: Option<&str>) -> Stats {
+        Stats::of(&self.runs(cfg, results, town), cfg.high)
+    }
+}
+
+fn x(scale: f64) -> String {
+    format!("{}x", scale_label(scale))
+}
+
+/// The configurations of Table II, in its column order.
+fn table2_configs(cfg: &PaperConfig) -> Vec<Config> {
+    let d0 = cfg.delays_ms.first().copied().unwrap_or(0.0);
+    let c = |label: String, driver, scale| Config {
+        label,
+        unit: Unit::fixed(driver, d0),
+        scale,
+    };
+    vec![
+        c("Expert".into(), Driver::Expert, None),
+        c("Original".into(), Driver::Original, Some(cfg.high)),
+        c(format!("NRA {}", x(cfg.low)), Driver::NraLow, Some(cfg.low)),
+        c(
+            format!("NRA {}", x(cfg.high)),
+            Driver::NraHigh,
+            Some(cfg.high),
+        ),
+        c(format!("RA {}", x(cfg.low)), Driver::Ra, Some(cfg.low)),
+        c(format!("RA {}", x(cfg.high)), Driver::Ra, Some(cfg.high)),
+    ]
+}
+
+/// NRA or RA at one scale and delay.
+fn model_at(cfg: &PaperConfig, ra: bool, scale: f64, delay_ms: f64) -> Config {
+    let driver = match (ra, scale == cfg.low) {
+        (true, _) => Driver::Ra,
+        (false, true) => Driver::NraLow,
+        (false, false) => Driver::NraHigh,
+    };
+    Config {
+        label: format!("{} {}", if ra { "RA" } else { "NRA" }, x(scale)),
+        unit: Unit::fixed(driver, delay_ms),
+        scale: Some(scale),
+    }
+}
+
+fn point(xv: f64, y: f64, ci: (f64, f64)) -> Point {
+    Point {
+        x: xv,
+        y,
+        lo: ci.0,
+        hi: ci.1,
+    }
+}
+
+/// Writes every table, figure and the page; returns the files written.
+pub fn write_all(
+    cfg: &PaperConfig,
+    opts: &RunOptions,
+    results: &Results,
+) -> Result<Vec<PathBuf>, PaperError> {
+    let mut w = Writer {
+        docs: opts.out.clone(),
+        written: Vec::new(),
+    };
+    let mut sections = Vec::new();
+    sections.push(table1(cfg, &mut w)?);
+    sections.push(table2(cfg, results, &mut w)?);
+    sections.push(fig34(cfg, results, &mut w, true)?);
+    sections.push(fig34(cfg, results, &mut w, false)?);
+    sections.push(fig5(cfg, results, &mut w)?);
+    sections.push(table3(cfg, results, &mut w)?);
+    sections.push(frontier(cfg, results, &mut w)?);
+    sections.push(jitter(cfg, results, &mut w)?);
+    let page = header(cfg, opts, results) + &sections.join("\n");
+    w.text("README.md", &page)?;
+    Ok(w.written)
+}
+
+struct Writer {
+    docs: PathBuf,
+    written: Vec<PathBuf>,
+}
+
+impl Writer {
+    fn path(&mut self, name: &str) -> PathBuf {
+        let p = self.docs.join(name);
+        self.written.push(p.clone());
+        p
+    }
+
+    fn text(&mut self, name: &str, text: &str) -> Result<(), PaperError> {
+        let p = self.path(name);
+        std::fs::write(&p, text).map_err(|e| PaperError::io("write", &p, e))
+    }
+
+    fn csv(&mut self, name: &str, t: &Table) -> Result<(), PaperError> {
+        let p = self.path(name);
+        t.write_csv(&p)
+    }
+
+    fn cells(&mut self, name: &str, c: &Cells) -> Result<(), PaperError> {
+        let p = self.path(name);
+        c.write(&p)
+    }
+
+    fn plot(
+        &mut self,
+        stem: &str,
+        panels: &[Panel],
+        width: u32,
+        height: u32,
+    ) -> Result<(), PaperError> {
+        let p = self.docs.join(stem);
+        plot(&p, panels, width, height)?;
+        self.written.push(p.with_extension("png"));
+        self.written.push(p.with_extension("svg"));
+        Ok(())
+    }
+}
+
+fn header(cfg: &PaperConfig, opts: &RunOptions, results: &Results) -> String {
+    let wall = WallLog::read(&opts.out);
+    let builds: std::collections::BTreeSet<String> = results
+        .units
+        .values()
+        .flat_map(|u| {
+            u.runs
+                .iter()
+                .map(|r| r.record.result.provenance.build.clone())
+        })
+        .collect();
+    let backends: std::collections::BTreeSet<String> = results
+        .units
+        .values()
+        .flat_map(|u| {
+            u.runs
+                .iter()
+                .map(|r| r.record.result.provenance.render_backend.clone())
+        })
+        .filter(|b| b != "none")
+        .collect();
+    let mut s = format!(
+        "# The paper's evidence, regenerated\n\n\
+         Made by `cargo xtask paper{}` (`mrdrive paper`), the {} configuration: {} routes \
+         ({}), densities {}, seeds {:?} per (route, density), D in {:?} ms, scales {} and {}, \
+         checkpoints `{}`, `{}`, `{}`, `{}`.{} Every table and figure below is rewritten from \
+         the run records in `sweeps/` beside this page each time the command runs; a killed \
+         run resumes where it stopped.\n\n",
+        if opts.label == "quick" {
+            " --quick"
+        } else {
+            ""
+        },
+        opts.label,
+        cfg.routes.len(),
+        cfg.routes
+            .iter()
+            .map(|r| format!("{} {}", r.town, r.route))
+            .collect::<Vec<_>>()
+            .join(", "),
+        cfg.densities
+            .iter()
+            .map(|(v, p)| format!("({v}, {p})"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        cfg.seeds,
+        cfg.delays_ms,
+        x(cfg.low),
+        x(cfg.high),
+        cfg.models.original.display(),
+        cfg.models.nra_low.display(),
+        cfg.models.nra_high.display(),
+        cfg.models.ra.display(),
+        cfg.timeout_s.map_or(String::new(), |t| format!(
+            " Runs are capped at {t} simulated seconds (a smoke test: no run can finish its route)."
+        )),
+    );
+    s += &format!(
+        "Builds: {}. Render backend: {}.\n\n",
+        if builds.is_empty() {
+            "none yet".into()
+        } else {
+            builds.into_iter().collect::<Vec<_>>().join(", ")
+        },
+        if backends.is_empty() {
+            "none yet".into()
+        } else {
+            backends.into_iter().collect::<Vec<_>>().join(", ")
+        },
+    );
+    s += &format!(
+        "**Wall time**: {:.2} h in sweeps over {} invocation(s), {} runs, {} at a time, on this machine \
+         (the bench page, `docs/bench.md`, names it).\n\n",
+        wall.sweep_s / 3600.0,
+        wall.invocations,
+        wall.runs,
+        wall.jobs
+    );
+    s += "**Statistics**: rates carry Wilson 95 % intervals `[low, high]`; per-run means carry \
+          seeded bootstrap 95 % intervals; `paired` cells compare two configurations run by run on \
+          the same route, density and seed (mean difference b - a, its bootstrap 95 % interval, \
+          `*` where it excludes 0, and how many pairs went up or down).\n\n";
+    let mut t = Table::new(&["experiment", "runs finished / planned"]);
+    for e in Experiment::ALL {
+        let (done, planned) = results.progress(cfg, &e.units(cfg));
+        t.push(vec![
+            e.id().into(),
+            if e == Experiment::Table1 {
+                "(spawns only)".into()
+            } else {
+                format!("{done} / {planned}")
+            },
+        ]);
+    }
+    s += "## Progress\n\n";
+    s += &t.markdown();
+    s += "\nThe discussion of where our shapes differ from the paper's, and why, is in \
+          [`discussion.md`](discussion.md) (written by hand from these tables).\n\n";
+    s
+}
+
+/// Table I: realised traffic per route and density over `resets` spawns.
+fn table1(cfg: &PaperConfig, w: &mut Writer) -> Result<String, PaperError> {
+    use std::sync::Arc;
+    let seeds: Vec<u64> = (0..cfg.resets).collect();
+    let densities: Vec<(usize, usize)> = cfg
+        .densities
+        .iter()
+        .map(|&(v, p)| (v as usize, p as usize))
+        .collect();
+    let mut header = vec!["target (veh, ped)".to_string()];
+    let mut columns = Vec::new();
+    let mut csv = Table::new(&[
+        "town",
+        "route",
+        "target_vehicles",
+        "target_pedestrians",
+        "resets",
+        "vehicles_mean",
+        "vehicles_sd",
+        "pedestrians_mean",
+        "pedestrians_sd",
+    ]);
+    for r in &cfg.routes {
+        let fail = |problem: String| PaperError::TableOne {
+            path: r.scenario.clone(),
+            problem,
+        };
+        let scenario =
+            sim::scenario::Scenario::from_file(&r.scenario).map_err(|e| fail(e.to_string()))?;
+        let prepared = sim::runner::prepare(&scenario).map_err(|e| fail(e.to_string()))?;
+        let ego = sim::runner::ego_start(&prepared.route).map_err(|e| fail(e.to_string()))?;
+        let base = sim::runner::traffic_config(&scenario);
+        let rows = world::traffic::table_one(
+            Arc::clone(&prepared.town),
+            &base,
+            Some(ego),
+            &densities,
+            &seeds,
+        );
+        for row in &rows {
+            csv.push(vec![
+                r.town.clone(),
+                r.route.clone(),
+                row.requested.0.to_string(),
+                row.requested.1.to_string(),
+                row.resets.to_string(),
+                format!("{:.3}", row.vehicles.mean),
+                format!("{:.3}", row.vehicles.sd),
+                format!("{:.3}", row.pedestrians.mean),
+                format!("{:.3}", row.pedestrians.sd),
+            ]);
+        }
+        header.push(format!("{} {}: veh / ped", r.town, r.route));
+        columns.push((r, rows));
+    }
+    let header_refs: Vec<&str> = header.iter().map(String::as_str).collect();
+    let mut t = Table::new(&header_refs);
+    for (i, d) in densities.iter().enumerate() {
+        let mut row = vec![format!("({}, {})", d.0, d.1)];
+        for (r, rows) in &columns {
+            let q = &rows[i];
+            let route_no = cfg
+                .routes
+                .iter()
+                .filter(|x| x.town == r.town)
+                .position(|x| x == *r);
+            let theirs = paper::TABLE1_PEDESTRIANS
+                .iter()
+                .find(|(town, _)| *town == r.town)
+                .zip(route_no)
+                .and_then(|((_, per_route), k)| {
+                    let slot = cfg
+                        .densities
+                        .iter()
+                        .filter(|d| d.0 > 0)
+                        .position(|x| (x.0 as usize, x.1 as usize) == *d)?;
+                    per_route.get(k)?.get(slot).copied()
+                });
+            row.push(format!(
+                "{:.1} ± {:.1} / {:.1} ± {:.1}{}",
+                q.vehicles.mean,
+                q.vehicles.sd,
+                q.pedestrians.mean,
+                q.pedestrians.sd,
+                theirs.map_or(String::new(), |(m, sd)| format!(
+                    " (paper {} / {m:.1} ± {sd:.1})",
+                    d.0
+                ))
+            ));
+        }
+        t.push(row);
+    }
+    w.csv("table1.csv", &csv)?;
+    Ok(format!(
+        "## Table I: realised traffic ({} resets per route and density)\n\n{}\n\
+         Our spawner places every vehicle and pedestrian it is asked for when the town has room \
+         (the paper's CARLA navigation mesh fails some pedestrian spawns, hence its 7 of 10 and \
+         27 of 40). Files: `table1.csv`.\n",
+        cfg.resets,
+        t.markdown()
+    ))
+}
+
+/// Table II: success and collisions per town at D = 0, with the expert.
+fn table2(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String, PaperError> {
+    let configs = table2_configs(cfg);
+    let mut header = vec!["town", "row"];
+    header.extend(configs.iter().map(|c| c.label.as_str()));
+    let mut t = Table::new(&header);
+    let mut cells = Cells::new();
+    let d0 = cfg.delays_ms.first().copied();
+    for town in cfg.towns() {
+        let stats: Vec<Stats> = configs
+            .iter()
+            .map(|c| c.stats(cfg, results, Some(&town)))
+            .collect();
+        for (c, s) in configs.iter().zip(&stats) {
+            cells.push(&c.label, &town, d0, c.scale, s);
+        }
+        let paper_success = paper::TABLE2_SUCCESS.iter().find(|(t, _)| *t == town);
+        let paper_coll = paper::TABLE2_COLLISIONS.iter().find(|(t, _)| *t == town);
+        let row = |name: &str, f: &dyn Fn(&Stats) -> String| -> Vec<String> {
+            let mut r = vec![town.clone(), name.to_string()];
+            r.extend(stats.iter().map(f));
+            r
+        };
+        t.push(row("success % [95 % CI]", &|s| rate_cell(s.success, s.n)));
+        if let Some((_, v)) = paper_success {
+            let mut r = vec![town.clone(), "success %, paper (6 runs)".into(), "–".into()];
+            r.extend(v.iter().map(|x| format!("{x:.0}")));
+            t.push(r);
+        }
+        t.push(row("runs with a collision", &|s| {
+            if s.n == 0 {
+                "–".into()
+            } else {
+                format!("{}/{} ({})", s.collided, s.n, rate_cell(s.collided, s.n))
+            }
+        }));
+        if let Some((_, v)) = paper_coll {
+            let mut r = vec![
+                town.clone(),
+                "collision incidence, paper (of 6)".into(),
+                "–".into(),
+            ];
+            r.extend(v.iter().map(|x| x.to_string()));
+            t.push(r);
+        }
+        t.push(row("red lights (total)", &|s| {
+            if s.n == 0 {
+                "–".into()
+            } else {
+                s.red_total.to_string()
+            }
+        }));
+        t.push(row("lane crossings per run", &|s| {
+            mean_sd_cell(s.lane, s.n)
+        }));
+        t.push(row("route completion %", &|s| {
+            mean_sd_cell(s.completion, s.n)
+        }));
+    }
+    w.cells("table2.csv", &cells)?;
+    let mut s = format!(
+        "## Table II: driving performance at Tc = 50 ms, D = {} ms\n\n{}\n",
+        d0.unwrap_or(0.0),
+        t.markdown()
+    );
+    // RA vs NRA at each scale, over both towns, pair by pair.
+    s += "**RA against NRA** (the paper: \"the two RA configurations with a single shared model perform \
+          similarly with the NRA baselines\"). Paired over every route, density and seed, RA - NRA:\n\n";
+    let mut p = Table::new(&[
+        "scale",
+        "success (0/1)",
+        "collided (0/1)",
+        "red lights per run",
+        "lane crossings per run",
+        "verdict",
+    ]);
+    for scale in [cfg.low, cfg.high] {
+        let d = d0.unwrap_or(0.0);
+        let nra = model_at(cfg, false, scale, d).runs(cfg, results, None);
+        let ra = model_at(cfg, true, scale, d).runs(cfg, results, None);
+        let c = Comparison::of(&nra, &ra);
+        let verdict = if c.success.n == 0 {
+            "no runs yet".to_string()
+        } else if c.success.significant() || c.collided.significant() {
+            "differ (an interval excludes 0)".into()
+        } else {
+            "alike: no success or collision difference the seeds cannot explain".into()
+        };
+        p.push(vec![
+            x(scale),
+            paired_cell(&c.success),
+            paired_cell(&c.collided),
+            paired_cell(&c.red),
+            paired_cell(&c.lane),
+            verdict,
+        ]);
+    }
+    s += &p.markdown();
+    s += "\nFiles: `table2.csv`.\n";
+    Ok(s)
+}
+
+/// Fig. 3 (red lights, `red` = true) or Fig. 4 (lane crossings) against scale at the first two delays.
+fn fig34(
+    cfg: &PaperConfig,
+    results: &Results,
+    w: &mut Writer,
+    red: bool,
+) -> Result<String, PaperError> {
+    let (id, what, unit) = if red {
+        ("fig3", "red-light infractions", "red lights per run")
+    } else {
+        ("fig4", "lane crossings", "lane crossings per run")
+    };
+    let delays: Vec<f64> = cfg.delays_ms.iter().copied().take(2).collect();
+    let mut cells = Cells::new();
+    let mut series = Vec::new();
+    let mut t = Table::new(&[
+        "model",
+        "D (ms)",
+        &format!("{} [95 % CI]", x(cfg.low)),
+        &format!("{} [95 % CI]", x(cfg.high)),
+        "total low / high",
+        &format!("paired {} - {}", x(cfg.low), x(cfg.high)),
+        "verdict",
+    ]);
+    for ra in [false, true] {
+        for &d in &delays {
+            let lo_cfg = model_at(cfg, ra, cfg.low, d);
+            let hi_cfg = model_at(cfg, ra, cfg.high, d);
+            let (lo_runs, hi_runs) = (
+                lo_cfg.runs(cfg, results, None),
+                hi_cfg.runs(cfg, results, None),
+            );
+            let (sl, sh) = (Stats::of(&lo_runs, cfg.high), Stats::of(&hi_runs, cfg.high));
+            cells.push(&lo_cfg.label, "all", Some(d), Some(cfg.low), &sl);
+            cells.push(&hi_cfg.label, "all", Some(d), Some(cfg.high), &sh);
+            let metric = |s: &Stats| {
+                if red {
+                    (s.red, s.red_ci)
+                } else {
+                    (s.lane, s.lane_ci)
+                }
+            };
+            let total = |s: &Stats, runs: &[&Run]| -> f64 {
+                if red {
+                    f64::from(s.red_total)
+                } else {
+                    runs.iter()
+                        .map(|r| {
+                            f64::from(
+                                r.record
+                                    .result
+                                    .count(sim::monitors::InfractionKind::LaneCrossing),
+                            )
+                        })
+                        .sum()
+                }
+            };
+            let label = format!("{}, D = {d} ms", if ra { "RA" } else { "NRA" });
+            let mut points = Vec::new();
+            for (scale, s) in [(cfg.low, &sl), (cfg.high, &sh)] {
+                if s.n > 0 {
+                    let ((m, _), ci) = metric(s);
+                    points.push(point(scale, m, ci));
+                }
+            }
+            series.push(Series {
+                label: label.clone(),
+                points,
+                dashed: d > 0.0,
+            });
+            // low - high: positive means more at the low scale.
+            let c = Comparison::of(&hi_runs, &lo_runs);
+            let pair = if red { &c.red } else { &c.lane };
+            let verdict = if pair.n == 0 {
+                "no runs yet".into()
+            } else if pair.significant() && pair.mean_diff > 0.0 {
+                format!("more at {}", x(cfg.low))
+            } else if pair.significant() {
+                format!("fewer at {}", x(cfg.low))
+            } else {
+                "no difference the seeds cannot explain".to_string()
+            };
+            let cell = |s: &Stats| {
+                let ((m, _), (a, b)) = metric(s);
+                if s.n == 0 {
+                    "–".into()
+                } else {
+                    format!("{m:.2} [{a:.2}, {b:.2}] (n = {})", s.n)
+                }
+            };
+            t.push(vec![
+                if ra { "RA" } else { "NRA" }.into(),
+                d.to_string(),
+                cell(&sl),
+                cell(&sh),
+                format!("{:.0} / {:.0}", total(&sl, &lo_runs), total(&sh, &hi_runs)),
+                paired_cell(pair),
+                verdict,
+            ]);
+        }
+    }
+    w.cells(&format!("{id}.csv"), &cells)?;
+    w.plot(
+        id,
+        &[Panel {
+            title: format!("{} against input scale, Tc = 50 ms", capitalise(what)),
+            x_label: "input scale (fraction of S0)".into(),
+            y_label: format!("{unit} (mean, 95 % CI)"),
+            series,
+            y_range: None,
+        }],
+        800,
+        500,
+    )?;
+    let claim = if red {
+        "the paper: at Tc = 50 ms, with and without 50 ms of delay, 0.75x gives clearly more red-light infractions than 1.0x"
+    } else {
+        "the paper: lane invasions barely change with the scale"
+    };
+    Ok(format!(
+        "## {}: {} against scale ({claim})\n\n![{id}]({id}.png)\n\n{}\nFiles: `{id}.png`, `{id}.svg`, `{id}.csv`.\n",
+        if red { "Fig. 3" } else { "Fig. 4" },
+        what,
+        t.markdown()
+    ))
+}
+
+fn capitalise(s: &str) -> String {
+    let mut c = s.chars();
+    c.next().map_or(String::new(), |f| {
+        f.to_uppercase().collect::<String>() + c.as_str()
+    })
+}
+
+/// Fig. 5: success and collisions against D, each model and scale, the expert dashed.
+fn fig5(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String, PaperError> {
+    let mut configs: Vec<Config> = Vec::new();
+    for ra in [false, true] {
+        for scale in [cfg.low, cfg.high] {
+            configs.push(model_at(cfg, ra, scale, 0.0));
+        }
+    }
+    configs.push(Config {
+        label: "Expert".into(),
+        unit: Unit::fixed(Driver::Expert, 0.0),
+        scale: None,
+    });
+    let at = |c: &Config, d: f64| Config {
+        label: c.label.clone(),
+        unit: Unit {
+            driver: c.unit.driver,
+            selection: crate::units::Selection::Fixed { delay_ms: d },
+        },
+        scale: c.scale,
+    };
+    let mut cells = Cells::new();
+    let mut success = Vec::new();
+    let mut collision = Vec::new();
+    let mut header = vec!["D (ms)".to_string()];
+    header.extend(
+        configs
+            .iter()
+            .map(|c| format!("{}: success / collided %", c.label)),
+    );
+    let refs: Vec<&str> = header.iter().map(String::as_str).collect();
+    let mut t = Table::new(&refs);
+    let mut rows: Vec<Vec<String>> = cfg.delays_ms.iter().map(|d| vec![d.to_string()]).collect();
+    for c in &configs {
+        let mut sp = Vec::new();
+        let mut cp = Vec::new();
+        for (i, &d) in cfg.delays_ms.iter().enumerate() {
+            let s = at(c, d).stats(cfg, results, None);
+            cells.push(&c.label, "all", Some(d), c.scale, &s);
+            if s.n > 0 {
+                sp.push(point(d, s.success_pct(), s.success_ci()));
+                cp.push(point(d, s.collision_pct(), s.collision_ci()));
+                rows[i].push(format!(
+                    "{:.0} / {:.0} (n = {})",
+                    s.success_pct(),
+                    s.collision_pct(),
+                    s.n
+                ));
+            } else {
+                rows[i].push("–".into());
+            }
+        }
+        let dashed = c.unit.driver == Driver::Expert;
+        success.push(Series {
+            label: c.label.clone(),
+            points: sp,
+            dashed,
+        });
+        collision.push(Series {
+            label: c.label.clone(),
+            points: cp,
+            dashed,
+        });
+    }
+    for r in rows {
+        t.push(r);
+    }
+    w.cells("fig5.csv", &cells)?;
+    let panel = |title: &str, y: &str, series| Panel {
+        title: title.into(),
+        x_label: "injected delay D (ms); Tc = max(50, D)".into(),
+        y_label: y.into(),
+        series,
+        y_range: Some((0.0, 105.0)),
+    };
+    w.plot(
+        "fig5",
+        &[
+            panel(
+                "Success against delay",
+                "success % (Wilson 95 % CI)",
+                success,
+            ),
+            panel(
+                "Runs with a collision against delay",
+                "collided % (Wilson 95 % CI)",
+                collision,
+            ),
+        ],
+        1400,
+        520,
+    )?;
+    // Where does each policy fall off? The first D with success below half.
+    let mut cliff = Vec::new();
+    for c in configs.iter().filter(|c| c.unit.driver != Driver::Expert) {
+        let first = cfg.delays_ms.iter().find(|&&d| {
+            let s = at(c, d).stats(cfg, results, None);
+            s.n > 0 && s.success_pct() < 50.0
+        });
+        cliff.push(format!(
+            "{}: {}",
+            c.label,
+            first.map_or(
+                "never below 50 % success in the delays run".to_string(),
+                |d| format!("success first below 50 % at D = {d} ms")
+            )
+        ));
+    }
+    Ok(format!(
+        "## Fig. 5: success and collisions against injected delay\n\n![fig5](fig5.png)\n\n{}\n\
+         The paper: {}. Ours: {}.\n\nFiles: `fig5.png`, `fig5.svg`, `fig5.csv`.\n",
+        t.markdown(),
+        paper::FIG5,
+        cliff.join("; ")
+    ))
+}
+
+/// Table III: the switchers against the fixed scales under each envelope.
+fn table3(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String, PaperError> {
+    let mut t = Table::new(&[
+        "envelope",
+        "configuration",
+        "runs",
+        "success % [95 % CI]",
+        "collided % [95 % CI]",
+        "lane crossings per run",
+        "red lights (total)",
+        "time at the high scale %",
+        "max latency (ms)",
+        "paper: success / collided % / lane / red",
+    ]);
+    let mut cells = Cells::new();
+    let mut paired_t = Table::new(&[
+        "envelope",
+        "comparison (b - a)",
+        "red lights per run",
+        "collided (0/1)",
+        "success (0/1)",
+        "lane crossings per run",
+    ]);
+    let mut verdicts = Vec::new();
+    for e in &cfg.envelopes {
+        let fixed_low = Config {
+            label: format!("fixed {} @ {} ms", x(cfg.low), e.low_ms),
+            unit: Unit::fixed(Driver::Ra, e.low_ms),
+            scale: Some(cfg.low),
+        };
+        let fixed_high = Config {
+            label: format!("fixed {} @ {} ms", x(cfg.high), e.high_ms),
+            unit: Unit::fixed(Driver::Ra, e.high_ms),
+            scale: Some(cfg.high),
+        };
+        let switch = |s: SelectorKind| Config {
+            label: format!(
+                "RA {} switcher ({}/{} ms)",
+                selector_name(s),
+                e.low_ms,
+                e.high_ms
+            ),
+            unit: Unit::switch(s, *e),
+            scale: None,
+        };
+        let oracle = switch(SelectorKind::Oracle);
+        let lookahead = switch(SelectorKind::Lookahead);
+        let theirs = paper::TABLE3
+            .iter()
+            .find(|(env, _)| *env == (e.high_ms, e.low_ms))
+            .map(|(_, v)| v);
+        let rows = [
+            (&fixed_low, theirs.map(|v| v[0])),
+            (&oracle, theirs.map(|v| v[1])),
+            (&lookahead, None),
+            (&fixed_high, theirs.map(|v| v[2])),
+        ];
+        let mut stats = Vec::new();
+        for (c, paper_row) in rows {
+            let s = c.stats(cfg, results, None);
+            cells.push(
+                &format!("{} [{}]", c.label, e.label()),
+                "all",
+                None,
+                c.scale,
+                &s,
+            );
+            t.push(vec![
+                e.label(),
+                c.label.clone(),
+                s.n.to_string(),
+                rate_cell(s.success, s.n),
+                rate_cell(s.collided, s.n),
+                mean_sd_cell(s.lane, s.n),
+                if s.n == 0 {
+                    "–".into()
+                } else {
+                    s.red_total.to_string()
+                },
+                if c.scale.is_none() && s.n > 0 {
+                    format!("{:.1}", s.high_share_pct)
+                } else {
+                    "–".into()
+                },
+                if s.n == 0 {
+                    "–".into()
+                } else {
+                    format!("{}", s.max_latency_ms)
+                },
+                paper_row.map_or("–".into(), |(su, co, l, lsd, r)| {
+                    format!("{su} / {co} / {l:.2} ± {lsd:.2} / {r}")
+                }),
+            ]);
+            stats.push(s);
+        }
+        let runs = |c: &Config| c.runs(cfg, results, None);
+        for (a, b) in [
+            (&fixed_low, &oracle),
+            (&fixed_high, &oracle),
+            (&oracle, &lookahead),
+        ] {
+            let c = Comparison::of(&runs(a), &runs(b));
+            paired_t.push(vec![
+                e.label(),
+                format!("{} - {}", b.label, a.label),
+                paired_cell(&c.red),
+                paired_cell(&c.collided),
+                paired_cell(&c.success),
+                paired_cell(&c.lane),
+            ]);
+        }
+        let (lo, or, hi) = (&stats[0], &stats[1], &stats[3]);
+        if lo.n > 0 && or.n > 0 && hi.n > 0 {
+            let beats_low = or.red_total < lo.red_total
+                && or.collided <= lo.collided
+                && or.success >= lo.success;
+            let beats_high = or.success >= hi.success && or.collided <= hi.collided;
+            verdicts.push(format!(
+                "{}: the oracle switcher {} fixed {} (red lights {} vs {}, collided {} vs {}, success {} vs {}) and {} fixed {} (success {} vs {}, collided {} vs {}), with its latency never above {} ms",
+                e.label(),
+                if beats_low { "beats" } else { "does not beat" },
+                x(cfg.low),
+                or.red_total,
+                lo.red_total,
+                or.collided,
+                lo.collided,
+                or.success,
+                lo.success,
+                if beats_high { "matches or beats" } else { "does not match" },
+                x(cfg.high),
+                or.success,
+                hi.success,
+                or.collided,
+                hi.collided,
+                or.max_latency_ms
+            ));
+        }
+    }
+    w.cells("table3.csv", &cells)?;
+    Ok(format!(
+        "## Table III: scale switching against fixed scales under the same worst-case latency\n\n\
+         The paper's oracle (0.75x by default, 1.0x within 5 m of a light's stop line, back beyond 15 m) \
+         and, past the paper, the map-lookahead selector (switches up at a distance derived from speed \
+         and latency, before the light). Fixed rows are the RA model at one scale with D = its latency.\n\n{}\n\
+         Paired over the same route, density and seed:\n\n{}\n{}\n\nFiles: `table3.csv`.\n",
+        t.markdown(),
+        paired_t.markdown(),
+        if verdicts.is_empty() {
+            "No verdict yet: some rows have no runs.".to_string()
+        } else {
+            verdicts
+                .iter()
+                .map(|v| format!("- {v}."))
+                .collect::<Vec<_>>()
+                .join("\n")
+        }
+    ))
+}
+
+/// Beyond the paper: success, collisions and red lights against worst-case latency.
+fn frontier(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String, PaperError> {
+    let mut lines: Vec<(String, Vec<(f64, Stats)>)> = Vec::new();
+    for scale in [cfg.low, cfg.high] {
+        let pts = cfg
+            .delays_ms
+            .iter()
+            .map(|&d| (d, model_at(cfg, true, scale, d).stats(cfg, results, None)))
+            .filter(|(_, s)| s.n > 0)
+            .collect();
+        lines.push((format!("RA fixed {}", x(scale)), pts));
+    }
+    for s in [SelectorKind::Oracle, SelectorKind::Lookahead] {
+        let pts = cfg
+            .envelopes
+            .iter()
+            .map(|e| {
+                let c = Config {
+                    label: String::new(),
+                    unit: Unit::switch(s, *e),
+                    scale: None,
+                };
+                (e.high_ms, c.stats(cfg, results, None))
+            })
+            .filter(|(_, s)| s.n > 0)
+            .collect();
+        lines.push((format!("RA {} switcher", selector_name(s)), pts));
+    }
+    let mut cells = Cells::new();
+    let mut t = Table::new(&[
+        "configuration",
+        "worst-case latency (ms)",
+        "runs",
+        "success %",
+        "collided %",
+        "red lights per run",
+    ]);
+    for (label, pts) in &lines {
+        for (l, s) in pts {
+            cells.push(label, "all", Some(*l), None, s);
+            t.push(vec![
+                label.clone(),
+                l.to_string(),
+                s.n.to_string(),
+                rate_cell(s.success, s.n),
+                rate_cell(s.collided, s.n),
+                format!("{:.2} [{:.2}, {:.2}]", s.red.0, s.red_ci.0, s.red_ci.1),
+            ]);
+        }
+    }
+    let series = |f: &dyn Fn(&Stats) -> Point| -> Vec<Series> {
+        lines
+            .iter()
+            .map(|(label, pts)| Series {
+                label: label.clone(),
+                points: pts.iter().map(|(l, s)| Point { x: *l, ..f(s) }).collect(),
+                dashed: label.contains("switcher"),
+            })
+            .collect()
+    };
+    let x_label = "worst-case latency (ms)".to_string();
+    w.cells("frontier.csv", &cells)?;
+    w.plot(
+        "frontier",
+        &[
+            Panel {
+                title: "Success".into(),
+                x_label: x_label.clone(),
+                y_label: "success %".into(),
+                series: series(&|s| point(0.0, s.success_pct(), s.success_ci())),
+                y_range: Some((0.0, 105.0)),
+            },
+            Panel {
+                title: "Runs with a collision".into(),
+                x_label: x_label.clone(),
+                y_label: "collided %".into(),
+                series: series(&|s| point(0.0, s.collision_pct(), s.collision_ci())),
+                y_range: Some((0.0, 105.0)),
+            },
+            Panel {
+                title: "Red lights".into(),
+                x_label,
+                y_label: "red lights per run".into(),
+                series: series(&|s| point(0.0, s.red.0, s.red_ci)),
+                y_range: None,
+            },
+        ],
+        1500,
+        480,
+    )?;
+    Ok(format!(
+        "## Beyond the paper: the latency/safety frontier\n\n\
+         One point per fixed scale at each injected delay (its worst-case latency is D) and per \
+         switcher at each envelope (its worst case is the high scale's latency). A switcher is worth \
+         having where its point sits above (success) or below (collisions, red lights) both fixed \
+         lines at the same latency.\n\n![frontier](frontier.png)\n\n{}\nFiles: `frontier.png`, `frontier.svg`, `frontier.csv`.\n",
+        t.markdown()
+    ))
+}
+
+/// Beyond the paper: fixed scales and switchers under the first envelope as
+/// the execution latency spreads.
+fn jitter(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String, PaperError> {
+    let Some(e) = cfg.envelopes.first().copied() else {
+        return Ok(String::new());
+    };
+    let sigmas: Vec<f64> = std::iter::once(0.0)
+        .chain(cfg.jitters.iter().copied())
+        .collect();
+    let configs_at = |j: f64| -> Vec<Config> {
+        let sw = |s: SelectorKind| Config {
+            label: format!("RA {} switcher", selector_name(s)),
+            unit: Unit::jittered(s, e, j),
+            scale: None,
+        };
+        let fixed = |scale: f64, ms: f64| Config {
+            label: format!("fixed {} @ {ms} ms", x(scale)),
+            unit: if j == 0.0 {
+                Unit::fixed(Driver::Ra, ms)
+            } else {
+                Unit::jittered(SelectorKind::Fixed, e, j)
+            },
+            scale: Some(scale),
+        };
+        vec![
+            fixed(cfg.low, e.low_ms),
+            sw(SelectorKind::Oracle),
+            sw(SelectorKind::Lookahead),
+            fixed(cfg.high, e.high_ms),
+        ]
+    };
+    let mut t = Table::new(&[
+        "sigma",
+        "configuration",
+        "runs",
+        "success %",
+        "collided %",
+        "red lights per run",
+        "lane crossings per run",
+        "max latency (ms)",
+    ]);
+    let mut cells = Cells::new();
+    let mut lines: Vec<(String, Vec<(f64, Stats)>)> = configs_at(0.0)
+        .into_iter()
+        .map(|c| (c.label, Vec::new()))
+        .collect();
+    for &j in &sigmas {
+        for (k, c) in configs_at(j).into_iter().enumerate() {
+            let s = c.stats(cfg, results, None);
+            cells.push(
+                &format!("{} [sigma {j}]", c.label),
+                "all",
+                None,
+                c.scale,
+                &s,
+            );
+            t.push(vec![
+                j.to_string(),
+                c.label.clone(),
+                s.n.to_string(),
+                rate_cell(s.success, s.n),
+                rate_cell(s.collided, s.n),
+                format!("{:.2} [{:.2}, {:.2}]", s.red.0, s.red_ci.0, s.red_ci.1),
+                mean_sd_cell(s.lane, s.n),
+                if s.n == 0 {
+                    "–".into()
+                } else {
+                    format!("{:.0}", s.max_latency_ms)
+                },
+            ]);
+            if s.n > 0 {
+                lines[k].1.push((j, s));
+            }
+        }
+    }
+    let series = |f: &dyn Fn(&Stats) -> Point| -> Vec<Series> {
+        lines
+            .iter()
+            .map(|(label, pts)| Series {
+                label: label.clone(),
+                points: pts.iter().map(|(j, s)| Point { x: *j, ..f(s) }).collect(),
+                dashed: label.contains("switcher"),
+            })
+            .collect()
+    };
+    let x_label = "latency jitter sigma (log-normal)".to_string();
+    w.cells("jitter.csv", &cells)?;
+    w.plot(
+        "jitter",
+        &[
+            Panel {
+                title: "Success".into(),
+                x_label: x_label.clone(),
+                y_label: "success %".into(),
+                series: series(&|s| point(0.0, s.success_pct(), s.success_ci())),
+                y_range: Some((0.0, 105.0)),
+            },
+            Panel {
+                title: "Runs with a collision".into(),
+                x_label: x_label.clone(),
+                y_label: "collided %".into(),
+                series: series(&|s| point(0.0, s.collision_pct(), s.collision_ci())),
+                y_range: Some((0.0, 105.0)),
+            },
+            Panel {
+                title: "Red lights".into(),
+                x_label,
+                y_label: "red lights per run".into(),
+                series: series(&|s| point(0.0, s.red.0, s.red_ci)),
+                y_range: None,
+            },
+        ],
+        1500,
+        480,
+    )?;
+    Ok(format!(
+        "## Beyond the paper: latency jitter ({})\n\n\
+         Each control boundary draws its latency as `Lexec(scale) x` a log-normal factor with mean 1 \
+         and the given sigma (`timing.latency_jitter`, seeded by the run's seed, so runs stay \
+         reproducible); the period stretches with it (Tloop = max(Tc, L)). Sigma 0 is Table III.\n\n\
+         ![jitter](jitter.png)\n\n{}\nFiles: `jitter.png`, `jitter.svg`, `jitter.csv`.\n",
+        e.label(),
+        t.markdown()
+    ))
+}

@@ -1,0 +1,365 @@
+//! The statistics of a group of runs, and Tables I-III and the figures' data
+//! as Markdown and CSV.
+//!
+//! Rates (success, runs with a collision) carry Wilson 95 % intervals;
+//! per-run means (red lights, lane crossings) carry seeded percentile
+//! bootstrap 95 % intervals; configurations that share routes, densities and
+//! seeds are compared pair by pair ([`Comparison`]).
+
+use std::path::Path;
+
+use sim::monitors::InfractionKind::{LaneCrossing, RedLight};
+use sim::sweep::stats::{Paired, Z95, bootstrap_mean, paired, wilson};
+use sim::sweep::tables::mean_sd;
+
+use crate::PaperError;
+use crate::results::Run;
+
+/// Bootstrap resamples for every interval and paired comparison.
+pub const RESAMPLES: usize = 2000;
+/// The bootstrap's seed: tables are the same each time they are made.
+pub const BOOTSTRAP_SEED: u64 = 2024;
+
+/// What a group of runs did.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Stats {
+    /// Runs.
+    pub n: usize,
+    /// Runs that succeeded.
+    pub success: usize,
+    /// Runs with at least one collision.
+    pub collided: usize,
+    /// Red-light infractions over all runs.
+    pub red_total: u32,
+    /// Red lights per run: mean, sd.
+    pub red: (f64, f64),
+    /// Its bootstrap 95 % interval.
+    pub red_ci: (f64, f64),
+    /// Lane crossings per run: mean, sd.
+    pub lane: (f64, f64),
+    /// Its bootstrap 95 % interval.
+    pub lane_ci: (f64, f64),
+    /// Route completion (percent): mean, sd.
+    pub completion: (f64, f64),
+    /// Mean share of control boundaries at the high scale (percent), for switchers.
+    pub high_share_pct: f64,
+    /// The largest latency in force in any run (milliseconds).
+    pub max_latency_ms: f64,
+}
+
+impl Stats {
+    /// The statistics of `runs`; `high` names the high scale for the share.
+    pub fn of(runs: &[&Run], high: f64) -> Self {
+        let n = runs.len();
+        if n == 0 {
+            return Stats::default();
+        }
+        let red: Vec<f64> = runs
+            .iter()
+            .map(|r| f64::from(r.record.result.count(RedLight)))
+            .collect();
+        let lane: Vec<f64> = runs
+            .iter()
+            .map(|r| f64::from(r.record.result.count(LaneCrossing)))
+            .collect();
+        let completion: Vec<f64> = runs
+            .iter()
+            .map(|r| r.record.result.completion_pct)
+            .collect();
+        let high_key = crate::units::scale_label(high);
+        let share: Vec<f64> = runs
+            .iter()
+            .map(|r| {
+                r.record
+                    .result
+                    .scale_share
+                    .iter()
+                    .find(|(k, _)| {
+                        k.parse::<f64>().is_ok_and(|s| (s - high).abs() < 1e-9) || **k == high_key
+                    })
+                    .map_or(0.0, |(_, v)| *v)
+            })
+            .collect();
+        Stats {
+            n,
+            success: runs.iter().filter(|r| r.record.result.success).count(),
+            collided: runs
+                .iter()
+                .filter(|r| r.record.result.collisions() > 0)
+                .count(),
+            red_total: runs.iter().map(|r| r.record.result.count(RedLight)).sum(),
+            red: mean_sd(&red),
+            red_ci: bootstrap_mean(&red, RESAMPLES, BOOTSTRAP_SEED),
+            lane: mean_sd(&lane),
+            lane_ci: bootstrap_mean(&lane, RESAMPLES, BOOTSTRAP_SEED),
+            completion: mean_sd(&completion),
+            high_share_pct: 100.0 * mean_sd(&share).0,
+            max_latency_ms: runs
+                .iter()
+                .map(|r| r.record.result.max_latency_ms)
+                .fold(0.0, f64::max),
+        }
+    }
+
+    /// Success (percent).
+    pub fn success_pct(&self) -> f64 {
+        pct(self.success, self.n)
+    }
+
+    /// Its Wilson 95 % interval (percent).
+    pub fn success_ci(&self) -> (f64, f64) {
+        wilson_pct(self.success, self.n)
+    }
+
+    /// Runs with a collision (percent).
+    pub fn collision_pct(&self) -> f64 {
+        pct(self.collided, self.n)
+    }
+
+    /// Its Wilson 95 % interval (percent).
+    pub fn collision_ci(&self) -> (f64, f64) {
+        wilson_pct(self.collided, self.n)
+    }
+}
+
+fn pct(k: usize, n: usize) -> f64 {
+    if n == 0 {
+        f64::NAN
+    } else {
+        100.0 * k as f64 / n as f64
+    }
+}
+
+fn wilson_pct(k: usize, n: usize) -> (f64, f64) {
+    let (lo, hi) = wilson(k, n, Z95);
+    (100.0 * lo, 100.0 * hi)
+}
+
+/// "83 [44, 97]": a rate with its interval, or "–" without runs.
+pub fn rate_cell(k: usize, n: usize) -> String {
+    if n == 0 {
+        return "–".into();
+    }
+    let (lo, hi) = wilson_pct(k, n);
+    format!("{:.0} [{lo:.0}, {hi:.0}]", pct(k, n))
+}
+
+/// "1.50 ± 0.80": a mean and sd.
+pub fn mean_sd_cell((m, sd): (f64, f64), n: usize) -> String {
+    if n == 0 {
+        "–".into()
+    } else {
+        format!("{m:.2} ± {sd:.2}")
+    }
+}
+
+/// Configuration `b` against `a` on the runs they share (route, density, seed).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Comparison {
+    /// Red lights per run, b - a.
+    pub red: Paired,
+    /// Lane crossings per run, b - a.
+    pub lane: Paired,
+    /// Collided (0/1) per run, b - a.
+    pub collided: Paired,
+    /// Succeeded (0/1) per run, b - a.
+    pub success: Paired,
+}
+
+impl Comparison {
+    /// Pairs the runs of `a` and `b` that share route, density and seed.
+    pub fn of(a: &[&Run], b: &[&Run]) -> Self {
+        let mut pairs: Vec<(&Run, &Run)> = Vec::new();
+        for x in a {
+            if let Some(y) = b.iter().find(|y| y.pair_key() == x.pair_key()) {
+                pairs.push((x, y));
+            }
+        }
+        let col = |f: &dyn Fn(&Run) -> f64| -> (Vec<f64>, Vec<f64>) {
+            (
+                pairs.iter().map(|(x, _)| f(x)).collect(),
+                pairs.iter().map(|(_, y)| f(y)).collect(),
+            )
+        };
+        let cmp = |f: &dyn Fn(&Run) -> f64| {
+            let (xa, xb) = col(f);
+            paired(&xa, &xb, RESAMPLES, BOOTSTRAP_SEED)
+        };
+        Comparison {
+            red: cmp(&|r| f64::from(r.record.result.count(RedLight))),
+            lane: cmp(&|r| f64::from(r.record.result.count(LaneCrossing))),
+            collided: cmp(&|r| f64::from(u8::from(r.record.result.collisions() > 0))),
+            success: cmp(&|r| f64::from(u8::from(r.record.result.success))),
+        }
+    }
+}
+
+/// "+0.42 [0.17, 0.67] (12 pairs; 5 up, 0 down)": a paired difference.
+pub fn paired_cell(p: &Paired) -> String {
+    if p.n == 0 {
+        return "–".into();
+    }
+    let (up, down, _) = p.better_worse_same;
+    format!(
+        "{:+.2} [{:+.2}, {:+.2}]{} ({} pairs; {up} up, {down} down)",
+        p.mean_diff,
+        p.ci.0,
+        p.ci.1,
+        if p.significant() { " *" } else { "" },
+        p.n
+    )
+}
+
+/// A table: a header and rows of cells, written as Markdown or CSV.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Table {
+    /// Column names.
+    pub header: Vec<String>,
+    /// Rows, each as long as the header.
+    pub rows: Vec<Vec<String>>,
+}
+
+impl Table {
+    /// A table with these columns and no rows.
+    pub fn new(header: &[&str]) -> Self {
+        Table {
+            header: header.iter().map(|s| s.to_string()).collect(),
+            rows: Vec::new(),
+        }
+    }
+
+    /// Adds a row.
+    pub fn push(&mut self, row: Vec<String>) {
+        debug_assert_eq!(row.len(), self.header.len());
+        self.rows.push(row);
+    }
+
+    /// As a Markdown table.
+    pub fn markdown(&self) -> String {
+        let mut s = format!("| {} |\n|", self.header.join(" | "));
+        s += &" --- |".repeat(self.header.len());
+        s.push('\n');
+        for r in &self.rows {
+            s += &format!("| {} |\n", r.join(" | "));
+        }
+        s
+    }
+
+    /// Writes it as CSV to `path`.
+    pub fn write_csv(&self, path: &Path) -> Result<(), PaperError> {
+        let mut w = csv::Writer::from_path(path)?;
+        w.write_record(&self.header)?;
+        for r in &self.rows {
+            w.write_record(r)?;
+        }
+        w.flush().map_err(|e| PaperError::io("write", path, e))?;
+        Ok(())
+    }
+}
+
+/// The long-format CSV of a figure or table's groups: one row per group with
+/// every statistic, the same columns for every experiment.
+#[derive(Debug, Clone, Default)]
+pub struct Cells {
+    table: Table,
+}
+
+impl Cells {
+    /// An empty list.
+    pub fn new() -> Self {
+        Cells {
+            table: Table::new(&[
+                "config",
+                "town",
+                "delay_ms",
+                "scale",
+                "runs",
+                "success",
+                "success_pct",
+                "success_ci_low",
+                "success_ci_high",
+                "collided",
+                "collision_pct",
+                "collision_ci_low",
+                "collision_ci_high",
+                "red_lights_total",
+                "red_lights_mean",
+                "red_lights_sd",
+                "red_lights_ci_low",
+                "red_lights_ci_high",
+                "lane_crossings_mean",
+                "lane_crossings_sd",
+                "lane_crossings_ci_low",
+                "lane_crossings_ci_high",
+                "completion_mean",
+                "high_scale_share_pct",
+                "max_latency_ms",
+            ]),
+        }
+    }
+
+    /// Adds a group.
+    pub fn push(
+        &mut self,
+        config: &str,
+        town: &str,
+        delay_ms: Option<f64>,
+        scale: Option<f64>,
+        s: &Stats,
+    ) {
+        let f = |v: f64| format!("{v:.4}");
+        let opt = |v: Option<f64>| v.map_or(String::new(), |x| x.to_string());
+        let (slo, shi) = s.success_ci();
+        let (clo, chi) = s.collision_ci();
+        self.table.push(vec![
+            config.into(),
+            town.into(),
+            opt(delay_ms),
+            opt(scale),
+            s.n.to_string(),
+            s.success.to_string(),
+            f(s.success_pct()),
+            f(slo),
+            f(shi),
+            s.collided.to_string(),
+            f(s.collision_pct()),
+            f(clo),
+            f(chi),
+            s.red_total.to_string(),
+            f(s.red.0),
+            f(s.red.1),
+            f(s.red_ci.0),
+            f(s.red_ci.1),
+            f(s.lane.0),
+            f(s.lane.1),
+            f(s.lane_ci.0),
+            f(s.lane_ci.1),
+            f(s.completion.0),
+            f(s.high_share_pct),
+            f(s.max_latency_ms),
+        ]);
+    }
+
+    /// Writes the CSV.
+    pub fn write(&self, path: &Path) -> Result<(), PaperError> {
+        self.table.write_csv(path)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tables_write_markdown_and_csv() {
+        let mut t = Table::new(&["a", "b"]);
+        t.push(vec!["1".into(), "x, y".into()]);
+        assert_eq!(t.markdown(), "| a | b |\n| --- | --- |\n| 1 | x, y |\n");
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("t.csv");
+        t.write_csv(&p).unwrap();
+        assert_eq!(std::fs::read_to_string(&p).unwrap(), "a,b\n1,\"x, y\"\n");
+        assert_eq!(rate_cell(6, 6), "100 [61, 100]");
+        assert_eq!(rate_cell(0, 0), "–");
+    }
+}

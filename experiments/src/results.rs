@@ -1,0 +1,127 @@
+//! The records of a paper run, each beside the settings that made it.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use sim::record::{self, RunRecord};
+use sim::sweep::RunSpec;
+
+use crate::PaperError;
+use crate::config::PaperConfig;
+use crate::units::Unit;
+
+/// One finished run.
+#[derive(Debug, Clone)]
+pub struct Run {
+    /// The town it drove ("Town01").
+    pub town: String,
+    /// The route scenario's stem ("town01_route0"): with the density and
+    /// seed, what pairs two runs of different configurations.
+    pub route: String,
+    /// Its settings.
+    pub spec: RunSpec,
+    /// What happened.
+    pub record: RunRecord,
+}
+
+impl Run {
+    /// What two runs compared pair by pair share: route, density, seed.
+    pub fn pair_key(&self) -> (String, Option<(u32, u32)>, u64) {
+        (self.route.clone(), self.spec.density, self.spec.seed)
+    }
+
+    /// Its fixed scale (`None` for a switcher or the expert).
+    pub fn scale(&self) -> Option<f64> {
+        self.spec.scale
+    }
+}
+
+/// A unit's finished runs and how many its plan has.
+#[derive(Debug, Clone, Default)]
+pub struct UnitRuns {
+    /// Runs of the plan in the folder.
+    pub planned: usize,
+    /// The finished ones, in plan order.
+    pub runs: Vec<Run>,
+}
+
+/// Every unit's runs, by unit id.
+#[derive(Debug, Clone, Default)]
+pub struct Results {
+    /// By [`Unit::id`].
+    pub units: BTreeMap<String, UnitRuns>,
+}
+
+impl Results {
+    /// Reads the finished runs of `units` from their folders under `out`
+    /// (a unit never started has none).
+    pub fn load(cfg: &PaperConfig, out: &Path, units: &[Unit]) -> Result<Self, PaperError> {
+        let mut results = Results::default();
+        for u in units {
+            let dir = u.dir(cfg, out);
+            let plan = u.plan(cfg, out)?;
+            let mut runs = Vec::new();
+            for spec in &plan.runs {
+                let path = dir.record_path(spec);
+                if !path.exists() {
+                    continue;
+                }
+                let record = record::read(&path).map_err(sim::sweep::SweepError::from)?;
+                let route = cfg.route_of(&spec.scenario);
+                runs.push(Run {
+                    town: route.map_or_else(|| "?".into(), |r| r.town.clone()),
+                    route: route.map_or_else(
+                        || spec.scenario.display().to_string(),
+                        |r| {
+                            r.scenario
+                                .file_stem()
+                                .map(|s| s.to_string_lossy().into_owned())
+                                .unwrap_or_default()
+                        },
+                    ),
+                    spec: spec.clone(),
+                    record,
+                });
+            }
+            results.units.insert(
+                u.id(cfg),
+                UnitRuns {
+                    planned: plan.runs.len(),
+                    runs,
+                },
+            );
+        }
+        Ok(results)
+    }
+
+    /// The finished runs of `unit` at fixed scale `scale` (any scale: `None`)
+    /// in `town` (any town: `None`).
+    pub fn select(
+        &self,
+        cfg: &PaperConfig,
+        unit: &Unit,
+        scale: Option<f64>,
+        town: Option<&str>,
+    ) -> Vec<&Run> {
+        self.units
+            .get(&unit.id(cfg))
+            .map(|u| {
+                u.runs
+                    .iter()
+                    .filter(|r| {
+                        scale.is_none_or(|s| r.scale().is_some_and(|x| (x - s).abs() < 1e-9))
+                    })
+                    .filter(|r| town.is_none_or(|t| r.town == t))
+                    .collect()
+            })
+            .unwrap_or_default()
+    }
+
+    /// (finished, planned) runs over `units`.
+    pub fn progress(&self, cfg: &PaperConfig, units: &[Unit]) -> (usize, usize) {
+        units
+            .iter()
+            .filter_map(|u| self.units.get(&u.id(cfg)))
+            .fold((0, 0), |(d, p), u| (d + u.runs.len(), p + u.planned))
+    }
+}

@@ -1,0 +1,136 @@
+//! Running a paper: its sweeps (resumable: a finished run is never redone),
+//! Table I, then every table, figure and the page.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+use sim::build::Drivers;
+use sim::sweep::{self, RunSpec};
+
+use crate::config::PaperConfig;
+use crate::experiment::{Experiment, units_of};
+use crate::results::Results;
+use crate::{PaperError, page};
+
+/// How to run a paper.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// The folder of everything (`docs/paper`): the sweeps (`sweeps/ID/`, one
+    /// record per run, committed so every number can be checked), derived
+    /// scenarios (`scenarios/`), the wall-time log, tables, figures and page.
+    pub out: PathBuf,
+    /// Runs at a time.
+    pub jobs: usize,
+    /// The experiments to run and write.
+    pub experiments: Vec<Experiment>,
+    /// Only write the tables and figures from the runs already finished.
+    pub report_only: bool,
+    /// "quick" or "full", written on the page.
+    pub label: String,
+}
+
+/// What the caller is told as the run goes.
+pub trait Progress: Sync {
+    /// A unit starts: its id, runs already done, runs in its plan.
+    fn unit(&self, id: &str, done: usize, planned: usize);
+    /// A run finished (or failed).
+    fn run_done(&self, spec: &RunSpec);
+}
+
+/// What a paper run did.
+#[derive(Debug, Clone, Default)]
+pub struct Outcome {
+    /// Runs finished now.
+    pub finished: usize,
+    /// Runs that failed: unit, run key, why.
+    pub failed: Vec<(String, String, String)>,
+    /// Table, figure and page files written.
+    pub written: Vec<PathBuf>,
+}
+
+/// The wall time spent running sweeps into one output folder, over every
+/// invocation (a resumed run adds to it).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct WallLog {
+    /// Seconds spent in sweeps.
+    pub sweep_s: f64,
+    /// Invocations that ran at least one run.
+    pub invocations: u32,
+    /// Runs finished over all invocations.
+    pub runs: usize,
+    /// Jobs of the last invocation.
+    pub jobs: usize,
+}
+
+impl WallLog {
+    fn path(out: &Path) -> PathBuf {
+        out.join("wall.json")
+    }
+
+    /// Reads `OUT/wall.json` (zero if there is none yet).
+    pub fn read(out: &Path) -> Self {
+        std::fs::read_to_string(Self::path(out))
+            .ok()
+            .and_then(|t| serde_json::from_str(&t).ok())
+            .unwrap_or_default()
+    }
+
+    fn write(&self, out: &Path) -> Result<(), PaperError> {
+        let p = Self::path(out);
+        let text = serde_json::to_string_pretty(self).expect("a wall log serialises");
+        std::fs::write(&p, text).map_err(|e| PaperError::io("write", &p, e))
+    }
+}
+
+/// Runs the sweeps the chosen experiments need (skipping finished runs),
+/// then writes their tables, figures and `README.md` into `opts.out`.
+pub fn run_paper(
+    cfg: &PaperConfig,
+    opts: &RunOptions,
+    drivers: &Drivers,
+    progress: &dyn Progress,
+) -> Result<Outcome, PaperError> {
+    let mut outcome = Outcome::default();
+    std::fs::create_dir_all(&opts.out).map_err(|e| PaperError::io("create", &opts.out, e))?;
+    let units = units_of(&opts.experiments, cfg);
+    if !opts.report_only {
+        let started = Instant::now();
+        for u in &units {
+            let dir = u.dir(cfg, &opts.out);
+            let plan = u.plan(cfg, &opts.out)?;
+            dir.prepare(&plan)?;
+            let all: Vec<&RunSpec> = plan.runs.iter().collect();
+            let done = all.iter().filter(|s| dir.is_done(s)).count();
+            progress.unit(&u.id(cfg), done, all.len());
+            let o = sweep::execute(
+                &dir,
+                &all,
+                opts.jobs,
+                |spec: &RunSpec| {
+                    sweep::run_spec(spec, drivers, None)
+                        .map(|r| r.record)
+                        .map_err(|e| sim::build::error_chain(&e))
+                },
+                |spec| progress.run_done(spec),
+            );
+            outcome.finished += o.finished;
+            for (key, why) in o.failed {
+                outcome.failed.push((u.id(cfg), key, why));
+            }
+        }
+        if outcome.finished > 0 {
+            let mut wall = WallLog::read(&opts.out);
+            wall.sweep_s += started.elapsed().as_secs_f64();
+            wall.invocations += 1;
+            wall.runs += outcome.finished;
+            wall.jobs = opts.jobs;
+            wall.write(&opts.out)?;
+        }
+    }
+    // Every experiment's page section is rewritten from whatever runs exist,
+    // so `--only` adds to the page without dropping the rest.
+    let results = Results::load(cfg, &opts.out, &units_of(&Experiment::ALL, cfg))?;
+    outcome.written = page::write_all(cfg, opts, &results)?;
+    Ok(outcome)
+}

@@ -1,0 +1,100 @@
+//! `mrdrive paper [--quick] [--only ID,...]`: the paper's tables and figures
+//! from the shipped checkpoints (`experiments`), resumable.
+
+use std::path::PathBuf;
+use std::sync::Mutex;
+
+use anyhow::Context;
+use clap::Args;
+use experiments::{Experiment, PaperConfig, Progress, RunOptions};
+use sim::sweep::RunSpec;
+
+/// `paper` arguments.
+#[derive(Args)]
+pub struct PaperArgs {
+    /// A smoke test of every table and figure (one route, one seed, runs capped at 8 s): minutes.
+    #[arg(long)]
+    pub quick: bool,
+    /// Only these experiments, comma-separated: table1, table2, fig3, fig4, fig5, table3, frontier.
+    #[arg(long, default_value = "")]
+    pub only: String,
+    /// The folder of everything: sweeps (`sweeps/`), derived scenarios, tables,
+    /// figures and the page (default: docs/paper, or out/paper-quick with --quick).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Runs at a time.
+    #[arg(long, default_value_t = 2)]
+    pub jobs: usize,
+    /// Write the tables and figures from the runs already finished; run nothing.
+    #[arg(long)]
+    pub report_only: bool,
+}
+
+/// A progress bar over the runs still to do.
+struct Bar {
+    bar: indicatif::ProgressBar,
+    unit: Mutex<String>,
+}
+
+impl Progress for Bar {
+    fn unit(&self, id: &str, done: usize, planned: usize) {
+        *self.unit.lock().expect("not poisoned") = id.to_string();
+        self.bar.set_length(planned as u64);
+        self.bar.set_position(done as u64);
+        self.bar.set_message(id.to_string());
+    }
+
+    fn run_done(&self, _spec: &RunSpec) {
+        self.bar.inc(1);
+    }
+}
+
+/// Runs `paper`.
+pub fn run(a: PaperArgs) -> anyhow::Result<()> {
+    let (cfg, label, default_out) = if a.quick {
+        (PaperConfig::quick(), "quick", "out/paper-quick")
+    } else {
+        (PaperConfig::full(), "full", "docs/paper")
+    };
+    let out = a.out.unwrap_or_else(|| PathBuf::from(default_out));
+    let experiments = Experiment::parse_list(&a.only)?;
+    let opts = RunOptions {
+        out: out.clone(),
+        jobs: a.jobs,
+        experiments,
+        report_only: a.report_only,
+        label: label.into(),
+    };
+    let bar = indicatif::ProgressBar::new(0);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:40}] {pos}/{len} runs of {msg} (eta {eta})",
+        )
+        .expect("a valid template")
+        .progress_chars("=> "),
+    );
+    let progress = Bar {
+        bar,
+        unit: Mutex::new(String::new()),
+    };
+    let outcome = experiments::run_paper(&cfg, &opts, &super::drivers(), &progress)
+        .with_context(|| format!("paper run into {}", out.display()))?;
+    progress.bar.finish_and_clear();
+    for (unit, key, why) in &outcome.failed {
+        eprintln!("paper: {unit}: run {key} failed: {why}");
+    }
+    println!(
+        "paper ({label}): {} runs finished now, {} failed; {} files written under {} (page: {}/README.md)",
+        outcome.finished,
+        outcome.failed.len(),
+        outcome.written.len(),
+        out.display(),
+        out.display()
+    );
+    anyhow::ensure!(
+        outcome.failed.is_empty(),
+        "{} run(s) failed; rerun the same command to retry them",
+        outcome.failed.len()
+    );
+    Ok(())
+}

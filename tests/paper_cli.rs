@@ -1,0 +1,77 @@
+//! `mrdrive paper --quick` end to end: every table and figure of the paper at
+//! toy size from the shipped checkpoints, resumed without redoing a run.
+//! Needs CARLA's Town01 (`../shared/carla/`); skips without it.
+
+mod common;
+
+use common::run_ok;
+
+#[test]
+fn the_quick_paper_writes_every_table_and_figure_and_resumes() {
+    if world::testdata::carla_dir("the_quick_paper_writes_every_table_and_figure_and_resumes")
+        .is_none()
+    {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("paper");
+    let out_s = out.to_str().unwrap();
+    let first = run_ok(&["paper", "--quick", "--out", out_s]);
+    // 2 densities x 1 seed on one route: the expert and the three compared
+    // policies at 3 delays (RA at 2 scales), the Original at D = 0, 2 switchers,
+    // and under jitter the 2 fixed scales and 2 switchers.
+    let planned = 2 * (3 + 3 + 3 + 3 * 2 + 1 + 2 + 4);
+    assert!(
+        first.contains(&format!("{planned} runs finished now, 0 failed")),
+        "{first}"
+    );
+    let docs = out.clone();
+    let page = std::fs::read_to_string(docs.join("README.md")).unwrap();
+    for section in [
+        "## Table I",
+        "## Table II",
+        "## Fig. 3",
+        "## Fig. 4",
+        "## Fig. 5",
+        "## Table III",
+        "## Beyond the paper: the latency/safety frontier",
+        "| table2 | 12 / 12 |",
+        "## Beyond the paper: latency jitter",
+    ] {
+        assert!(page.contains(section), "no {section:?} in:\n{page}");
+    }
+    for stem in ["fig3", "fig4", "fig5", "frontier", "jitter"] {
+        let png = image::open(docs.join(format!("{stem}.png"))).unwrap();
+        assert!(png.width() >= 800, "{stem}");
+        let svg = std::fs::read_to_string(docs.join(format!("{stem}.svg"))).unwrap();
+        assert!(svg.starts_with("<svg"), "{stem}");
+    }
+    for csv in [
+        "table1", "table2", "fig3", "fig4", "fig5", "table3", "frontier", "jitter",
+    ] {
+        let text = std::fs::read_to_string(docs.join(format!("{csv}.csv"))).unwrap();
+        assert!(text.lines().count() >= 2, "{csv}.csv has no rows:\n{text}");
+    }
+    // Table II's expert column has its two runs; the switcher rows name their latencies.
+    let t2 = std::fs::read_to_string(docs.join("table2.csv")).unwrap();
+    assert!(
+        t2.lines().any(|l| l.starts_with("Expert,Town01,0,,2,")),
+        "{t2}"
+    );
+    let t3 = std::fs::read_to_string(docs.join("table3.csv")).unwrap();
+    assert!(t3.contains("RA oracle switcher (50/100 ms)"), "{t3}");
+    // A second run finds every run done and writes the same page.
+    let again = run_ok(&["paper", "--quick", "--out", out_s]);
+    assert!(again.contains("0 runs finished now, 0 failed"), "{again}");
+    assert_eq!(
+        std::fs::read_to_string(docs.join("README.md")).unwrap(),
+        page
+    );
+    // A name that is not an experiment is refused with the list.
+    let bad = common::run(&["paper", "--quick", "--out", out_s, "--only", "fig9"]);
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        !bad.status.success() && err.contains("--only fig9") && err.contains("frontier"),
+        "{err}"
+    );
+}
