@@ -156,11 +156,30 @@ impl Experiment {
     }
 }
 
-/// The units of several experiments, each once, cheapest-first within the
-/// order the experiments are given (so the first tables fill first).
+impl Experiment {
+    /// The order a run fills experiments in: the paper's main tables first,
+    /// the figures that reuse their sweeps next, the extensions last.
+    pub fn priority(self) -> u8 {
+        match self {
+            Experiment::Table1 => 0,
+            Experiment::Table2 => 1,
+            Experiment::Table3 => 2,
+            Experiment::Fig3 => 3,
+            Experiment::Fig4 => 4,
+            Experiment::Fig5 => 5,
+            Experiment::Frontier => 6,
+            Experiment::Jitter => 7,
+        }
+    }
+}
+
+/// The units of several experiments, each once, in the experiments'
+/// [`Experiment::priority`] order (so the main tables fill first).
 pub fn units_of(experiments: &[Experiment], cfg: &PaperConfig) -> Vec<Unit> {
+    let mut experiments = experiments.to_vec();
+    experiments.sort_by_key(|e| e.priority());
     let mut out: Vec<Unit> = Vec::new();
-    for e in experiments {
+    for e in &experiments {
         for u in e.units(cfg) {
             if !out.contains(&u) {
                 out.push(u);

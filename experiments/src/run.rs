@@ -95,42 +95,83 @@ pub fn run_paper(
     std::fs::create_dir_all(&opts.out).map_err(|e| PaperError::io("create", &opts.out, e))?;
     let units = units_of(&opts.experiments, cfg);
     if !opts.report_only {
-        let started = Instant::now();
+        let mut clock = WallClock::start();
+        let mut plans = Vec::new();
         for u in &units {
             let dir = u.dir(cfg, &opts.out);
             let plan = u.plan(cfg, &opts.out)?;
             dir.prepare(&plan)?;
-            let all: Vec<&RunSpec> = plan.runs.iter().collect();
-            let done = all.iter().filter(|s| dir.is_done(s)).count();
-            progress.unit(&u.id(cfg), done, all.len());
-            let o = sweep::execute(
-                &dir,
-                &all,
-                opts.jobs,
-                |spec: &RunSpec| {
-                    sweep::run_spec(spec, drivers, None)
-                        .map(|r| r.record)
-                        .map_err(|e| sim::build::error_chain(&e))
-                },
-                |spec| progress.run_done(spec),
-            );
-            outcome.finished += o.finished;
-            for (key, why) in o.failed {
-                outcome.failed.push((u.id(cfg), key, why));
+            plans.push((u, dir, plan));
+        }
+        // Seed by seed: the first pass is the paper's own protocol (one
+        // rollout per route and density) over every experiment; later seeds
+        // narrow the intervals. A run cut short still has whole tables.
+        for &seed in &cfg.seeds {
+            for (u, dir, plan) in &plans {
+                let mine: Vec<&RunSpec> = plan.runs.iter().filter(|s| s.seed == seed).collect();
+                let done = mine.iter().filter(|s| dir.is_done(s)).count();
+                progress.unit(&format!("{} (seed {seed})", u.id(cfg)), done, mine.len());
+                let o = sweep::execute(
+                    dir,
+                    &mine,
+                    opts.jobs,
+                    |spec: &RunSpec| {
+                        sweep::run_spec(spec, drivers, None)
+                            .map(|r| r.record)
+                            .map_err(|e| sim::build::error_chain(&e))
+                    },
+                    |spec| progress.run_done(spec),
+                );
+                outcome.finished += o.finished;
+                for (key, why) in o.failed {
+                    outcome.failed.push((u.id(cfg), key, why));
+                }
+                if o.finished > 0 {
+                    // The page follows the runs, so a run cut short leaves it current.
+                    clock.log(opts, o.finished)?;
+                    report(cfg, opts)?;
+                }
             }
         }
-        if outcome.finished > 0 {
-            let mut wall = WallLog::read(&opts.out);
-            wall.sweep_s += started.elapsed().as_secs_f64();
-            wall.invocations += 1;
-            wall.runs += outcome.finished;
-            wall.jobs = opts.jobs;
-            wall.write(&opts.out)?;
+    }
+    outcome.written = report(cfg, opts)?;
+    Ok(outcome)
+}
+
+/// Adds the wall time of a paper invocation to `OUT/wall.json` as it goes:
+/// each call logs the seconds since the last one (and the runs finished), and
+/// the first also counts the invocation.
+struct WallClock {
+    last: Instant,
+    counted: bool,
+}
+
+impl WallClock {
+    fn start() -> Self {
+        WallClock {
+            last: Instant::now(),
+            counted: false,
         }
     }
-    // Every experiment's page section is rewritten from whatever runs exist,
-    // so `--only` adds to the page without dropping the rest.
+
+    fn log(&mut self, opts: &RunOptions, runs: usize) -> Result<(), PaperError> {
+        let now = Instant::now();
+        let mut wall = WallLog::read(&opts.out);
+        wall.sweep_s += (now - self.last).as_secs_f64();
+        wall.runs += runs;
+        wall.jobs = opts.jobs;
+        if !self.counted {
+            wall.invocations += 1;
+            self.counted = true;
+        }
+        self.last = now;
+        wall.write(&opts.out)
+    }
+}
+
+/// Rewrites every experiment's tables, figures and page section from the
+/// runs that exist, so `--only` adds to the page without dropping the rest.
+fn report(cfg: &PaperConfig, opts: &RunOptions) -> Result<Vec<PathBuf>, PaperError> {
     let results = Results::load(cfg, &opts.out, &units_of(&Experiment::ALL, cfg))?;
-    outcome.written = page::write_all(cfg, opts, &results)?;
-    Ok(outcome)
+    page::write_all(cfg, opts, &results)
 }
