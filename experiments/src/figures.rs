@@ -63,7 +63,8 @@ pub struct Panel {
 }
 
 /// Draws `panels` side by side into `stem.png` (`width` x `height` pixels)
-/// and `stem.svg`.
+/// and `stem.svg`. Series sharing an x are offset sideways by 1.5 % of the
+/// x range each, so overlapping points stay visible.
 pub fn plot(stem: &Path, panels: &[Panel], width: u32, height: u32) -> Result<(), PaperError> {
     register_fonts();
     let png = stem.with_extension("png");
@@ -131,17 +132,36 @@ fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &Panel) -> R
         .y_label_area_size(55)
         .build_cartesian_2d((x0 - xpad)..(x1 + xpad), y0..y1)
         .map_err(e)?;
+    let trim = |v: &f64| {
+        let t = format!("{v:.3}");
+        t.trim_end_matches('0').trim_end_matches('.').to_string()
+    };
     chart
         .configure_mesh()
+        .x_label_formatter(&trim)
+        .y_label_formatter(&trim)
         .x_desc(&p.x_label)
         .y_desc(&p.y_label)
         .light_line_style(RGBColor(235, 235, 235))
         .label_style(("sans-serif", 13))
         .draw()
         .map_err(e)?;
+    // Series that share x values are drawn side by side ("dodged") by a
+    // small offset, so equal values stay visible; the data is not changed.
+    let n = p.series.len() as f64;
+    let dodge = (x1 - x0).max(1e-9) * 0.015;
     for (k, s) in p.series.iter().enumerate() {
         let c = COLOURS[k % COLOURS.len()];
         let style = c.stroke_width(2);
+        let off = (k as f64 - (n - 1.0) / 2.0) * dodge;
+        let s = &Series {
+            points: s
+                .points
+                .iter()
+                .map(|q| Point { x: q.x + off, ..*q })
+                .collect(),
+            ..s.clone()
+        };
         let line: Vec<(f64, f64)> = s.points.iter().map(|q| (q.x, q.y)).collect();
         if s.dashed {
             chart
