@@ -255,6 +255,12 @@ fn header(cfg: &PaperConfig, opts: &RunOptions, results: &Results) -> String {
             " Runs are capped at {t} simulated seconds (a smoke test: no run can finish its route)."
         )),
     );
+    if backends.len() > 1 {
+        s += "**Warning**: these runs were rendered by more than one backend. Software \
+              rasterisers differ pixel by pixel and a policy can act on that, so rows made on \
+              different backends are not run-for-run comparable; rerun one backend's runs into a \
+              fresh folder.\n\n";
+    }
     s += &format!(
         "Builds: {}. Render backend: {}.\n\n",
         if builds.is_empty() {
@@ -394,9 +400,10 @@ fn table1(cfg: &PaperConfig, w: &mut Writer) -> Result<String, PaperError> {
     w.csv("table1.csv", &csv)?;
     Ok(format!(
         "## Table I: realised traffic ({} resets per route and density)\n\n{}\n\
-         Our spawner places every vehicle and pedestrian it is asked for when the town has room \
-         (the paper's CARLA navigation mesh fails some pedestrian spawns, hence its 7 of 10 and \
-         27 of 40). Files: `table1.csv`.\n",
+         Our spawner gives each walker one try at a random sidewalk node and drops it when the \
+         spot is taken (like CARLA's batch spawn); CARLA's navigation mesh failed about 3 in 10 in \
+         the paper (7 of 10, about 27 of 40). \
+         Files: `table1.csv`.\n",
         cfg.resets,
         t.markdown()
     ))
