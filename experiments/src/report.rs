@@ -348,7 +348,134 @@ impl Cells {
 
 #[cfg(test)]
 mod tests {
+    use std::collections::BTreeMap;
+
+    use sim::monitors::InfractionKind;
+    use sim::record::*;
+    use sim::sweep::RunSpec;
+
     use super::*;
+
+    /// A finished run on `route` at density (5, 10) and `seed` with these
+    /// outcomes, `high` the share of boundaries at 1.0x.
+    pub fn run(
+        route: &str,
+        seed: u64,
+        success: bool,
+        collisions: u32,
+        red: u32,
+        lane: u32,
+        high: f64,
+    ) -> Run {
+        let mut counts: BTreeMap<InfractionKind, u32> =
+            InfractionKind::ALL.into_iter().map(|k| (k, 0)).collect();
+        counts.insert(InfractionKind::CollisionVehicle, collisions);
+        counts.insert(InfractionKind::RedLight, red);
+        counts.insert(InfractionKind::LaneCrossing, lane);
+        let spec = RunSpec {
+            scenario: format!("scenarios/paper/{route}.toml").into(),
+            delay_ms: Some(0.0),
+            scale: None,
+            density: Some((5, 10)),
+            seed,
+            driver: None,
+        };
+        Run {
+            town: "Town01".into(),
+            route: route.into(),
+            spec,
+            record: RunRecord {
+                result: RunResult {
+                    provenance: Provenance {
+                        scenario: route.into(),
+                        scenario_file: String::new(),
+                        map: String::new(),
+                        route: String::new(),
+                        driver: "expert".into(),
+                        build: "test".into(),
+                        render_backend: "none".into(),
+                    },
+                    settings: RunSettings {
+                        seed,
+                        delay_ms: 0.0,
+                        control_period_ms: 50.0,
+                        resolution: "oracle".into(),
+                        vehicles: 5,
+                        pedestrians: 10,
+                    },
+                    traffic: RealisedTraffic {
+                        vehicles: 5,
+                        pedestrians: 10,
+                    },
+                    completion_pct: if success { 100.0 } else { 50.0 },
+                    success,
+                    driving_score: 0.0,
+                    outside_lane_pct: 0.0,
+                    counts,
+                    termination: None,
+                    route_length_m: 100.0,
+                    sim_time_s: 10.0,
+                    ticks: 400,
+                    scale_share: [("0.75".to_string(), 1.0 - high), ("1".to_string(), high)].into(),
+                    max_latency_ms: 100.0,
+                    infractions: Vec::new(),
+                },
+                perf: RunPerf::default(),
+            },
+        }
+    }
+
+    #[test]
+    fn stats_count_rates_totals_and_the_time_at_the_high_scale() {
+        let runs = [
+            run("a", 0, true, 0, 2, 1, 0.2),
+            run("a", 1, false, 3, 0, 3, 0.4),
+            run("b", 0, true, 1, 1, 2, 0.0),
+        ];
+        let refs: Vec<&Run> = runs.iter().collect();
+        let s = Stats::of(&refs, 1.0);
+        assert_eq!((s.n, s.success, s.collided, s.red_total), (3, 2, 2, 3));
+        assert_eq!(s.red, (1.0, 1.0));
+        assert_eq!(s.lane, (2.0, 1.0));
+        assert!(
+            (s.high_share_pct - 20.0).abs() < 1e-9,
+            "{}",
+            s.high_share_pct
+        );
+        // 2 of 3: Wilson's interval, [20.8, 93.9] %.
+        let (lo, hi) = s.success_ci();
+        assert!(
+            (lo - 20.77).abs() < 0.05 && (hi - 93.85).abs() < 0.05,
+            "{lo} {hi}"
+        );
+        assert_eq!(Stats::of(&[], 1.0).n, 0);
+    }
+
+    #[test]
+    fn a_comparison_pairs_runs_by_route_density_and_seed() {
+        // b has one red light more than a on each shared run; a's extra run has no partner.
+        let a = [
+            run("a", 0, true, 0, 0, 0, 0.0),
+            run("a", 1, true, 0, 1, 0, 0.0),
+            run("c", 9, true, 0, 5, 0, 0.0),
+        ];
+        let b = [
+            run("a", 1, true, 0, 2, 0, 0.0),
+            run("a", 0, true, 1, 1, 0, 0.0),
+        ];
+        let (ra, rb): (Vec<&Run>, Vec<&Run>) = (a.iter().collect(), b.iter().collect());
+        let c = Comparison::of(&ra, &rb);
+        assert_eq!(c.red.n, 2);
+        assert_eq!(c.red.mean_diff, 1.0);
+        assert_eq!(c.red.better_worse_same, (2, 0, 0));
+        assert_eq!(c.collided.mean_diff, 0.5);
+        assert_eq!(c.success.better_worse_same, (0, 0, 2));
+        assert!(
+            paired_cell(&c.red).starts_with("+1.00 [+1.00, +1.00] * (2 pairs; 2 up, 0 down)"),
+            "{}",
+            paired_cell(&c.red)
+        );
+    }
 
     #[test]
     fn tables_write_markdown_and_csv() {
