@@ -286,6 +286,57 @@ impl ActorRow {
     pub const VEHICLE: u8 = 1;
     /// A pedestrian.
     pub const PEDESTRIAN: u8 = 2;
+
+    /// The actor as the rule book's "what is ahead" sees it.
+    pub fn view(&self) -> world::rules::ActorView {
+        world::rules::ActorView {
+            id: self.id,
+            kind: if self.kind == ActorRow::PEDESTRIAN {
+                world::ActorKind::Pedestrian
+            } else {
+                world::ActorKind::Vehicle
+            },
+            position: world::Vec2::new(self.x, self.y),
+            yaw: self.yaw,
+            speed_mps: self.speed,
+            half_length_m: self.length * 0.5,
+            half_width_m: self.width * 0.5,
+        }
+    }
+}
+
+/// How far straight ahead of the ego [`pedestrian_ahead`] looks (metres):
+/// about 2.5 s at the 8 m/s the expert drives, the time a pedestrian on a
+/// crosswalk past a turn is in view before the car must brake.
+pub const PEDESTRIAN_AHEAD_M: f32 = 20.0;
+
+/// The distance to the nearest pedestrian straight ahead of `ego` within
+/// [`PEDESTRIAN_AHEAD_M`] (metres), by the rule book's "ahead"
+/// (`world::rules::nearest_ahead`) in the expert's corridor
+/// (`sim::runner::AHEAD_CORRIDOR_M`), on a straight path along the ego's
+/// heading: a frame property the training loader can weigh without the map.
+pub fn pedestrian_ahead(ego: &EgoRow, actors: &[ActorRow]) -> Option<f32> {
+    let walkers: Vec<world::rules::ActorView> = actors
+        .iter()
+        .filter(|a| a.kind == ActorRow::PEDESTRIAN)
+        .map(ActorRow::view)
+        .collect();
+    if walkers.is_empty() {
+        return None;
+    }
+    let start = world::Vec2::new(ego.x, ego.y);
+    let dir = world::Vec2::from_angle(ego.yaw);
+    let path: Vec<world::Vec2> = (0..=PEDESTRIAN_AHEAD_M as usize)
+        .map(|k| start + dir * k as f32)
+        .collect();
+    world::rules::nearest_ahead(
+        &path,
+        &walkers,
+        None,
+        sim::runner::AHEAD_CORRIDOR_M,
+        PEDESTRIAN_AHEAD_M,
+    )
+    .map(|a| a.distance_m)
 }
 
 /// The ego's state in a frame.
@@ -912,6 +963,55 @@ fn f32s(bytes: &[u8]) -> Vec<f32> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_pedestrian_ahead_is_one_in_the_corridor_in_front_within_range() {
+        let ego = EgoRow {
+            x: 0.0,
+            y: 0.0,
+            yaw: 0.0,
+            speed: 5.0,
+        };
+        let walker = |x: f32, y: f32| ActorRow {
+            kind: ActorRow::PEDESTRIAN,
+            id: 7,
+            x,
+            y,
+            yaw: 1.5,
+            length: 0.5,
+            width: 0.5,
+            speed: 1.2,
+        };
+        // To the near edge of its footprint: 8 m less 0.27 m (a 0.5 m walker turned 1.5 rad).
+        let d = pedestrian_ahead(&ego, &[walker(8.0, 0.5)]).unwrap();
+        assert!((d - 7.733).abs() < 1e-3, "{d}");
+        assert_eq!(
+            pedestrian_ahead(&ego, &[walker(8.0, -5.0)]),
+            None,
+            "on the sidewalk"
+        );
+        assert_eq!(pedestrian_ahead(&ego, &[walker(-3.0, 0.0)]), None, "behind");
+        assert_eq!(
+            pedestrian_ahead(&ego, &[walker(25.0, 0.0)]),
+            None,
+            "too far"
+        );
+        // A vehicle nearer does not hide the walker; the nearest walker counts.
+        let car = ActorRow {
+            kind: ActorRow::VEHICLE,
+            length: 4.5,
+            width: 1.9,
+            ..walker(5.0, 0.0)
+        };
+        let d = pedestrian_ahead(&ego, &[car, walker(15.0, 0.0), walker(10.0, 1.0)]).unwrap();
+        assert!((d - 9.733).abs() < 1e-3, "{d}");
+        // Heading matters: facing west, the walker at x = 8 is behind.
+        let west = EgoRow {
+            yaw: std::f32::consts::PI,
+            ..ego
+        };
+        assert_eq!(pedestrian_ahead(&west, &[walker(8.0, 0.0)]), None);
+    }
 
     fn sample() -> Shard {
         let mut s = Shard::new((6, 2), 2);

@@ -14,7 +14,7 @@
 //! | command | LEFT when `i mod 5 = 4`, else LANEFOLLOW |
 //! | route | the ego's point on the route and its route distance (metres) |
 //! | lights | all red when `(i / 10)` is even, else all green |
-//! | actors | a vehicle 15 m ahead of the ego, a pedestrian on the sidewalk |
+//! | actors | a vehicle 15 m ahead of the ego, a pedestrian 8 m ahead: on the sidewalk (`y = -5`), or in the ego's lane when `i mod 7 = 3` |
 //! | rgb | byte `(7 x + 3 y + 50 c + 11 i + 29 v + 13 e) mod 256` at column x, row y, channel c, view v, episode e |
 //! | classes | `(x * 6 / W + i + v) mod 6` |
 //! | q (labels) | [`q_value`]; valid for all but the last 5 frames |
@@ -102,6 +102,16 @@ pub fn ego(i: usize) -> EgoRow {
         y: -LANE_WIDTH_M / 2.0,
         yaw: 0.0,
         speed: SPEEDS_MPS[i % 5],
+    }
+}
+
+/// The pedestrian's `y` in frame `i` (metres): in the ego's lane, crossing,
+/// when `i mod 7 = 3`, else on the sidewalk.
+pub fn pedestrian_y(i: usize) -> f32 {
+    if i % 7 == 3 {
+        -LANE_WIDTH_M / 2.0
+    } else {
+        -5.0
     }
 }
 
@@ -193,7 +203,7 @@ pub fn shard(spec: &SyntheticSpec, e: usize, route: &DenseRoute) -> Shard {
                 kind: ActorRow::PEDESTRIAN,
                 id: 2,
                 x: ego.x + 8.0,
-                y: -5.0,
+                y: pedestrian_y(i),
                 yaw: 1.5,
                 length: 0.5,
                 width: 0.5,

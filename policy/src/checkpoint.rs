@@ -66,6 +66,9 @@ pub struct TrainingRecord {
     /// Copies of each starting frame (standing, target goes) per epoch.
     #[serde(default = "one_copy")]
     pub start_repeat: usize,
+    /// Copies of each frame with a pedestrian ahead per epoch.
+    #[serde(default = "one_copy")]
+    pub pedestrian_repeat: usize,
 }
 
 fn one() -> f64 {

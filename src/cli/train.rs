@@ -57,6 +57,10 @@ pub struct TrainArgs {
     /// per epoch [default: the recipe's, 1].
     #[arg(long)]
     start_repeat: Option<usize>,
+    /// Copies of each kept frame with a pedestrian in the ego's corridor within 20 m
+    /// straight ahead, per epoch [default: the recipe's, 1].
+    #[arg(long)]
+    pedestrian_repeat: Option<usize>,
     /// Draw commands evenly [default: the recipe's: no for the Original, yes for retargeting].
     #[arg(long)]
     balanced: Option<bool>,
@@ -154,6 +158,14 @@ fn spec_of(args: &TrainArgs, stage: &str) -> Result<StageSpec> {
             bail!("--start-repeat 0: at least 1 (1 draws each starting frame once per epoch)");
         }
         spec.start_repeat = v;
+    }
+    if let Some(v) = args.pedestrian_repeat {
+        if v == 0 {
+            bail!(
+                "--pedestrian-repeat 0: at least 1 (1 draws each frame with a pedestrian ahead once per epoch)"
+            );
+        }
+        spec.pedestrian_repeat = v;
     }
     if let Some(v) = args.balanced {
         spec.balanced = v;

@@ -12,7 +12,7 @@ use world::agents::VehicleParams;
 use world::route::DenseRoute;
 use world::rules::{ActorView, nearest_ahead};
 use world::rules::{RouteStops, route_ahead};
-use world::{ActorKind, Town, Vec2};
+use world::{Town, Vec2};
 
 use super::{FrameInput, Hazards, LABEL_VERSION, Labeller, Q};
 use crate::action::NUM_ACTIONS;
@@ -45,7 +45,7 @@ pub fn hazards(
         AHEAD_RANGE_M,
         &mut path,
     );
-    let views: Vec<ActorView> = shard.actors[i].iter().map(view_of).collect();
+    let views: Vec<ActorView> = shard.actors[i].iter().map(ActorRow::view).collect();
     let ahead = nearest_ahead(&path, &views, None, AHEAD_CORRIDOR_M, AHEAD_RANGE_M);
     let light = |l: world::LightIdx| {
         shard.lights[i]
@@ -54,22 +54,6 @@ pub fn hazards(
             .map_or(world::LightState::Green, light_of_code)
     };
     Hazards::measure(&labeller.params, stops, ego_s, light, ahead)
-}
-
-fn view_of(a: &ActorRow) -> ActorView {
-    ActorView {
-        id: a.id,
-        kind: if a.kind == ActorRow::PEDESTRIAN {
-            ActorKind::Pedestrian
-        } else {
-            ActorKind::Vehicle
-        },
-        position: Vec2::new(a.x, a.y),
-        yaw: a.yaw,
-        speed_mps: a.speed,
-        half_length_m: a.length * 0.5,
-        half_width_m: a.width * 0.5,
-    }
 }
 
 /// Labels every frame of one episode whose future is in the shard; frames

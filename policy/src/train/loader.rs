@@ -61,6 +61,11 @@ pub struct LoaderConfig {
     /// the target goes, as when the light has just turned green) appears per epoch (1:
     /// once). They are about one standing frame in 25.
     pub start_repeat: usize,
+    /// How many times each kept frame with a pedestrian ahead
+    /// ([`TrainSet::pedestrian_ahead`]) appears per epoch (1: once). A frame
+    /// that is both a starting frame and one with a pedestrian ahead appears
+    /// the larger number of times.
+    pub pedestrian_repeat: usize,
     /// The first epoch (to resume a run where it stopped).
     pub first_epoch: u64,
     /// Batches of the first epoch to leave out (to resume a run mid-epoch); the
@@ -87,6 +92,7 @@ impl LoaderConfig {
             balanced: false,
             standing_keep: 1.0,
             start_repeat: 1,
+            pedestrian_repeat: 1,
             first_epoch: 0,
             first_batch: 0,
             epochs: None,
@@ -318,6 +324,15 @@ impl TrainSet {
         softmax(&interpolate_speed(&bins, speed))[BRAKE] <= BRAKE_THRESHOLD
     }
 
+    /// Whether a pedestrian stands or walks in the ego's corridor straight
+    /// ahead at sample `s`'s frame, within
+    /// [`dataset::format::PEDESTRIAN_AHEAD_M`] (the rule book's "ahead").
+    pub fn pedestrian_ahead(&self, s: &SampleRef) -> bool {
+        let state = &self.parts[s.episode as usize].shard.state;
+        let f = s.frame as usize;
+        dataset::format::pedestrian_ahead(&state.ego[f], &state.actors[f]).is_some()
+    }
+
     /// Whether sample `s` is used under `cfg.standing_keep` (the same answer for every
     /// view of a frame and every epoch).
     pub fn kept(&self, cfg: &LoaderConfig, s: &SampleRef) -> bool {
@@ -330,7 +345,7 @@ impl TrainSet {
     }
 
     /// Samples per epoch under `cfg`: those [`TrainSet::kept`], each starting frame
-    /// `start_repeat` times.
+    /// `start_repeat` times and each with a pedestrian ahead `pedestrian_repeat` times.
     pub fn epoch_len(&self, cfg: &LoaderConfig) -> usize {
         self.pool(cfg).len()
     }
@@ -342,11 +357,13 @@ impl TrainSet {
             if !self.kept(cfg, s) {
                 continue;
             }
-            let copies = if cfg.start_repeat > 1 && self.starts(s) {
-                cfg.start_repeat
-            } else {
-                1
-            };
+            let mut copies = 1;
+            if cfg.start_repeat > 1 && self.starts(s) {
+                copies = cfg.start_repeat;
+            }
+            if cfg.pedestrian_repeat > copies && self.pedestrian_ahead(s) {
+                copies = cfg.pedestrian_repeat;
+            }
             pool.extend(std::iter::repeat_n(i, copies));
         }
         pool
@@ -763,6 +780,49 @@ mod tests {
                 assert_eq!(starts, 3 * starting);
             }
         }
+    }
+
+    #[test]
+    fn frames_with_a_pedestrian_ahead_repeat() {
+        let dir = write(2, 40);
+        let set = TrainSet::open(dir.path(), &config()).unwrap();
+        // The synthetic walker crosses 8 m ahead of the ego when frame mod 7 = 3.
+        for s in &set.samples {
+            assert_eq!(set.pedestrian_ahead(s), s.frame % 7 == 3, "{s:?}");
+        }
+        let ahead = set
+            .samples
+            .iter()
+            .filter(|s| set.pedestrian_ahead(s))
+            .count();
+        let both = set
+            .samples
+            .iter()
+            .filter(|s| set.pedestrian_ahead(s) && set.starts(s))
+            .count();
+        assert!(ahead > 0);
+        let all = LoaderConfig::new(5, 3);
+        let four = LoaderConfig {
+            pedestrian_repeat: 4,
+            ..all.clone()
+        };
+        assert_eq!(set.epoch_len(&four), set.samples.len() + 3 * ahead);
+        let order = set.epoch_order(&four, 0);
+        let drawn = order
+            .iter()
+            .filter(|&&i| set.pedestrian_ahead(&set.samples[i]))
+            .count();
+        assert_eq!(drawn, 4 * ahead);
+        // With starting frames repeated too, a frame that is both counts once, at the larger.
+        let starts = set.samples.iter().filter(|s| set.starts(s)).count();
+        let mixed = LoaderConfig {
+            start_repeat: 2,
+            ..four
+        };
+        assert_eq!(
+            set.epoch_len(&mixed),
+            set.samples.len() + 3 * ahead + (starts - both)
+        );
     }
 
     #[test]

@@ -68,6 +68,10 @@ pub struct StageSpec {
     /// Copies of each starting frame per epoch ([`LoaderConfig::start_repeat`]; 1: WoR).
     #[serde(default = "one_copy")]
     pub start_repeat: usize,
+    /// Copies of each frame with a pedestrian ahead per epoch
+    /// ([`LoaderConfig::pedestrian_repeat`]; 1: WoR).
+    #[serde(default = "one_copy")]
+    pub pedestrian_repeat: usize,
     /// Start from this checkpoint's weights instead of a fresh initialisation (same
     /// network; e.g. to go on from a shipped model when a run's state is lost).
     #[serde(default)]
@@ -99,6 +103,7 @@ impl StageSpec {
             augment: true,
             standing_keep: 1.0,
             start_repeat: 1,
+            pedestrian_repeat: 1,
             init: None,
             recalibrate_batches: 0,
             checkpoint_every: 100,
@@ -133,6 +138,7 @@ impl StageSpec {
             augment: true,
             standing_keep: 1.0,
             start_repeat: 8,
+            pedestrian_repeat: 1,
             init: None,
             recalibrate_batches: 50,
             checkpoint_every: 50,
@@ -378,6 +384,7 @@ pub fn run_stage(
         balanced: spec.balanced,
         standing_keep: spec.standing_keep,
         start_repeat: spec.start_repeat,
+        pedestrian_repeat: spec.pedestrian_repeat,
         ..LoaderConfig::new(spec.batch, spec.seed)
     };
     let per_epoch = (set.epoch_len(&loader_cfg) / spec.batch.max(1)).max(1);
@@ -486,6 +493,7 @@ pub fn run_stage(
             balanced: spec.balanced,
             standing_keep: spec.standing_keep,
             start_repeat: spec.start_repeat,
+            pedestrian_repeat: spec.pedestrian_repeat,
         }),
     };
     checkpoint::save(&net, &card, &final_path)?;
@@ -499,7 +507,7 @@ pub fn run_stage(
 /// A sentence on what the stage's network is.
 fn describe(spec: &StageSpec) -> String {
     let sampling = format!(
-        "{}{}{}",
+        "{}{}{}{}",
         if spec.balanced {
             ", commands drawn evenly"
         } else {
@@ -512,6 +520,14 @@ fn describe(spec: &StageSpec) -> String {
         },
         if spec.start_repeat > 1 {
             format!(", starting frames {} times", spec.start_repeat)
+        } else {
+            String::new()
+        },
+        if spec.pedestrian_repeat > 1 {
+            format!(
+                ", frames with a pedestrian ahead {} times",
+                spec.pedestrian_repeat
+            )
         } else {
             String::new()
         }
@@ -718,6 +734,7 @@ fn recalibrate_on(
         balanced: spec.balanced,
         standing_keep: spec.standing_keep,
         start_repeat: spec.start_repeat,
+        pedestrian_repeat: spec.pedestrian_repeat,
         epochs: None,
         ..LoaderConfig::new(spec.batch, spec.seed ^ 0x5ca1e)
     };
