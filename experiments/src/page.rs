@@ -8,7 +8,9 @@ use crate::PaperError;
 use crate::config::PaperConfig;
 use crate::experiment::Experiment;
 use crate::figures::{Panel, Point, Series, plot};
-use crate::report::{Cells, Comparison, Stats, Table, mean_sd_cell, paired_cell, rate_cell};
+use crate::report::{
+    Cells, Comparison, Stats, Table, mean_ci_cell, mean_sd_cell, paired_cell, rate_cell,
+};
 use crate::results::{Results, Run};
 use crate::run::{RunOptions, WallLog};
 use crate::units::{Driver, Unit, scale_label, selector_name};
@@ -16,9 +18,16 @@ use sim::scenario::SelectorKind;
 
 /// What the paper reports (its §IV), set beside ours.
 pub mod paper {
+    /// Realised pedestrians (mean, sd) on a town's two routes, for the targets
+    /// (5, 10) and (20, 40).
+    pub type RoutesPedestrians = [[(f64, f64); 2]; 2];
+    /// A Table III row: success %, collision %, lane crossings mean and sd,
+    /// red lights in total.
+    pub type Table3Row = (f64, f64, f64, f64, u32);
+
     /// Table I, realised pedestrians (mean, sd) for targets (5, 10) and
     /// (20, 40), per town and route (vehicles were always all spawned).
-    pub const TABLE1_PEDESTRIANS: [(&str, [[(f64, f64); 2]; 2]); 2] = [
+    pub const TABLE1_PEDESTRIANS: [(&str, RoutesPedestrians); 2] = [
         (
             "Town01",
             [[(7.0, 1.5), (26.7, 3.1)], [(7.0, 1.5), (26.5, 3.1)]],
@@ -37,7 +46,7 @@ pub mod paper {
     /// Table III per envelope (high, low ms): fixed low @ low, RA switcher,
     /// fixed high @ high; each (success %, collision %, lane crossings mean,
     /// sd, red lights total) over 12 runs.
-    pub const TABLE3: [((f64, f64), [(f64, f64, f64, f64, u32); 3]); 2] = [
+    pub const TABLE3: [((f64, f64), [Table3Row; 3]); 2] = [
         (
             (100.0, 50.0),
             [
@@ -142,15 +151,16 @@ pub fn write_all(
         docs: opts.out.clone(),
         written: Vec::new(),
     };
-    let mut sections = Vec::new();
-    sections.push(table1(cfg, &mut w)?);
-    sections.push(table2(cfg, results, &mut w)?);
-    sections.push(fig34(cfg, results, &mut w, true)?);
-    sections.push(fig34(cfg, results, &mut w, false)?);
-    sections.push(fig5(cfg, results, &mut w)?);
-    sections.push(table3(cfg, results, &mut w)?);
-    sections.push(frontier(cfg, results, &mut w)?);
-    sections.push(jitter(cfg, results, &mut w)?);
+    let sections = [
+        table1(cfg, &mut w)?,
+        table2(cfg, results, &mut w)?,
+        fig34(cfg, results, &mut w, true)?,
+        fig34(cfg, results, &mut w, false)?,
+        fig5(cfg, results, &mut w)?,
+        table3(cfg, results, &mut w)?,
+        frontier(cfg, results, &mut w)?,
+        jitter(cfg, results, &mut w)?,
+    ];
     let page = header(cfg, opts, results) + &sections.join("\n");
     w.text("README.md", &page)?;
     Ok(w.written)
@@ -921,6 +931,48 @@ fn table3(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String
     ))
 }
 
+/// Three panels (success, runs with a collision, red lights per run) of
+/// labelled lines of (x, group statistics); switchers dashed.
+fn safety_panels(lines: &[(String, Vec<(f64, Stats)>)], x_label: &str) -> [Panel; 3] {
+    let series = |f: &dyn Fn(&Stats) -> Point| -> Vec<Series> {
+        lines
+            .iter()
+            .map(|(label, pts)| Series {
+                label: label.clone(),
+                points: pts.iter().map(|(x, s)| Point { x: *x, ..f(s) }).collect(),
+                dashed: label.contains("switcher"),
+            })
+            .collect()
+    };
+    let panel = |title: &str, y_label: &str, f: &dyn Fn(&Stats) -> Point, y_range| Panel {
+        title: title.into(),
+        x_label: x_label.into(),
+        y_label: y_label.into(),
+        series: series(f),
+        y_range,
+    };
+    [
+        panel(
+            "Success",
+            "success %",
+            &|s| point(0.0, s.success_pct(), s.success_ci()),
+            Some((0.0, 105.0)),
+        ),
+        panel(
+            "Runs with a collision",
+            "collided %",
+            &|s| point(0.0, s.collision_pct(), s.collision_ci()),
+            Some((0.0, 105.0)),
+        ),
+        panel(
+            "Red lights",
+            "red lights per run",
+            &|s| point(0.0, s.red.0, s.red_ci),
+            None,
+        ),
+    ]
+}
+
 /// Beyond the paper: success, collisions and red lights against worst-case latency.
 fn frontier(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String, PaperError> {
     let mut lines: Vec<(String, Vec<(f64, Stats)>)> = Vec::new();
@@ -967,47 +1019,14 @@ fn frontier(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<Stri
                 s.n.to_string(),
                 rate_cell(s.success, s.n),
                 rate_cell(s.collided, s.n),
-                format!("{:.2} [{:.2}, {:.2}]", s.red.0, s.red_ci.0, s.red_ci.1),
+                mean_ci_cell(s.red, s.red_ci, s.n),
             ]);
         }
     }
-    let series = |f: &dyn Fn(&Stats) -> Point| -> Vec<Series> {
-        lines
-            .iter()
-            .map(|(label, pts)| Series {
-                label: label.clone(),
-                points: pts.iter().map(|(l, s)| Point { x: *l, ..f(s) }).collect(),
-                dashed: label.contains("switcher"),
-            })
-            .collect()
-    };
-    let x_label = "worst-case latency (ms)".to_string();
     w.cells("frontier.csv", &cells)?;
     w.plot(
         "frontier",
-        &[
-            Panel {
-                title: "Success".into(),
-                x_label: x_label.clone(),
-                y_label: "success %".into(),
-                series: series(&|s| point(0.0, s.success_pct(), s.success_ci())),
-                y_range: Some((0.0, 105.0)),
-            },
-            Panel {
-                title: "Runs with a collision".into(),
-                x_label: x_label.clone(),
-                y_label: "collided %".into(),
-                series: series(&|s| point(0.0, s.collision_pct(), s.collision_ci())),
-                y_range: Some((0.0, 105.0)),
-            },
-            Panel {
-                title: "Red lights".into(),
-                x_label,
-                y_label: "red lights per run".into(),
-                series: series(&|s| point(0.0, s.red.0, s.red_ci)),
-                y_range: None,
-            },
-        ],
+        &safety_panels(&lines, "worst-case latency (ms)"),
         1500,
         480,
     )?;
@@ -1083,7 +1102,7 @@ fn jitter(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String
                 s.n.to_string(),
                 rate_cell(s.success, s.n),
                 rate_cell(s.collided, s.n),
-                format!("{:.2} [{:.2}, {:.2}]", s.red.0, s.red_ci.0, s.red_ci.1),
+                mean_ci_cell(s.red, s.red_ci, s.n),
                 mean_sd_cell(s.lane, s.n),
                 if s.n == 0 {
                     "–".into()
@@ -1096,43 +1115,10 @@ fn jitter(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String
             }
         }
     }
-    let series = |f: &dyn Fn(&Stats) -> Point| -> Vec<Series> {
-        lines
-            .iter()
-            .map(|(label, pts)| Series {
-                label: label.clone(),
-                points: pts.iter().map(|(j, s)| Point { x: *j, ..f(s) }).collect(),
-                dashed: label.contains("switcher"),
-            })
-            .collect()
-    };
-    let x_label = "latency jitter sigma (log-normal)".to_string();
     w.cells("jitter.csv", &cells)?;
     w.plot(
         "jitter",
-        &[
-            Panel {
-                title: "Success".into(),
-                x_label: x_label.clone(),
-                y_label: "success %".into(),
-                series: series(&|s| point(0.0, s.success_pct(), s.success_ci())),
-                y_range: Some((0.0, 105.0)),
-            },
-            Panel {
-                title: "Runs with a collision".into(),
-                x_label: x_label.clone(),
-                y_label: "collided %".into(),
-                series: series(&|s| point(0.0, s.collision_pct(), s.collision_ci())),
-                y_range: Some((0.0, 105.0)),
-            },
-            Panel {
-                title: "Red lights".into(),
-                x_label,
-                y_label: "red lights per run".into(),
-                series: series(&|s| point(0.0, s.red.0, s.red_ci)),
-                y_range: None,
-            },
-        ],
+        &safety_panels(&lines, "latency jitter sigma (log-normal)"),
         1500,
         480,
     )?;

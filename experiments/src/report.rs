@@ -153,6 +153,15 @@ pub fn mean_sd_cell((m, sd): (f64, f64), n: usize) -> String {
     }
 }
 
+/// "0.42 [0.17, 0.67]": a per-run mean with its interval, or "–" without runs.
+pub fn mean_ci_cell((m, _): (f64, f64), (lo, hi): (f64, f64), n: usize) -> String {
+    if n == 0 {
+        "–".into()
+    } else {
+        format!("{m:.2} [{lo:.2}, {hi:.2}]")
+    }
+}
+
 /// Configuration `b` against `a` on the runs they share (route, density, seed).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Comparison {
