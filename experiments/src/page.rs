@@ -750,17 +750,25 @@ fn fig5(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String, 
     // Where does each policy fall off? The first D with success below half.
     let mut cliff = Vec::new();
     for c in configs.iter().filter(|c| c.unit.driver != Driver::Expert) {
-        let first = cfg.delays_ms.iter().find(|&&d| {
-            let s = at(c, d).stats(cfg, results, None);
-            s.n > 0 && s.success_pct() < 50.0
-        });
+        let run: Vec<(f64, Stats)> = cfg
+            .delays_ms
+            .iter()
+            .map(|&d| (d, at(c, d).stats(cfg, results, None)))
+            .filter(|(_, s)| s.n > 0)
+            .collect();
+        let first = run.iter().find(|(_, s)| s.success_pct() < 50.0);
+        let ran: Vec<String> = run.iter().map(|(d, _)| d.to_string()).collect();
         cliff.push(format!(
             "{}: {}",
             c.label,
-            first.map_or(
-                "never below 50 % success in the delays run".to_string(),
-                |d| format!("success first below 50 % at D = {d} ms")
-            )
+            match first {
+                Some((d, _)) => format!("success first below 50 % at D = {d} ms"),
+                None if run.is_empty() => "no runs yet".to_string(),
+                None => format!(
+                    "not below 50 % at the delays run so far ({} ms)",
+                    ran.join(", ")
+                ),
+            }
         ));
     }
     Ok(format!(
