@@ -28,6 +28,7 @@ fn the_quick_paper_writes_every_table_and_figure_and_resumes() {
     let docs = out.clone();
     let page = std::fs::read_to_string(docs.join("README.md")).unwrap();
     for section in [
+        "## The paper's shapes, checked",
         "## Table I",
         "## Table II",
         "## Fig. 3",

@@ -1321,3 +1321,74 @@ fn jitter(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String
         t.markdown()
     ))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::report::tests::run;
+    use crate::results::UnitRuns;
+
+    /// Results where every compared policy succeeds in `ok(D)` of 4 runs
+    /// at each delay (the others collide), at both of its scales.
+    fn results(cfg: &PaperConfig, ok: impl Fn(f64) -> usize) -> Results {
+        let mut r = Results::default();
+        for driver in [Driver::NraLow, Driver::NraHigh, Driver::Ra] {
+            for &d in &cfg.delays_ms {
+                let unit = Unit::fixed(driver, d);
+                let mut runs = Vec::new();
+                for scale in driver.scales(cfg) {
+                    for seed in 0..4 {
+                        let good = (seed as usize) < ok(d);
+                        let mut x = run("a", seed, good, u32::from(!good), 0, 0, 0.0);
+                        x.spec.scale = scale;
+                        runs.push(x);
+                    }
+                }
+                r.units.insert(
+                    unit.id(cfg),
+                    UnitRuns {
+                        planned: runs.len(),
+                        runs,
+                    },
+                );
+            }
+        }
+        r
+    }
+
+    fn verdict_of(page: &str, claim: &str) -> String {
+        let line = page
+            .lines()
+            .find(|l| l.starts_with(&format!("| {claim}")))
+            .unwrap_or_else(|| panic!("no {claim:?} row in:\n{page}"));
+        line.rsplit('|').nth(1).unwrap().trim().to_string()
+    }
+
+    #[test]
+    fn the_shapes_are_judged_by_their_stated_rules() {
+        let cfg = PaperConfig::full();
+        let cliff = "a cliff near 150 ms";
+        // All succeed up to 100 ms, one in four from 150 ms: the paper's cliff.
+        let page = shapes(&cfg, &results(&cfg, |d| if d <= 100.0 { 4 } else { 1 }));
+        assert_eq!(verdict_of(&page, cliff), "agrees");
+        // Same models at both scales, so RA and NRA pair run for run.
+        assert_eq!(verdict_of(&page, "RA performs like NRA"), "agrees");
+        // No red lights at either scale: not more at 0.75x.
+        assert_eq!(
+            verdict_of(&page, "0.75x runs more red lights"),
+            "does not agree"
+        );
+        // Nothing for the switchers yet.
+        assert_eq!(
+            verdict_of(&page, "the switcher beats"),
+            "not enough runs yet"
+        );
+        // Success holds at 150 ms: no cliff there.
+        let page = shapes(&cfg, &results(&cfg, |d| if d <= 150.0 { 4 } else { 1 }));
+        assert_eq!(verdict_of(&page, cliff), "does not agree");
+        // A delay without runs leaves it open.
+        let mut r = results(&cfg, |_| 4);
+        r.units.remove(&Unit::fixed(Driver::Ra, 200.0).id(&cfg));
+        assert_eq!(verdict_of(&shapes(&cfg, &r), cliff), "not enough runs yet");
+    }
+}

@@ -356,7 +356,7 @@ impl Cells {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use std::collections::BTreeMap;
 
     use sim::monitors::InfractionKind;
