@@ -68,6 +68,30 @@ fn the_quick_paper_writes_every_table_and_figure_and_resumes() {
         std::fs::read_to_string(docs.join("README.md")).unwrap(),
         page
     );
+    // Runs from another renderer are not mixed in: a record "made" on GL is refused.
+    let one = std::fs::read_dir(out.join("sweeps/ra-d000/runs"))
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    let text = std::fs::read_to_string(&one).unwrap();
+    let backend = text
+        .lines()
+        .find(|l| l.contains("\"render_backend\""))
+        .unwrap()
+        .to_string();
+    std::fs::write(
+        &one,
+        text.replace(&backend, "      \"render_backend\": \"Gl elsewhere\""),
+    )
+    .unwrap();
+    let mixed = common::run(&["paper", "--quick", "--out", out_s]);
+    let err = String::from_utf8_lossy(&mixed.stderr);
+    assert!(
+        !mixed.status.success() && err.contains("rendered by `Gl elsewhere`"),
+        "{err}"
+    );
     // A name that is not an experiment is refused with the list.
     let bad = common::run(&["paper", "--quick", "--out", out_s, "--only", "fig9"]);
     let err = String::from_utf8_lossy(&bad.stderr);

@@ -74,6 +74,24 @@ pub enum PaperError {
         /// What failed.
         problem: String,
     },
+    /// This machine renders with another backend than the runs already in the folder.
+    #[error(
+        "{out}: its runs were rendered by `{existing}`, but this machine renders with `{here}`; \
+         software rasterisers differ pixel by pixel, so the tables would mix two simulators. \
+         Install the same driver (`cargo xtask setup` installs Mesa's Vulkan, lavapipe) or \
+         write to another --out"
+    )]
+    Backend {
+        /// The output folder.
+        out: PathBuf,
+        /// The backend of its runs.
+        existing: String,
+        /// This machine's.
+        here: String,
+    },
+    /// No renderer for the policy runs.
+    #[error("the policy runs need the camera: {0}")]
+    Gpu(#[from] sim::render::gpu::GpuError),
     /// A CSV table could not be written.
     #[error("CSV: {0}")]
     Csv(#[from] csv::Error),

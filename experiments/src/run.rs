@@ -95,6 +95,7 @@ pub fn run_paper(
     std::fs::create_dir_all(&opts.out).map_err(|e| PaperError::io("create", &opts.out, e))?;
     let units = units_of(&opts.experiments, cfg);
     if !opts.report_only {
+        same_backend(cfg, opts, &units)?;
         let mut clock = WallClock::start();
         let mut plans = Vec::new();
         for u in &units {
@@ -136,6 +137,42 @@ pub fn run_paper(
     }
     outcome.written = report(cfg, opts)?;
     Ok(outcome)
+}
+
+/// Refuses to add policy runs to a folder holding runs rendered by any
+/// other backend than this machine's (a machine without Vulkan falls back to
+/// GL, whose pictures differ).
+fn same_backend(
+    cfg: &PaperConfig,
+    opts: &RunOptions,
+    units: &[crate::Unit],
+) -> Result<(), PaperError> {
+    if units.iter().all(|u| u.driver == crate::Driver::Expert) {
+        return Ok(());
+    }
+    let existing: std::collections::BTreeSet<String> =
+        Results::load(cfg, &opts.out, &units_of(&Experiment::ALL, cfg))?
+            .units
+            .values()
+            .flat_map(|u| {
+                u.runs
+                    .iter()
+                    .map(|r| r.record.result.provenance.render_backend.clone())
+            })
+            .filter(|b| b != "none")
+            .collect();
+    if existing.is_empty() {
+        return Ok(());
+    }
+    let here = sim::render::gpu::Gpu::new()?.describe();
+    match existing.into_iter().find(|b| *b != here) {
+        None => Ok(()),
+        Some(other) => Err(PaperError::Backend {
+            out: opts.out.clone(),
+            existing: other,
+            here,
+        }),
+    }
 }
 
 /// Adds the wall time of a paper invocation to `OUT/wall.json` as it goes:
