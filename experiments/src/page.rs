@@ -210,25 +210,8 @@ impl Writer {
 
 fn header(cfg: &PaperConfig, opts: &RunOptions, results: &Results) -> String {
     let wall = WallLog::read(&opts.out);
-    let builds: std::collections::BTreeSet<String> = results
-        .units
-        .values()
-        .flat_map(|u| {
-            u.runs
-                .iter()
-                .map(|r| r.record.result.provenance.build.clone())
-        })
-        .collect();
-    let backends: std::collections::BTreeSet<String> = results
-        .units
-        .values()
-        .flat_map(|u| {
-            u.runs
-                .iter()
-                .map(|r| r.record.result.provenance.render_backend.clone())
-        })
-        .filter(|b| b != "none")
-        .collect();
+    let builds = results.provenance(|p| &p.build);
+    let backends = results.backends();
     let mut s = format!(
         "# The paper's evidence, regenerated\n\n\
          Made by `cargo xtask paper{}` (`mrdrive paper`), the {} configuration: {} routes \

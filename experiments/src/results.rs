@@ -117,6 +117,29 @@ impl Results {
             .unwrap_or_default()
     }
 
+    /// The distinct values of a provenance field over every finished run.
+    pub fn provenance(
+        &self,
+        field: impl Fn(&sim::record::Provenance) -> &String,
+    ) -> std::collections::BTreeSet<String> {
+        self.units
+            .values()
+            .flat_map(|u| {
+                u.runs
+                    .iter()
+                    .map(|r| field(&r.record.result.provenance).clone())
+            })
+            .collect()
+    }
+
+    /// The render backends of the finished runs that rendered (the expert's
+    /// "none" left out).
+    pub fn backends(&self) -> std::collections::BTreeSet<String> {
+        let mut b = self.provenance(|p| &p.render_backend);
+        b.remove("none");
+        b
+    }
+
     /// (finished, planned) runs over `units`.
     pub fn progress(&self, cfg: &PaperConfig, units: &[Unit]) -> (usize, usize) {
         units

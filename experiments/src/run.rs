@@ -150,17 +150,7 @@ fn same_backend(
     if units.iter().all(|u| u.driver == crate::Driver::Expert) {
         return Ok(());
     }
-    let existing: std::collections::BTreeSet<String> =
-        Results::load(cfg, &opts.out, &units_of(&Experiment::ALL, cfg))?
-            .units
-            .values()
-            .flat_map(|u| {
-                u.runs
-                    .iter()
-                    .map(|r| r.record.result.provenance.render_backend.clone())
-            })
-            .filter(|b| b != "none")
-            .collect();
+    let existing = Results::load(cfg, &opts.out, &units_of(&Experiment::ALL, cfg))?.backends();
     if existing.is_empty() {
         return Ok(());
     }

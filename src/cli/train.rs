@@ -212,7 +212,18 @@ pub fn run_train(args: TrainArgs) -> Result<()> {
     );
     let losses = run_dir.join(LOSSES_FILE);
     let png = run_dir.join("losses.png");
+    let mut first = true;
     let outcome = run_stage(&spec, &run_dir, &dev, |u| {
+        if std::mem::take(&mut first) {
+            for s in u.skipped {
+                let line = format!("warning: training without {}: {}", s.path.display(), s.why);
+                if bar.is_hidden() {
+                    eprintln!("{line}");
+                } else {
+                    bar.println(line);
+                }
+            }
+        }
         bar.set_position(u.report.step as u64 + 1);
         let losses_now = format!(
             "loss {:.4} (act {:.4} seg {:.3} kd {:.4} feat {:.4}), {:.1} samples/s",

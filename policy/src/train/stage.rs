@@ -202,6 +202,9 @@ pub struct StepUpdate<'a> {
     pub samples_per_s: f64,
     /// Whether the state was just checkpointed.
     pub checkpointed: bool,
+    /// The dataset's episodes left out because their files are unreadable
+    /// (the same list at every step: say it once).
+    pub skipped: &'a [crate::train::loader::Skipped],
 }
 
 /// How a stage ended.
@@ -456,6 +459,7 @@ pub fn run_stage(
             steps: spec.steps,
             samples_per_s,
             checkpointed: last || due,
+            skipped: &set.skipped,
         });
     }
     drop(loader);
