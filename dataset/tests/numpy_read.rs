@@ -4,9 +4,9 @@
 //!
 //! Needs a Python with `safetensors` and `numpy`: `MRDRIVE_PYTHON` names it,
 //! else `<workspace>/.venv/bin/python`, else `python3`. Without one the test
-//! prints "SKIPPED" and passes, unless `MRDRIVE_REQUIRE_PYTHON=1`.
+//! skips through `world::testdata::skip` (counted by `cargo xtask test`),
+//! unless `MRDRIVE_REQUIRE_PYTHON=1`.
 
-use std::io::Write;
 use std::path::Path;
 use std::process::Command;
 
@@ -26,11 +26,11 @@ fn f32s(v: &Value) -> Vec<f32> {
 #[test]
 fn numpy_reads_a_shard_and_its_labels_as_written() {
     let Some(py) = world::testdata::python_with("safetensors.numpy, numpy") else {
-        let msg = "SKIPPED: no Python with `safetensors` and `numpy` (set MRDRIVE_PYTHON or create .venv)";
-        if std::env::var("MRDRIVE_REQUIRE_PYTHON").is_ok_and(|v| v == "1") {
-            panic!("{msg}, and MRDRIVE_REQUIRE_PYTHON=1");
-        }
-        let _ = writeln!(std::io::stderr(), "{msg}");
+        world::testdata::skip(
+            "numpy_reads_a_shard_and_its_labels_as_written",
+            world::testdata::Needs::Python,
+            "no Python with `safetensors` and `numpy` (set MRDRIVE_PYTHON or create .venv)",
+        );
         return;
     };
     let dir = tempfile::tempdir().unwrap();
