@@ -193,13 +193,41 @@ fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &Panel) -> R
     }
     chart
         .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
+        .position(legend_corner(p, (x0, x1), (y0, y1)))
         .label_font(("sans-serif", 13))
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
         .draw()
         .map_err(e)?;
     Ok(())
+}
+
+/// The corner of the plot with the fewest points (and error-bar ends) near
+/// it, for the legend; upper left on a tie.
+fn legend_corner(p: &Panel, (x0, x1): (f64, f64), (y0, y1): (f64, f64)) -> SeriesLabelPosition {
+    let near = |left: bool, top: bool| -> usize {
+        let (w, h) = ((x1 - x0).max(1e-9), (y1 - y0).max(1e-9));
+        p.series
+            .iter()
+            .flat_map(|s| s.points.iter())
+            .flat_map(|q| [(q.x, q.y), (q.x, q.lo), (q.x, q.hi)])
+            .filter(|&(x, y)| {
+                let fx = (x - x0) / w;
+                let fy = (y - y0) / h;
+                (if left { fx < 0.45 } else { fx > 0.55 })
+                    && (if top { fy > 0.6 } else { fy < 0.4 })
+            })
+            .count()
+    };
+    [
+        (SeriesLabelPosition::UpperLeft, near(true, true)),
+        (SeriesLabelPosition::UpperRight, near(false, true)),
+        (SeriesLabelPosition::LowerLeft, near(true, false)),
+        (SeriesLabelPosition::LowerRight, near(false, false)),
+    ]
+    .into_iter()
+    .min_by_key(|(_, n)| *n)
+    .map_or(SeriesLabelPosition::UpperLeft, |(c, _)| c)
 }
 
 #[cfg(test)]
