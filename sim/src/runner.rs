@@ -394,6 +394,134 @@ impl World {
     }
 }
 
+/// One tick as a control boundary sees it.
+struct Now<'t> {
+    /// The tick.
+    tick: u64,
+    /// The world before the step.
+    world: &'t World,
+    /// The ego's snapshot.
+    ego: &'t ActorSnapshot,
+    /// Every actor's snapshot, the ego first.
+    actors: &'t [ActorSnapshot],
+    /// The ego's index on the dense route.
+    route_index: usize,
+}
+
+/// Step 1 of the tick (PROTOCOL §1): at a control boundary the selector picks
+/// the scale (and with it the latency in force), the camera renders the
+/// observation, the driver acts and its control enters the delay line. Holds
+/// what every boundary of a run reads, and the buffers it reuses.
+struct Boundary<'r> {
+    scenario: &'r Scenario,
+    town: &'r Town,
+    route: &'r DenseRoute,
+    stops: &'r RouteStops,
+    vehicle: &'r world::agents::VehicleParams,
+    needs: crate::driver::DriverNeeds,
+    /// The class image of a driver that asks for it.
+    labels_image: RgbImage,
+    /// The route ahead of the ego, for the privileged "actor ahead".
+    ahead_path: Vec<Vec2>,
+}
+
+impl Boundary<'_> {
+    /// Runs the boundary at `now`; returns the control computed (it lands
+    /// after the latency in force) and adds the driver's time to `driver_s`.
+    fn act(
+        &mut self,
+        now: &Now<'_>,
+        selector: &mut dyn ResolutionSelector,
+        camera: Option<&mut TimedCamera<'_>>,
+        driver: &mut dyn Driver,
+        controls: &mut Controls,
+        driver_s: &mut f64,
+    ) -> Result<VehicleControl, RunError> {
+        let input = selector_input(self.route, now.route_index, now.ego, self.stops);
+        let new_scale = f64::from(selector.select(&input));
+        controls.retime(self.scenario, new_scale);
+        let scale = controls.scale;
+        *controls.scale_counts.entry(scale.to_bits()).or_default() += 1;
+        let mut labelled = false;
+        let image = match camera {
+            Some(cam) if self.needs.camera => {
+                let frame = CameraFrame {
+                    ego: now.ego,
+                    actors: now.actors,
+                    lights: &now.world.light_states,
+                };
+                // Borrowed from the camera until the driver has acted: no copy.
+                let with_labels = self
+                    .needs
+                    .labels
+                    .then(|| cam.render_labelled(&frame, scale, &mut self.labels_image))
+                    .flatten();
+                match with_labels {
+                    Some(rendered) => {
+                        labelled = true;
+                        Some(rendered.map_err(RunError::Camera)?)
+                    }
+                    None => Some(cam.render(&frame, scale).map_err(RunError::Camera)?),
+                }
+            }
+            _ => None,
+        };
+        let ahead: Option<Ahead> = self
+            .needs
+            .privileged
+            .then(|| {
+                route_ahead(
+                    self.route,
+                    now.route_index,
+                    now.ego.position.truncate(),
+                    AHEAD_RANGE_M,
+                    &mut self.ahead_path,
+                );
+                now.world.traffic.nearest_ahead_of_ego(
+                    &self.ahead_path,
+                    AHEAD_CORRIDOR_M,
+                    AHEAD_RANGE_M,
+                )
+            })
+            .flatten();
+        let privileged = Privileged {
+            town: self.town,
+            route: self.route,
+            route_index: now.route_index,
+            ego: *now.ego,
+            lights: &now.world.light_states,
+            stops: self.stops,
+            ahead,
+            vehicle: self.vehicle,
+        };
+        let obs = Observation {
+            time_s: now.tick as f64 * self.scenario.timing.tick_s,
+            speed_mps: now.ego.speed_mps,
+            command: self.route.command_ahead(now.route_index, 0.0),
+            scale: scale as f32,
+            image,
+            labels: labelled.then_some(&self.labels_image),
+            privileged: self.needs.privileged.then_some(&privileged),
+        };
+        let started = Instant::now();
+        let control = driver.act(&obs);
+        let compute_s = started.elapsed().as_secs_f64();
+        *driver_s += compute_s;
+        if self.scenario.timing.latency == LatencyModel::Measured {
+            // The control lands after the time it really took (at least D).
+            let l = self.scenario.timing.delay_ms.max(compute_s * 1000.0);
+            let t = DelayTiming::from_period_and_latency(
+                self.scenario.timing.control_period_ms,
+                l,
+                self.scenario.timing.tick_s,
+            );
+            controls.set_latency(t, l);
+        }
+        controls.delay.submit(now.tick, control);
+        Ok(control)
+    }
+}
+
 /// Drives one scenario; returns its record.
 ///
 /// Each tick reads as DESIGN.md's data flow: at a control boundary the
@@ -450,9 +578,16 @@ pub fn run(
     let mut infractions: Vec<Infraction> = Vec::new();
     let mut new_infractions: Vec<Infraction> = Vec::new();
     let mut snapshots: Vec<ActorSnapshot> = Vec::new();
-    let mut ahead_path: Vec<Vec2> = Vec::with_capacity(64);
-    // The class image of a driver that asks for it, reused at every boundary.
-    let mut labels_image = RgbImage::default();
+    let mut boundary = Boundary {
+        scenario,
+        town: &town,
+        route,
+        stops: &stops,
+        vehicle: &vehicle,
+        needs,
+        labels_image: RgbImage::default(),
+        ahead_path: Vec::with_capacity(64),
+    };
     let mut contacts: Vec<EgoContact> = Vec::new();
     let max_ticks = max_ticks
         .unwrap_or(u64::MAX)
@@ -468,87 +603,25 @@ pub fn run(
         let route_index = monitors.route.index();
 
         // 1. A control boundary: the scale, the observation, the control.
-        let mut computed = None;
-        if controls.delay.is_boundary(tick) {
-            let input = selector_input(route, route_index, &ego, &stops);
-            let new_scale = f64::from(selector.select(&input));
-            controls.retime(scenario, new_scale);
-            let scale = controls.scale;
-            *controls.scale_counts.entry(scale.to_bits()).or_default() += 1;
-            let mut labelled = false;
-            let image = match camera.as_mut() {
-                Some(cam) if needs.camera => {
-                    let frame = CameraFrame {
-                        ego: &ego,
-                        actors: &snapshots,
-                        lights: &world.light_states,
-                    };
-                    // Borrowed from the camera until the driver has acted: no copy.
-                    let with_labels = needs
-                        .labels
-                        .then(|| cam.render_labelled(&frame, scale, &mut labels_image))
-                        .flatten();
-                    match with_labels {
-                        Some(rendered) => {
-                            labelled = true;
-                            Some(rendered.map_err(RunError::Camera)?)
-                        }
-                        None => Some(cam.render(&frame, scale).map_err(RunError::Camera)?),
-                    }
-                }
-                _ => None,
-            };
-            let ahead: Option<Ahead> = needs
-                .privileged
-                .then(|| {
-                    route_ahead(
-                        route,
-                        route_index,
-                        ego.position.truncate(),
-                        AHEAD_RANGE_M,
-                        &mut ahead_path,
-                    );
-                    world
-                        .traffic
-                        .nearest_ahead_of_ego(&ahead_path, AHEAD_CORRIDOR_M, AHEAD_RANGE_M)
-                })
-                .flatten();
-            let privileged = Privileged {
-                town: &town,
-                route,
+        let computed = if controls.delay.is_boundary(tick) {
+            let now = Now {
+                tick,
+                world: &world,
+                ego: &ego,
+                actors: &snapshots,
                 route_index,
-                ego,
-                lights: &world.light_states,
-                stops: &stops,
-                ahead,
-                vehicle: &vehicle,
             };
-            let obs = Observation {
-                time_s: tick as f64 * tick_s,
-                speed_mps: ego.speed_mps,
-                command: route.command_ahead(route_index, 0.0),
-                scale: scale as f32,
-                image,
-                labels: labelled.then_some(&labels_image),
-                privileged: needs.privileged.then_some(&privileged),
-            };
-            let started = Instant::now();
-            let control = driver.act(&obs);
-            let compute_s = started.elapsed().as_secs_f64();
-            perf.driver_s += compute_s;
-            if scenario.timing.latency == LatencyModel::Measured {
-                // The control lands after the time it really took (at least D).
-                let l = scenario.timing.delay_ms.max(compute_s * 1000.0);
-                let t = DelayTiming::from_period_and_latency(
-                    scenario.timing.control_period_ms,
-                    l,
-                    tick_s,
-                );
-                controls.set_latency(t, l);
-            }
-            controls.delay.submit(tick, control);
-            computed = Some(control);
-        }
+            Some(boundary.act(
+                &now,
+                &mut *selector,
+                camera.as_mut(),
+                &mut *driver,
+                &mut controls,
+                &mut perf.driver_s,
+            )?)
+        } else {
+            None
+        };
 
         // 2. The control in force for this step drives the ego.
         let control: VehicleControl = controls.delay.control_for_step(tick);
