@@ -129,17 +129,13 @@ impl Experiment {
             Experiment::Jitter => {
                 let mut u = Vec::new();
                 if let Some(e) = cfg.envelopes.first() {
-                    u.extend(Experiment::Table3.units(cfg).into_iter().filter(|x| {
-                        x.selection
-                            == crate::units::Selection::Fixed {
-                                delay_ms: e.low_ms,
-                            }
-                            || x.selection
-                                == crate::units::Selection::Fixed {
-                                    delay_ms: e.high_ms,
-                                }
-                            || matches!(x.selection, crate::units::Selection::Switch { envelope, .. } if envelope == *e)
-                    }));
+                    // Sigma 0 is Table III's own rows for this envelope.
+                    u.extend([
+                        Unit::fixed(Driver::Ra, e.low_ms),
+                        Unit::fixed(Driver::Ra, e.high_ms),
+                        Unit::switch(SelectorKind::Oracle, *e),
+                        Unit::switch(SelectorKind::Lookahead, *e),
+                    ]);
                     for &j in &cfg.jitters {
                         for s in [
                             SelectorKind::Fixed,

@@ -172,3 +172,28 @@ fn another_configuration_is_refused_by_name_and_a_retarget_trains_from_the_teach
         "{e}"
     );
 }
+
+#[test]
+fn a_stage_says_which_episodes_it_trains_without() {
+    let _seeded = SEEDED.lock().unwrap_or_else(|e| e.into_inner());
+    let data = tiny_data();
+    let index = dataset::format::Index::load(data.path()).unwrap();
+    let shard = data.path().join(&index.episodes[0].shard);
+    let bytes = std::fs::read(&shard).unwrap();
+    std::fs::write(&shard, &bytes[..bytes.len() - 100]).unwrap();
+    let spec = StageSpec {
+        steps: 2,
+        ..tiny_original(data.path())
+    };
+    let run = tempfile::tempdir().unwrap();
+    let mut reported = Vec::new();
+    run_stage(&spec, run.path(), &Device::flex().autodiff(), |u| {
+        reported.push(u.skipped.iter().map(|s| s.path.clone()).collect::<Vec<_>>());
+    })
+    .unwrap();
+    assert_eq!(reported.len(), 2);
+    assert!(
+        reported.iter().all(|r| r == &vec![shard.clone()]),
+        "{reported:?}"
+    );
+}
