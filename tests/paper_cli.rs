@@ -18,9 +18,10 @@ fn the_quick_paper_writes_every_table_and_figure_and_resumes() {
     let out_s = out.to_str().unwrap();
     let first = run_ok(&["paper", "--quick", "--out", out_s]);
     // 2 densities x 1 seed on one route: the expert and the three compared
-    // policies at 3 delays (RA at 2 scales), the Original at D = 0, 2 switchers,
-    // and under jitter the 2 fixed scales and 2 switchers.
-    let planned = 2 * (3 + 3 + 3 + 3 * 2 + 1 + 2 + 4);
+    // policies at 3 delays (RA at 2 scales), the Original at D = 0, 3 switchers
+    // (oracle, lookahead, the learned trigger), and under jitter the 2 fixed
+    // scales and 2 switchers.
+    let planned = 2 * (3 + 3 + 3 + 3 * 2 + 1 + 3 + 4);
     assert!(
         first.contains(&format!("{planned} runs finished now, 0 failed")),
         "{first}"
@@ -37,6 +38,7 @@ fn the_quick_paper_writes_every_table_and_figure_and_resumes() {
         "## Table III",
         "## Beyond the paper: the latency/safety frontier",
         "| table2 | 12 / 12 |",
+        "RA learned switcher (50/100 ms) | 2 |",
         "## Beyond the paper: latency jitter",
     ] {
         assert!(page.contains(section), "no {section:?} in:\n{page}");

@@ -86,6 +86,7 @@ fn the_python_environment_passes_its_tests_and_drives_like_rust() {
             kind: DriverKind::External,
             checkpoint: None,
             device: None,
+            trigger: None,
         }),
         ..Default::default()
     };

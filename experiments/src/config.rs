@@ -3,6 +3,7 @@
 //! protocol with three seeds; [`PaperConfig::quick`] is a smoke test of every
 //! table and figure in a couple of minutes.
 
+use sim::scenario::SelectorKind;
 use std::path::{Path, PathBuf};
 
 /// One evaluation route: a scenario file and the town and route it drives.
@@ -27,6 +28,9 @@ pub struct Models {
     pub nra_high: PathBuf,
     /// The multi-resolution network with a BN branch per scale.
     pub ra: PathBuf,
+    /// The RA network's learned trigger (`mrdrive policy trigger`), for
+    /// the `learned` selector's rows; `None` leaves them out.
+    pub trigger: Option<PathBuf>,
 }
 
 /// A latency envelope of Table III: the high scale runs at `high_ms`, the
@@ -116,6 +120,7 @@ impl PaperConfig {
                 nra_low: model("nra-0.75"),
                 nra_high: model("nra-1.0"),
                 ra: model("ra"),
+                trigger: Some(PathBuf::from("models/ra.trigger.json")),
             },
             jitters: vec![0.25, 0.5],
             resets: 10,
@@ -139,6 +144,16 @@ impl PaperConfig {
             timeout_s: Some(8.0),
             ..full
         }
+    }
+
+    /// The switchers of Table III and the frontier: the paper's oracle, the
+    /// map lookahead and, with a trigger, the learned one.
+    pub fn selectors(&self) -> Vec<SelectorKind> {
+        let mut s = vec![SelectorKind::Oracle, SelectorKind::Lookahead];
+        if self.models.trigger.is_some() {
+            s.push(SelectorKind::Learned);
+        }
+        s
     }
 
     /// The towns in route order, each once.

@@ -112,7 +112,7 @@ impl Experiment {
                     }
                 }
                 for e in &cfg.envelopes {
-                    for s in [SelectorKind::Oracle, SelectorKind::Lookahead] {
+                    for s in cfg.selectors() {
                         u.push(Unit::switch(s, *e));
                     }
                 }
@@ -211,14 +211,20 @@ mod tests {
                 "ra-d150",
                 "ra-oracle-100-50",
                 "ra-lookahead-100-50",
+                "ra-learned-100-50",
                 "ra-oracle-150-100",
-                "ra-lookahead-150-100"
+                "ra-lookahead-150-100",
+                "ra-learned-150-100"
             ]
         );
         let all = units_of(&Experiment::ALL, &cfg);
-        // 5 at D = 0, 3 policies x 4 more delays, the expert at 4 more, 4 switchers,
+        // 5 at D = 0, 3 policies x 4 more delays, the expert at 4 more, 6 switchers,
         // 2 jitters x (fixed, oracle, lookahead).
-        assert_eq!(all.len(), 5 + 12 + 4 + 4 + 6);
+        assert_eq!(all.len(), 5 + 12 + 4 + 6 + 6);
+        // Without a trigger the learned rows are left out.
+        let mut bare = cfg.clone();
+        bare.models.trigger = None;
+        assert_eq!(Experiment::Table3.units(&bare).len(), 7);
         assert_eq!(
             ids(Experiment::Jitter.units(&cfg))[3..],
             [

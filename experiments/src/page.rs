@@ -991,16 +991,23 @@ fn table3(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String
         };
         let oracle = switch(SelectorKind::Oracle);
         let lookahead = switch(SelectorKind::Lookahead);
+        let learned = cfg
+            .selectors()
+            .contains(&SelectorKind::Learned)
+            .then(|| switch(SelectorKind::Learned));
         let theirs = paper::TABLE3
             .iter()
             .find(|(env, _)| *env == (e.high_ms, e.low_ms))
             .map(|(_, v)| v);
-        let rows = [
+        let mut rows = vec![
             (&fixed_low, theirs.map(|v| v[0])),
             (&oracle, theirs.map(|v| v[1])),
             (&lookahead, None),
-            (&fixed_high, theirs.map(|v| v[2])),
         ];
+        if let Some(l) = &learned {
+            rows.push((l, None));
+        }
+        rows.push((&fixed_high, theirs.map(|v| v[2])));
         let mut stats = Vec::new();
         for (c, paper_row) in rows {
             let s = c.stats(cfg, results, None);
@@ -1040,11 +1047,15 @@ fn table3(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String
             stats.push(s);
         }
         let runs = |c: &Config| c.runs(cfg, results, None);
-        for (a, b) in [
+        let mut pairs = vec![
             (&fixed_low, &oracle),
             (&fixed_high, &oracle),
             (&oracle, &lookahead),
-        ] {
+        ];
+        if let Some(l) = &learned {
+            pairs.push((&oracle, l));
+        }
+        for (a, b) in pairs {
             let c = Comparison::of(&runs(a), &runs(b));
             paired_t.push(vec![
                 e.label(),
@@ -1055,7 +1066,7 @@ fn table3(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String
                 paired_cell(&c.lane),
             ]);
         }
-        let (lo, or, hi) = (&stats[0], &stats[1], &stats[3]);
+        let (lo, or, hi) = (&stats[0], &stats[1], &stats[stats.len() - 1]);
         if lo.n > 0 && or.n > 0 && hi.n > 0 {
             let beats_low = or.red_total < lo.red_total
                 && or.collided <= lo.collided
@@ -1087,7 +1098,8 @@ fn table3(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String
         "## Table III: scale switching against fixed scales under the same worst-case latency\n\n\
          The paper's oracle (0.75x by default, 1.0x within 5 m of a light's stop line, back beyond 15 m) \
          and, past the paper, the map-lookahead selector (switches up at a distance derived from speed \
-         and latency, before the light). Fixed rows are the RA model at one scale with D = its latency.\n\n{}\n\
+         and latency, before the light) and the learned trigger (a logistic head on the RA network's \
+         pooled feature, fit to where its two branches disagree most; no map; `mrdrive policy trigger`). Fixed rows are the RA model at one scale with D = its latency.\n\n{}\n\
          Paired over the same route, density and seed:\n\n{}\n{}\n\nFiles: `table3.csv`.\n",
         t.markdown(),
         paired_t.markdown(),
@@ -1157,7 +1169,7 @@ fn frontier(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<Stri
             .collect();
         lines.push((format!("RA fixed {}", x(scale)), pts));
     }
-    for s in [SelectorKind::Oracle, SelectorKind::Lookahead] {
+    for s in cfg.selectors() {
         let pts = cfg
             .envelopes
             .iter()

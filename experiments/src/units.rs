@@ -54,6 +54,7 @@ impl Driver {
             kind: DriverKind::Policy,
             checkpoint: Some(p.clone()),
             device: None,
+            trigger: None,
         };
         match self {
             Driver::Expert => DriverSpec::default(),
@@ -141,6 +142,17 @@ impl Unit {
         }
     }
 
+    /// Whether its selector is the policy's learned trigger.
+    fn learned(&self) -> bool {
+        matches!(
+            self.selection,
+            Selection::Switch {
+                selector: SelectorKind::Learned,
+                ..
+            }
+        )
+    }
+
     /// Its folder name: "ra-d050", "ra-oracle-100-50".
     pub fn id(&self, cfg: &PaperConfig) -> String {
         match self.selection {
@@ -184,7 +196,10 @@ impl Unit {
         };
         let densities: Vec<Option<(u32, u32)>> = cfg.densities.iter().copied().map(Some).collect();
         let mut plan = SweepPlan::cross(&scenarios, &delays, &scales, &densities, &cfg.seeds);
-        let driver = self.driver.spec(cfg);
+        let mut driver = self.driver.spec(cfg);
+        if self.learned() {
+            driver.trigger = cfg.models.trigger.clone();
+        }
         for r in &mut plan.runs {
             r.driver = Some(driver.clone());
         }
@@ -223,7 +238,35 @@ impl Unit {
         }
         let name = format!("{stem}__{tag}");
         let dir = out.join("scenarios");
-        let text = derived_scenario(base, &dir, &name, cfg, switch)?;
+        let mut text = derived_scenario(base, &dir, &name, cfg, switch)?;
+        if self.learned() {
+            // The scenario names its driver and trigger too: a learned
+            // selector without a trigger is refused when the file is read.
+            let trigger = cfg
+                .models
+                .trigger
+                .as_ref()
+                .ok_or_else(|| PaperError::Scenario {
+                    path: base.to_path_buf(),
+                    problem: "the learned selector needs models.trigger".into(),
+                })?;
+            let rel = |p: &Path| {
+                relative_to(&dir, p)
+                    .map(|r| r.display().to_string())
+                    .map_err(|e| PaperError::io("resolve", p, e))
+            };
+            let mut doc: toml::Table = text.parse().expect("we just wrote it");
+            let mut d = toml::Table::new();
+            d.insert("kind".into(), "policy".into());
+            d.insert("checkpoint".into(), rel(&cfg.models.ra)?.into());
+            d.insert("trigger".into(), rel(trigger)?.into());
+            doc.insert("driver".into(), d.into());
+            text = format!(
+                "# Derived by `mrdrive paper` from {}: do not edit, it is rewritten.\n{}",
+                base.display(),
+                toml::to_string(&doc).expect("a TOML table serialises")
+            );
+        }
         std::fs::create_dir_all(&dir).map_err(|e| PaperError::io("create", &dir, e))?;
         let path = dir.join(format!("{name}.toml"));
         std::fs::write(&path, text).map_err(|e| PaperError::io("write", &path, e))?;
@@ -252,6 +295,7 @@ pub fn selector_name(s: SelectorKind) -> &'static str {
         SelectorKind::Oracle => "oracle",
         SelectorKind::Lookahead => "lookahead",
         SelectorKind::Budget => "budget",
+        SelectorKind::Learned => "learned",
     }
 }
 
@@ -452,5 +496,27 @@ mod tests {
         assert_eq!(s.timing.latency_jitter, 0.25);
         assert_eq!(s.resolution.selector, SelectorKind::Fixed);
         assert_eq!(s.latency_ms_at(0.75), 50.0);
+        // The learned trigger: the scenario names the RA policy and its trigger,
+        // so the file is valid on its own; the runs carry the trigger too.
+        let l = Unit::switch(SelectorKind::Learned, cfg.envelopes[0]);
+        assert_eq!(l.id(&cfg), "ra-learned-100-50");
+        let plan = l.plan(&cfg, tmp.path()).unwrap();
+        let s = sim::scenario::Scenario::from_file(&plan.runs[0].scenario).unwrap();
+        assert_eq!(s.resolution.selector, SelectorKind::Learned);
+        // (Relative to the working folder, as the run resolves it.)
+        assert!(
+            s.driver
+                .trigger
+                .as_ref()
+                .unwrap()
+                .ends_with("models/ra.trigger.json"),
+            "{:?}",
+            s.driver.trigger
+        );
+        assert_eq!(s.driver.kind, DriverKind::Policy);
+        assert_eq!(
+            plan.runs[0].driver.as_ref().unwrap().trigger,
+            Some(PathBuf::from("models/ra.trigger.json"))
+        );
     }
 }

@@ -4,9 +4,10 @@ use crate::checkpoint::{self, CheckpointError, ModelCard};
 use crate::device::{DeviceError, DeviceKind};
 use crate::fused::FusedPolicy;
 use crate::model::PolicyNet;
+use crate::trigger::{Trigger, TriggerError, command_logits};
 use burn::prelude::*;
 use dataset::action::{NUM_ACTIONS, NUM_SPEED_BINS};
-use dataset::decode::{Decoded, decode, interpolate_speed};
+use dataset::decode::{Decoded, decode};
 use sim::build::{DriverFactory, FactoryError};
 use sim::driver::{Driver, DriverNeeds, Observation, VehicleControl};
 use sim::runner::Prepared;
@@ -32,6 +33,10 @@ pub struct PolicyDriver {
     /// The last decoding (for logs), if any.
     pub last: Option<Decoded>,
     warned: bool,
+    /// A learned trigger read on each frame's pooled feature (CPU only).
+    trigger: Option<Trigger>,
+    /// The trigger's probability on the last frame.
+    hint: Option<f32>,
 }
 
 impl PolicyDriver {
@@ -48,7 +53,27 @@ impl PolicyDriver {
             card,
             last: None,
             warned: false,
+            trigger: None,
+            hint: None,
         }
+    }
+
+    /// Reads `trigger` (the file at `path`) on every frame, for the `learned`
+    /// selector ([`Driver::scale_hint`]). It needs the fused CPU path and a
+    /// trigger made for this network's features and scales.
+    pub fn with_trigger(mut self, trigger: Trigger, path: &Path) -> Result<Self, TriggerError> {
+        let Some(f) = &self.fused else {
+            return Err(TriggerError::Misfit {
+                path: path.to_path_buf(),
+                field: "driver.device",
+                why: "the trigger reads the fused CPU path's features".into(),
+                fix: "drive the policy on the CPU (driver.device = \"cpu\")".into(),
+            });
+        };
+        trigger.check_fits(path, f.feature_dim(), &self.net.config.scales)?;
+        self.name = format!("{}+trigger:{}", self.name, path.display());
+        self.trigger = Some(trigger);
+        Ok(self)
     }
 
     /// Loads a checkpoint (NAME.safetensors + NAME.json); the driver is named after the file.
@@ -109,30 +134,42 @@ impl PolicyDriver {
         command: usize,
         speed_mps: f32,
     ) -> [f32; NUM_ACTIONS] {
+        self.infer(image, scale, command, speed_mps).0
+    }
+
+    /// The logits of [`PolicyDriver::logits`] and, with a trigger, its
+    /// probability on the frame's pooled feature.
+    fn infer(
+        &self,
+        image: &sim::driver::RgbImage,
+        scale: f32,
+        command: usize,
+        speed_mps: f32,
+    ) -> ([f32; NUM_ACTIONS], Option<f32>) {
         let cfg = &self.net.config;
         let branch = cfg
             .branch_of(scale)
             .unwrap_or_else(|| nearest_branch(&cfg.scales, scale));
         let (h, w) = (image.height as usize, image.width as usize);
-        let per_command = NUM_SPEED_BINS * NUM_ACTIONS;
-        let z = match &self.fused {
+        let mut hint = None;
+        let all = match &self.fused {
             Some(f) => {
-                let all = f.forward_rgb8(&image.data, h, w, branch);
-                all[command * per_command..(command + 1) * per_command].to_vec()
+                let features = f.features(&f.normalize(&image.data, h, w), branch);
+                hint = self.trigger.as_ref().map(|t| t.p_high(&features));
+                f.action_logits(&features)
             }
             None => {
                 let x = cfg.normalize_rgb8(&image.data, h, w);
                 let x = Tensor::<4>::from_data(TensorData::new(x, [1, 3, h, w]), &self.device);
-                let z = self.net.forward(x, branch, false).action_logits;
-                z.narrow(1, command, 1)
+                self.net
+                    .forward(x, branch, false)
+                    .action_logits
                     .into_data()
                     .try_to_vec::<f32>()
                     .expect("f32 logits")
             }
         };
-        let bins: [[f32; NUM_ACTIONS]; NUM_SPEED_BINS] =
-            std::array::from_fn(|b| std::array::from_fn(|j| z[b * NUM_ACTIONS + j]));
-        interpolate_speed(&bins, speed_mps)
+        (command_logits(&all, command, speed_mps), hint)
     }
 }
 
@@ -156,6 +193,9 @@ pub enum PolicyDriverError {
     /// The checkpoint cannot be used.
     #[error(transparent)]
     Checkpoint(#[from] CheckpointError),
+    /// The trigger cannot be used.
+    #[error(transparent)]
+    Trigger(#[from] TriggerError),
 }
 
 impl PolicyFactory {
@@ -183,7 +223,16 @@ impl DriverFactory for PolicyFactory {
             .parse()
             .map_err(PolicyDriverError::Device)?;
         let device = crate::device::open(kind).map_err(PolicyDriverError::Device)?;
-        Ok(Box::new(PolicyDriver::from_checkpoint(weights, device)?))
+        let driver = PolicyDriver::from_checkpoint(weights, device)?;
+        Ok(Box::new(match &scenario.driver.trigger {
+            Some(path) => driver
+                .with_trigger(
+                    Trigger::load(path).map_err(PolicyDriverError::Trigger)?,
+                    path,
+                )
+                .map_err(PolicyDriverError::Trigger)?,
+            None => driver,
+        }))
     }
 
     fn input_size(&self, scenario: &Scenario) -> Result<Option<(u32, u32)>, FactoryError> {
@@ -245,10 +294,15 @@ impl Driver for PolicyDriver {
             );
             self.warned = true;
         }
-        let logits = self.logits(image, obs.scale, obs.command as usize, obs.speed_mps);
+        let (logits, hint) = self.infer(image, obs.scale, obs.command as usize, obs.speed_mps);
         let d = decode(&logits, obs.speed_mps, obs.command);
         self.last = Some(d);
+        self.hint = hint;
         d.control
+    }
+
+    fn scale_hint(&self) -> Option<f32> {
+        self.hint
     }
 }
 

@@ -397,6 +397,11 @@ impl FusedPolicy {
         &self.config
     }
 
+    /// Entries of the pooled feature ([`FusedPolicy::features`]).
+    pub fn feature_dim(&self) -> usize {
+        self.head[0].n_in
+    }
+
     /// Normalises an RGB8 image (row-major, 3 bytes a pixel: already channels-last).
     pub fn normalize(&self, rgb: &[u8], height: usize, width: usize) -> Fmap {
         let (m, s) = (self.config.mean, self.config.std);

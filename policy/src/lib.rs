@@ -18,6 +18,7 @@ pub mod fused;
 pub mod heads;
 pub mod model;
 pub mod train;
+pub mod trigger;
 
 pub use checkpoint::ModelCard;
 pub use driver::{PolicyDriver, PolicyFactory};

@@ -52,6 +52,7 @@ fn a_checkpoint_drives_a_scripted_approach_with_each_selector() {
                 light_ahead_m: (d >= 0.0).then_some(d),
                 light_behind_m: (d < 0.0).then_some(-d),
                 speed_mps: 10.0,
+                driver_hint: driver.scale_hint(),
             };
             let scale = selector.select(&input);
             let latency_ms = table.latency_ms(scale).expect("every scale has a latency");

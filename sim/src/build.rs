@@ -18,7 +18,8 @@ use crate::render::{RenderError, Renderer, RigConfig};
 use crate::runner::{self, Overrides, Prepared, RunError, RunInputs};
 use crate::scenario::{DriverKind, RigKind, Scenario, ScenarioError, SelectorKind};
 use crate::selector::{
-    Fixed, LatencyBudget, LatencyTable, LatencyTableError, Lookahead, Oracle, ResolutionSelector,
+    Fixed, LatencyBudget, LatencyTable, LatencyTableError, Learned, Lookahead, Oracle,
+    ResolutionSelector,
 };
 
 /// Any error a [`DriverFactory`] reports (it comes from another crate).
@@ -305,6 +306,13 @@ pub fn selector_for(
             l.exit_m = r.far_m as f32;
             Box::new(l)
         }
+        SelectorKind::Learned => Box::new(Learned {
+            low,
+            high,
+            threshold: r.trigger_p.unwrap_or(0.5) as f32,
+            hold_steps: r.hold_steps.unwrap_or(10),
+            left: 0,
+        }),
         SelectorKind::Budget => Box::new(LatencyBudget {
             table: table("budget")?,
             budget_ms: r.budget_ms.unwrap_or(f64::INFINITY),

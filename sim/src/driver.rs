@@ -78,4 +78,11 @@ pub trait Driver {
     fn needs(&self) -> DriverNeeds;
     /// Computes the control for this observation.
     fn act(&mut self, obs: &Observation<'_>) -> VehicleControl;
+    /// The probability, from the last observation, that the high input
+    /// scale is needed: a policy's learned trigger, read by the
+    /// [`Learned`](crate::selector::Learned) selector at the next boundary.
+    /// `None` for drivers without one.
+    fn scale_hint(&self) -> Option<f32> {
+        None
+    }
 }

@@ -254,6 +254,7 @@ fn selector_input(
         light_ahead_m: stops.next_after(ego_s).map(|s| s.route_s - ego_s),
         light_behind_m: stops.last_up_to(ego_s).map(|s| ego_s - s.route_s),
         speed_mps: ego.speed_mps,
+        driver_hint: None,
     }
 }
 
@@ -437,7 +438,10 @@ impl Boundary<'_> {
         controls: &mut Controls,
         driver_s: &mut f64,
     ) -> Result<VehicleControl, RunError> {
-        let input = selector_input(self.route, now.route_index, now.ego, self.stops);
+        let input = SelectorInput {
+            driver_hint: driver.scale_hint(),
+            ..selector_input(self.route, now.route_index, now.ego, self.stops)
+        };
         let new_scale = f64::from(selector.select(&input));
         controls.retime(self.scenario, new_scale);
         let scale = controls.scale;

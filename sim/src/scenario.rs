@@ -173,6 +173,10 @@ pub struct DriverSpec {
     pub checkpoint: Option<PathBuf>,
     /// For `policy`: `cpu` (default), `cuda` or `wgpu`.
     pub device: Option<String>,
+    /// For `policy`: a learned trigger for the `learned` selector (the JSON
+    /// file of `mrdrive policy trigger`), relative to the scenario file.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub trigger: Option<PathBuf>,
 }
 
 impl Default for DriverSpec {
@@ -181,6 +185,7 @@ impl Default for DriverSpec {
             kind: DriverKind::Expert,
             checkpoint: None,
             device: None,
+            trigger: None,
         }
     }
 }
@@ -242,7 +247,8 @@ pub enum RigKind {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ResolutionSpec {
-    /// `fixed`, `oracle` (the paper's), `lookahead` (map-based) or `budget`.
+    /// `fixed`, `oracle` (the paper's), `lookahead` (map-based), `budget`
+    /// or `learned` (the policy's own trigger, `driver.trigger`).
     pub selector: SelectorKind,
     /// For `fixed`: the scale (fraction of S0).
     pub scale: f64,
@@ -256,6 +262,13 @@ pub struct ResolutionSpec {
     pub far_m: f64,
     /// For `budget`: the latency budget (milliseconds).
     pub budget_ms: Option<f64>,
+    /// For `learned`: the trigger fires at this probability or above (default 0.5).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub trigger_p: Option<f64>,
+    /// For `learned`: control boundaries the high scale is held after the
+    /// trigger last fired (default 10).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hold_steps: Option<u32>,
 }
 
 impl Default for ResolutionSpec {
@@ -268,6 +281,8 @@ impl Default for ResolutionSpec {
             near_m: 5.0,
             far_m: 15.0,
             budget_ms: None,
+            trigger_p: None,
+            hold_steps: None,
         }
     }
 }
@@ -284,6 +299,9 @@ pub enum SelectorKind {
     Lookahead,
     /// The highest scale whose latency fits `budget_ms`.
     Budget,
+    /// The policy's learned trigger (`driver.trigger`): high while it fires,
+    /// held `hold_steps` boundaries; no map.
+    Learned,
 }
 
 /// When a run ends before the route does (PROTOCOL §3).
@@ -369,6 +387,9 @@ impl Scenario {
         scenario.route.file = base.join(&scenario.route.file);
         if let Some(c) = &scenario.driver.checkpoint {
             scenario.driver.checkpoint = Some(base.join(c));
+        }
+        if let Some(t) = &scenario.driver.trigger {
+            scenario.driver.trigger = Some(base.join(t));
         }
         if scenario.name.is_empty() {
             scenario.name = path
@@ -490,6 +511,24 @@ impl Scenario {
                 "the budget selector needs `budget_ms` (milliseconds)",
             );
         }
+        if let Some(p) = r.trigger_p
+            && !(p > 0.0 && p < 1.0)
+        {
+            return bad(
+                "resolution.trigger_p",
+                p.to_string(),
+                "a probability strictly between 0 and 1, e.g. 0.5",
+            );
+        }
+        if r.selector == SelectorKind::Learned
+            && (self.driver.kind != DriverKind::Policy || self.driver.trigger.is_none())
+        {
+            return bad(
+                "driver.trigger",
+                "missing".into(),
+                "the learned selector needs a policy driver with `trigger = \"path/to/model.trigger.json\"` (made by `mrdrive policy trigger`)",
+            );
+        }
         if self.driver.kind == DriverKind::Policy && self.driver.checkpoint.is_none() {
             return bad(
                 "driver.checkpoint",
@@ -586,6 +625,21 @@ mod tests {
             err.contains("timing.latency_jitter") && err.contains("sigma"),
             "{err}"
         );
+        let learned = format!("{MINIMAL}[resolution]\nselector = \"learned\"\n");
+        let err = parse(&learned).unwrap_err().to_string();
+        assert!(
+            err.contains("driver.trigger") && err.contains("mrdrive policy trigger"),
+            "{err}"
+        );
+        let with_trigger = format!(
+            "{learned}trigger_p = 0.6\n[driver]\nkind = \"policy\"\ncheckpoint = \"m.safetensors\"\ntrigger = \"t.json\"\n"
+        );
+        let s = parse(&with_trigger).unwrap();
+        assert_eq!(s.resolution.trigger_p, Some(0.6));
+        let err = parse(&with_trigger.replace("0.6", "1.0"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("resolution.trigger_p"), "{err}");
     }
 
     #[test]

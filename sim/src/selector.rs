@@ -16,6 +16,10 @@ pub struct SelectorInput {
     pub light_behind_m: Option<f32>,
     /// Ego speed (metres per second).
     pub speed_mps: f32,
+    /// The driver's estimate, from its last observation, of the probability
+    /// that the high scale is needed (a learned trigger, see [`Learned`]);
+    /// `None` for a driver without one.
+    pub driver_hint: Option<f32>,
 }
 
 impl SelectorInput {
@@ -257,6 +261,55 @@ impl ResolutionSelector for Lookahead {
     }
 }
 
+/// A learned trigger: the high scale while the driver's own estimate
+/// ([`SelectorInput::driver_hint`], a small head on the policy's pooled
+/// features, `mrdrive policy trigger`) says it is needed, and for
+/// `hold_steps` boundaries after it last said so. No map is read.
+///
+/// The hint comes from the previous observation, so a switch shows one
+/// control period after the frame that asked for it, as the oracle's does.
+/// Without a hint (a driver that has no trigger) it keeps the high scale:
+/// the safe choice.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Learned {
+    /// Default scale.
+    pub low: f32,
+    /// Scale when the trigger fires.
+    pub high: f32,
+    /// The trigger fires when the hint is at least this probability.
+    pub threshold: f32,
+    /// Boundaries the high scale is held after the trigger last fired.
+    pub hold_steps: u32,
+    /// Boundaries left to hold the high scale.
+    pub left: u32,
+}
+
+impl ResolutionSelector for Learned {
+    fn name(&self) -> String {
+        format!(
+            "learned-{}/{}-p{}-hold{}",
+            self.low, self.high, self.threshold, self.hold_steps
+        )
+    }
+    fn select(&mut self, input: &SelectorInput) -> f32 {
+        let Some(p) = input.driver_hint else {
+            return self.high;
+        };
+        if p >= self.threshold {
+            self.left = self.hold_steps;
+            self.high
+        } else if self.left > 0 {
+            self.left -= 1;
+            self.high
+        } else {
+            self.low
+        }
+    }
+    fn reset(&mut self) {
+        self.left = 0;
+    }
+}
+
 /// The highest scale whose latency fits a budget (the cheapest if none fits).
 #[derive(Debug, Clone, PartialEq)]
 pub struct LatencyBudget {
@@ -290,6 +343,7 @@ mod tests {
                 light_ahead_m: (d >= 0.0).then_some(d),
                 light_behind_m: (d < 0.0).then_some(-d),
                 speed_mps: speed,
+                driver_hint: None,
             };
             out.push((d, sel.select(&input)));
             d -= speed * period_s;
@@ -340,6 +394,32 @@ mod tests {
         assert!((la.trigger_m(10.0) - 6.5).abs() < 1e-5);
         let trace = drive(&mut la, 10.0, 0.05);
         assert_eq!(switches(&trace), vec![(6.5, 1.0), (-15.5, 0.75)]);
+    }
+
+    #[test]
+    fn learned_follows_the_hint_and_holds_the_high_scale() {
+        let mut l = Learned {
+            low: 0.75,
+            high: 1.0,
+            threshold: 0.5,
+            hold_steps: 2,
+            left: 0,
+        };
+        let hint = |p: Option<f32>| SelectorInput {
+            driver_hint: p,
+            ..Default::default()
+        };
+        // No hint (a driver without a trigger): the safe high scale.
+        assert_eq!(l.select(&hint(None)), 1.0);
+        let trace: Vec<f32> = [0.1, 0.49, 0.5, 0.2, 0.1, 0.0, 0.9, 0.0]
+            .iter()
+            .map(|&p| l.select(&hint(Some(p))))
+            .collect();
+        // Fires at 0.5 and holds two more boundaries; fires again at 0.9.
+        assert_eq!(trace, vec![0.75, 0.75, 1.0, 1.0, 1.0, 0.75, 1.0, 1.0]);
+        l.reset();
+        assert_eq!(l.select(&hint(Some(0.0))), 0.75);
+        assert_eq!(l.name(), "learned-0.75/1-p0.5-hold2");
     }
 
     #[test]

@@ -28,6 +28,9 @@ pub struct PaperArgs {
     /// Write the tables and figures from the runs already finished; run nothing.
     #[arg(long)]
     pub report_only: bool,
+    /// Run only the first N seeds this time (the rest stay planned; a later call goes on).
+    #[arg(long)]
+    pub seeds: Option<usize>,
 }
 
 /// A progress bar over the runs still to do.
@@ -64,6 +67,7 @@ pub fn run(a: PaperArgs) -> anyhow::Result<()> {
         experiments,
         report_only: a.report_only,
         label: label.into(),
+        seeds: a.seeds,
     };
     let bar = indicatif::ProgressBar::new(0);
     bar.set_style(

@@ -82,6 +82,32 @@ enum PolicyCommand {
         #[arg(long, default_value_t = 1.0)]
         scale: f32,
     },
+    /// Fit a learned trigger for the `learned` selector: a logistic head on a policy's
+    /// pooled feature that fires where its low- and high-scale branches disagree most
+    /// (policy/src/trigger.rs). Reads the dataset's images, commands and speeds only.
+    Trigger {
+        /// The multi-resolution policy.
+        #[arg(long, default_value = "models/ra.safetensors")]
+        checkpoint: PathBuf,
+        /// A dataset (labels are not needed).
+        #[arg(long)]
+        data: PathBuf,
+        /// The trigger file to write (JSON).
+        #[arg(long)]
+        out: PathBuf,
+        /// Use every N-th frame.
+        #[arg(long, default_value_t = 2)]
+        every: usize,
+        /// Share of frames called positive: the most disagreeing.
+        #[arg(long, default_value_t = 0.25)]
+        share: f32,
+        /// The low scale.
+        #[arg(long, default_value_t = 0.75)]
+        low: f32,
+        /// The high scale.
+        #[arg(long, default_value_t = 1.0)]
+        high: f32,
+    },
     /// Print a checkpoint's config and card.
     Info {
         /// Weights path.
@@ -202,6 +228,15 @@ pub fn run_policy(args: PolicyArgs) -> Result<()> {
             }
             Ok(())
         }
+        PolicyCommand::Trigger {
+            checkpoint: weights,
+            data,
+            out,
+            every,
+            share,
+            low,
+            high,
+        } => fit_trigger(&weights, &data, &out, every, share, (low, high)),
         PolicyCommand::Info { weights } => {
             let (cfg, card) = checkpoint::read_manifest(&weights)?;
             println!(
@@ -211,6 +246,76 @@ pub fn run_policy(args: PolicyArgs) -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// `mrdrive policy trigger`: reads the frames, fits, writes and prints the scores.
+fn fit_trigger(
+    weights: &std::path::Path,
+    data: &std::path::Path,
+    out: &std::path::Path,
+    every: usize,
+    share: f32,
+    scales: (f32, f32),
+) -> Result<()> {
+    use policy::trigger::{self, FitConfig, Scores, TriggerCard};
+    let started = std::time::Instant::now();
+    let dev = device::open(DeviceKind::Cpu)?;
+    let (net, _) = checkpoint::load(weights, &dev)?;
+    let fused = {
+        use policy::burn::prelude::*;
+        net.sync_running_stats();
+        policy::fused::FusedPolicy::from_net(&net.valid())
+    };
+    let (samples, skipped) = trigger::frame_samples(&fused, data, scales, every)?;
+    for s in &skipped {
+        eprintln!("skipped: {s}");
+    }
+    let card = TriggerCard {
+        checkpoint: weights.display().to_string(),
+        data: data.display().to_string(),
+        every,
+        frames_fit: 0,
+        frames_held_out: 0,
+        positive_share: share,
+        tv_threshold: 0.0,
+        epochs: 0,
+        lr: 0.0,
+        l2: 0.0,
+        held_out: Scores::default(),
+        fit: Scores::default(),
+    };
+    let cfg = FitConfig {
+        positive_share: share,
+        ..FitConfig::default()
+    };
+    let t = trigger::fit(&samples, scales, cfg, card);
+    t.save(out)
+        .map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", out.display()))?;
+    let c = &t.card;
+    println!(
+        "{} frames fit, {} held out (episodes 4 mod 5); positive: total variation >= {:.3} (top {:.0} %)",
+        c.frames_fit,
+        c.frames_held_out,
+        c.tv_threshold,
+        100.0 * share
+    );
+    for (name, s) in [("fit", c.fit), ("held out", c.held_out)] {
+        println!(
+            "{name:<9} n {:>6}  positive {:>5.1} %  predicted {:>5.1} %  accuracy {:>5.1} %  recall {:>5.1} %  precision {:>5.1} %",
+            s.n,
+            100.0 * s.positive_rate,
+            100.0 * s.predicted_rate,
+            100.0 * s.accuracy,
+            100.0 * s.recall,
+            100.0 * s.precision
+        );
+    }
+    println!(
+        "wrote {} in {:.0} s",
+        out.display(),
+        started.elapsed().as_secs_f64()
+    );
+    Ok(())
 }
 
 #[derive(Debug, Subcommand)]

@@ -96,6 +96,7 @@ impl DriverFlags {
                 kind: DriverKind::Policy,
                 checkpoint: Some(c.clone()),
                 device: None,
+                trigger: None,
             })
         }
     }

@@ -194,6 +194,7 @@ fn start(req: &Value) -> Result<(Episode, Value, Vec<u8>)> {
             kind: DriverKind::External,
             checkpoint: None,
             device: None,
+            trigger: None,
         }),
     };
     let scale = opt_f64(req, "scale")?.map(scale_ok).transpose()?;

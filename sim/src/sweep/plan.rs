@@ -163,6 +163,7 @@ mod tests {
             kind: crate::scenario::DriverKind::Policy,
             checkpoint: Some("models/ra.safetensors".into()),
             device: None,
+            trigger: None,
         };
         let spec = RunSpec {
             driver: Some(policy.clone()),
