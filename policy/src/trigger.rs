@@ -550,8 +550,10 @@ mod tests {
         // The top quarter of tv: a >= 0.75, i.e. 5 of 20 values.
         assert!((t.card.tv_threshold - 0.75).abs() < 1e-6);
         assert!(t.weights[0] > 0.0 && t.weights[0].abs() > 5.0 * t.weights[1].abs());
-        assert!(t.card.held_out.accuracy > 0.9, "{:?}", t.card.held_out);
-        assert!(t.card.held_out.recall > 0.9, "{:?}", t.card.held_out);
+        // Positives are weighted up to balance the classes: every positive is
+        // caught, at the price of some negatives near the boundary.
+        assert!(t.card.held_out.recall > 0.99, "{:?}", t.card.held_out);
+        assert!(t.card.held_out.accuracy >= 0.75, "{:?}", t.card.held_out);
         assert!((t.card.fit.positive_rate - 0.25).abs() < 1e-6);
         assert!(t.p_high(&[3.95, 0.5]) > 0.5 && t.p_high(&[1.0, 0.5]) < 0.5);
         // Deterministic.
