@@ -84,6 +84,27 @@ pub struct TriggerCard {
     pub fit: Scores,
 }
 
+impl TriggerCard {
+    /// A card for a trigger of `checkpoint` fit on every `every`-th frame of
+    /// `data`; [`fit`] fills in the rest.
+    pub fn new(checkpoint: String, data: String, every: usize) -> Self {
+        TriggerCard {
+            checkpoint,
+            data,
+            every,
+            frames_fit: 0,
+            frames_held_out: 0,
+            positive_share: 0.0,
+            tv_threshold: 0.0,
+            epochs: 0,
+            lr: 0.0,
+            l2: 0.0,
+            held_out: Scores::default(),
+            fit: Scores::default(),
+        }
+    }
+}
+
 /// Classification scores at p >= 0.5.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct Scores {
@@ -511,20 +532,7 @@ mod tests {
     use super::*;
 
     fn card() -> TriggerCard {
-        TriggerCard {
-            checkpoint: "c".into(),
-            data: "d".into(),
-            every: 1,
-            frames_fit: 0,
-            frames_held_out: 0,
-            positive_share: 0.0,
-            tv_threshold: 0.0,
-            epochs: 0,
-            lr: 0.0,
-            l2: 0.0,
-            held_out: Scores::default(),
-            fit: Scores::default(),
-        }
+        TriggerCard::new("c".into(), "d".into(), 1)
     }
 
     /// Frames whose disagreement grows with feature 0 (feature 1 is noise).

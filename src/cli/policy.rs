@@ -257,7 +257,7 @@ fn fit_trigger(
     share: f32,
     scales: (f32, f32),
 ) -> Result<()> {
-    use policy::trigger::{self, FitConfig, Scores, TriggerCard};
+    use policy::trigger::{self, FitConfig, TriggerCard};
     let started = std::time::Instant::now();
     let dev = device::open(DeviceKind::Cpu)?;
     let (net, _) = checkpoint::load(weights, &dev)?;
@@ -270,20 +270,11 @@ fn fit_trigger(
     for s in &skipped {
         eprintln!("skipped: {s}");
     }
-    let card = TriggerCard {
-        checkpoint: weights.display().to_string(),
-        data: data.display().to_string(),
+    let card = TriggerCard::new(
+        weights.display().to_string(),
+        data.display().to_string(),
         every,
-        frames_fit: 0,
-        frames_held_out: 0,
-        positive_share: share,
-        tv_threshold: 0.0,
-        epochs: 0,
-        lr: 0.0,
-        l2: 0.0,
-        held_out: Scores::default(),
-        fit: Scores::default(),
-    };
+    );
     let cfg = FitConfig {
         positive_share: share,
         ..FitConfig::default()
