@@ -238,8 +238,7 @@ impl Unit {
         }
         let name = format!("{stem}__{tag}");
         let dir = out.join("scenarios");
-        let mut text = derived_scenario(base, &dir, &name, cfg, switch)?;
-        if self.learned() {
+        let driver = if self.learned() {
             // The scenario names its driver and trigger too: a learned
             // selector without a trigger is refused when the file is read.
             let trigger = cfg
@@ -255,18 +254,15 @@ impl Unit {
                     .map(|r| r.display().to_string())
                     .map_err(|e| PaperError::io("resolve", p, e))
             };
-            let mut doc: toml::Table = text.parse().expect("we just wrote it");
             let mut d = toml::Table::new();
             d.insert("kind".into(), "policy".into());
             d.insert("checkpoint".into(), rel(&cfg.models.ra)?.into());
             d.insert("trigger".into(), rel(trigger)?.into());
-            doc.insert("driver".into(), d.into());
-            text = format!(
-                "# Derived by `mrdrive paper` from {}: do not edit, it is rewritten.\n{}",
-                base.display(),
-                toml::to_string(&doc).expect("a TOML table serialises")
-            );
-        }
+            Some(d)
+        } else {
+            None
+        };
+        let text = derived_scenario(base, &dir, &name, cfg, switch, driver)?;
         std::fs::create_dir_all(&dir).map_err(|e| PaperError::io("create", &dir, e))?;
         let path = dir.join(format!("{name}.toml"));
         std::fs::write(&path, text).map_err(|e| PaperError::io("write", &path, e))?;
@@ -335,13 +331,15 @@ fn relative_to(from: &Path, target: &Path) -> std::io::Result<PathBuf> {
 /// The text of a scenario derived from `base`, to be written into `dir`:
 /// its map and route files rewritten relative to `dir`, renamed `name`, with
 /// a selector between the configuration's scales at the envelope's
-/// latencies (and their jitter) and the configuration's run cap.
+/// latencies (and their jitter), the configuration's run cap, and `driver`
+/// as its `[driver]` section when given.
 fn derived_scenario(
     base: &Path,
     dir: &Path,
     name: &str,
     cfg: &PaperConfig,
     switch: Option<(SelectorKind, Envelope, f64)>,
+    driver: Option<toml::Table>,
 ) -> Result<String, PaperError> {
     let text = std::fs::read_to_string(base).map_err(|e| PaperError::io("read", base, e))?;
     let mut doc: toml::Table = text
@@ -387,6 +385,9 @@ fn derived_scenario(
         resolution.insert("low".into(), cfg.low.into());
         resolution.insert("high".into(), cfg.high.into());
         doc.insert("resolution".into(), resolution.into());
+    }
+    if let Some(d) = driver {
+        doc.insert("driver".into(), d.into());
     }
     if let Some(t) = cfg.timeout_s {
         let mut termination = section(&mut doc, "termination");

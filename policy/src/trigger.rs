@@ -72,7 +72,7 @@ pub struct TriggerCard {
     pub positive_share: f32,
     /// The total-variation distance at and above which a frame is positive.
     pub tv_threshold: f32,
-    /// Gradient-descent epochs, learning rate and L2 weight.
+    /// Gradient-descent epochs.
     pub epochs: usize,
     /// Learning rate.
     pub lr: f32,
@@ -173,13 +173,14 @@ pub enum TriggerError {
 impl Trigger {
     /// The probability that the high scale is needed for a pooled feature.
     pub fn p_high(&self, features: &[f32]) -> f32 {
-        sigmoid(logit(
-            &self.weights,
-            self.bias,
-            &self.mean,
-            &self.std,
-            features,
-        ))
+        let z = self
+            .weights
+            .iter()
+            .zip(features)
+            .zip(&self.mean)
+            .zip(&self.std)
+            .fold(self.bias, |z, (((w, f), m), s)| z + w * (f - m) / s);
+        sigmoid(z)
     }
 
     /// Reads a trigger file and checks that it is one.
@@ -245,6 +246,32 @@ impl Trigger {
         Ok(())
     }
 
+    /// Scores at p >= 0.5 on features `x` with targets `y`.
+    pub fn scores(&self, x: &[&[f32]], y: &[bool]) -> Scores {
+        let n = x.len();
+        if n == 0 {
+            return Scores::default();
+        }
+        let (mut tp, mut fp, mut fneg, mut tn) = (0usize, 0usize, 0usize, 0usize);
+        for (f, &t) in x.iter().zip(y) {
+            match (self.p_high(f) >= 0.5, t) {
+                (true, true) => tp += 1,
+                (true, false) => fp += 1,
+                (false, true) => fneg += 1,
+                (false, false) => tn += 1,
+            }
+        }
+        let r = |a: usize, b: usize| if b == 0 { 0.0 } else { a as f32 / b as f32 };
+        Scores {
+            n,
+            positive_rate: r(tp + fneg, n),
+            predicted_rate: r(tp + fp, n),
+            accuracy: r(tp + tn, n),
+            recall: r(tp, tp + fneg),
+            precision: r(tp, tp + fp),
+        }
+    }
+
     /// Writes the trigger as pretty JSON.
     pub fn save(&self, path: &Path) -> std::io::Result<()> {
         let text = serde_json::to_string_pretty(self).expect("a trigger serialises");
@@ -252,12 +279,9 @@ impl Trigger {
     }
 }
 
-fn logit(w: &[f32], b: f32, mean: &[f32], std: &[f32], f: &[f32]) -> f32 {
-    let mut z = b;
-    for i in 0..w.len() {
-        z += w[i] * (f[i] - mean[i]) / std[i];
-    }
-    z
+/// `b + w . x`, summed from the bias in feature order (on standardised features).
+fn linear(w: &[f32], b: f32, x: impl Iterator<Item = f32>) -> f32 {
+    w.iter().zip(x).fold(b, |z, (w, x)| z + w * x)
 }
 
 fn sigmoid(z: f32) -> f32 {
@@ -456,14 +480,12 @@ pub fn fit(
     let pos_weight = (n - positives).max(1.0) / positives;
     let total_weight: f32 = y.iter().map(|&p| if p { pos_weight } else { 1.0 }).sum();
     let (mut w, mut b) = (vec![0.0f32; d], 0.0f32);
-    let ones = vec![1.0f32; d];
-    let zeros = vec![0.0f32; d];
     let mut grad = vec![0.0f32; d];
     for _ in 0..cfg.epochs {
         grad.iter_mut().for_each(|g| *g = 0.0);
         let mut gb = 0.0f32;
         for (zi, &yi) in z.iter().zip(&y) {
-            let p = sigmoid(logit(&w, b, &zeros, &ones, zi));
+            let p = sigmoid(linear(&w, b, zi.iter().copied()));
             let (t, wt) = if yi { (1.0, pos_weight) } else { (0.0, 1.0) };
             let e = wt * (p - t) / total_weight;
             for (g, v) in grad.iter_mut().zip(zi) {
@@ -497,34 +519,6 @@ pub fn fit(
     let (xh, yh) = expand(true);
     t.card.held_out = t.scores(&xh, &yh);
     t
-}
-
-impl Trigger {
-    /// Scores at p >= 0.5 on features `x` with targets `y`.
-    pub fn scores(&self, x: &[&[f32]], y: &[bool]) -> Scores {
-        let n = x.len();
-        if n == 0 {
-            return Scores::default();
-        }
-        let (mut tp, mut fp, mut fneg, mut tn) = (0usize, 0usize, 0usize, 0usize);
-        for (f, &t) in x.iter().zip(y) {
-            match (self.p_high(f) >= 0.5, t) {
-                (true, true) => tp += 1,
-                (true, false) => fp += 1,
-                (false, true) => fneg += 1,
-                (false, false) => tn += 1,
-            }
-        }
-        let r = |a: usize, b: usize| if b == 0 { 0.0 } else { a as f32 / b as f32 };
-        Scores {
-            n,
-            positive_rate: r(tp + fneg, n),
-            predicted_rate: r(tp + fp, n),
-            accuracy: r(tp + tn, n),
-            recall: r(tp, tp + fneg),
-            precision: r(tp, tp + fp),
-        }
-    }
 }
 
 #[cfg(test)]

@@ -243,18 +243,20 @@ fn ego_contact(a: Party, b: Party) -> Option<EgoContact> {
 /// centre to the next stop line ahead and from the last one passed (metres).
 /// TimeParam's oracle measures a straight line to the light's trigger volume
 /// (the stop line of the approach lane); on an approach the two agree.
+/// With the driver's own hint ([`Driver::scale_hint`]) for a learned selector.
 fn selector_input(
     route: &DenseRoute,
     index: usize,
     ego: &ActorSnapshot,
     stops: &RouteStops,
+    driver_hint: Option<f32>,
 ) -> SelectorInput {
     let ego_s = route_s_at(route, index, ego.position.truncate());
     SelectorInput {
         light_ahead_m: stops.next_after(ego_s).map(|s| s.route_s - ego_s),
         light_behind_m: stops.last_up_to(ego_s).map(|s| ego_s - s.route_s),
         speed_mps: ego.speed_mps,
-        driver_hint: None,
+        driver_hint,
     }
 }
 
@@ -438,10 +440,13 @@ impl Boundary<'_> {
         controls: &mut Controls,
         driver_s: &mut f64,
     ) -> Result<VehicleControl, RunError> {
-        let input = SelectorInput {
-            driver_hint: driver.scale_hint(),
-            ..selector_input(self.route, now.route_index, now.ego, self.stops)
-        };
+        let input = selector_input(
+            self.route,
+            now.route_index,
+            now.ego,
+            self.stops,
+            driver.scale_hint(),
+        );
         let new_scale = f64::from(selector.select(&input));
         controls.retime(self.scenario, new_scale);
         let scale = controls.scale;
