@@ -355,6 +355,60 @@ mod tests {
     }
 
     #[test]
+    fn a_trigger_gives_a_hint_on_the_fused_path_only() {
+        use crate::trigger::{TRIGGER_FORMAT, TriggerCard};
+        let device = Device::flex();
+        device.seed(11);
+        let cfg = PolicyConfig::new(Depth::Resnet18, [4, 8, 8, 16])
+            .with_input_height(64)
+            .with_input_width(96);
+        let net = cfg.init(&device);
+        // Zero weights: p = sigmoid(bias) on any feature.
+        let trigger = |d: usize| Trigger {
+            format: TRIGGER_FORMAT.into(),
+            low: 0.75,
+            high: 1.0,
+            mean: vec![0.0; d],
+            std: vec![1.0; d],
+            weights: vec![0.0; d],
+            bias: 2.0,
+            card: TriggerCard::new("c".into(), "d".into(), 1),
+        };
+        let path = Path::new("t.json");
+        let plain = PolicyDriver::new(net.clone(), ModelCard::random_init(11), "p", device.clone());
+        assert_eq!(plain.scale_hint(), None);
+        let mut d = plain.with_trigger(trigger(16), path).unwrap();
+        assert_eq!(d.scale_hint(), None, "no frame seen yet");
+        let img = test_pattern(96, 64, 2);
+        let obs = Observation {
+            time_s: 0.0,
+            speed_mps: 2.0,
+            command: Command::LaneFollow,
+            scale: 1.0,
+            image: Some(&img),
+            labels: None,
+            privileged: None,
+        };
+        d.act(&obs);
+        let p = d.scale_hint().unwrap();
+        assert!((p - 1.0 / (1.0 + (-2.0f32).exp())).abs() < 1e-6, "{p}");
+        // A trigger for another feature size, or on burn's forward, is refused by field.
+        let other = PolicyDriver::new(net.clone(), ModelCard::random_init(11), "o", device.clone());
+        let e = other
+            .with_trigger(trigger(8), path)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("field `weights`"), "{e}");
+        let burn =
+            PolicyDriver::new(net, ModelCard::random_init(11), "b", device).with_burn_forward();
+        let e = burn
+            .with_trigger(trigger(16), path)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("driver.device"), "{e}");
+    }
+
+    #[test]
     fn fused_and_burn_forward_give_the_same_logits() {
         let device = Device::flex();
         device.seed(10);
