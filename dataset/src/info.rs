@@ -18,7 +18,10 @@ use world::{Command, Town};
 
 use crate::action::NUM_COMMANDS;
 use crate::collect::{TownCache, replan};
-use crate::format::{DataError, Episode, FORMAT, Index, MappedShard, file_metadata, light_of_code};
+use crate::format::{
+    DataError, Episode, FORMAT, Index, MappedShard, PEDESTRIAN_AHEAD_M, file_metadata,
+    light_of_code, pedestrian_ahead,
+};
 use crate::labels::LABEL_VERSION;
 use crate::labels::maps::light_stops;
 
@@ -90,6 +93,9 @@ pub struct Summary {
     pub red_light: u64,
     /// Frames whose route could be planned again, so that `red_light` could be decided.
     pub red_light_known: u64,
+    /// Frames with a pedestrian in the ego's corridor straight ahead
+    /// ([`crate::format::pedestrian_ahead`], the rule the loader's `pedestrian_repeat` uses).
+    pub pedestrian_ahead: u64,
     /// Frames per speed bin ([`SPEED_EDGES_MPS`]).
     pub speeds: [u64; SPEED_BINS],
     /// Frames per town.
@@ -149,6 +155,12 @@ impl Summary {
             for ego in &shard.ego {
                 s.speeds[speed_bin(ego.speed)] += 1;
             }
+            s.pedestrian_ahead += shard
+                .ego
+                .iter()
+                .zip(&shard.actors)
+                .filter(|(ego, actors)| pedestrian_ahead(ego, actors).is_some())
+                .count() as u64;
             *s.towns.entry(e.town.clone()).or_default() += n;
             let route = match &e.route.file {
                 Some(file) => {
@@ -272,6 +284,12 @@ impl fmt::Display for Summary {
             )?;
         }
         writeln!(f)?;
+        writeln!(
+            f,
+            "a pedestrian in the corridor straight ahead (<= {PEDESTRIAN_AHEAD_M} m): {:.2} % ({} frames)",
+            percent(self.pedestrian_ahead, self.frames),
+            self.pedestrian_ahead
+        )?;
         write!(f, "speed (m/s):")?;
         for (b, &n) in self.speeds.iter().enumerate() {
             let range = match b {
@@ -343,6 +361,9 @@ mod tests {
         // for i = 18..=33; the lights are red for i in 0..10 and 20..30,
         // so frames 20..=29 of each episode approach a red light.
         assert_eq!((s.red_light, s.red_light_known), (20, 60));
+        // The pedestrian stands in the ego's lane 8 m ahead when i mod 7 = 3: i = 3, 10,
+        // 17, 24 of each episode's 30 frames.
+        assert_eq!(s.pedestrian_ahead, 8);
         assert_eq!(s.towns.get("fixture-grid-3x3"), Some(&60));
         assert_eq!(s.routes.get("random"), Some(&60));
         assert_eq!(s.random_routes, 1);
@@ -356,6 +377,7 @@ mod tests {
         let text = s.to_string();
         assert!(text.contains("LEFT 20.0 %"), "{text}");
         assert!(text.contains("33.3 % of 60 frames"), "{text}");
+        assert!(text.contains("(<= 20 m): 13.33 % (8 frames)"), "{text}");
     }
 
     #[test]
