@@ -202,6 +202,24 @@ pub fn plan(preset: Preset, episodes: usize, carla: &Path, repo: &Path) -> Vec<E
         .collect()
 }
 
+/// Multiplies every episode's pedestrian count by `factor` (rounded to whole walkers).
+///
+/// At the paper's densities a walker in the ego's path is rare (0.26 % of the original
+/// set's frames), so a policy sees few examples of braking for one; a crowded set (for
+/// example `factor` 4: 0, 40 and 160 walkers) has more. Everything else in the plan, seeds
+/// included, stays the same. `factor` must be in [0, 20].
+pub fn crowd(plan: &mut [EpisodeSpec], factor: f64) -> Result<(), String> {
+    if !(factor.is_finite() && (0.0..=20.0).contains(&factor)) {
+        return Err(format!(
+            "pedestrian factor {factor}: give a factor from 0 to 20 (1 keeps the paper's densities)"
+        ));
+    }
+    for spec in plan {
+        spec.pedestrians = (f64::from(spec.pedestrians) * factor).round() as u32;
+    }
+    Ok(())
+}
+
 /// A random route: start and end on non-junction lanes of one strongly
 /// connected part of the lane graph, 300-900 m apart along the planned route.
 pub fn random_route(town: &Town, seed: u64) -> Result<(Route, DenseRoute), String> {
@@ -629,6 +647,26 @@ mod tests {
                     }
                     && (s.vehicles, s.pedestrians) == (v, p)));
             }
+        }
+    }
+
+    #[test]
+    fn a_crowded_plan_multiplies_the_walkers_and_keeps_the_rest() {
+        let (carla, repo) = (Path::new("/carla"), Path::new("/repo"));
+        let base = plan(Preset::Original, 6, carla, repo);
+        let mut crowded = base.clone();
+        crowd(&mut crowded, 4.0).unwrap();
+        let walkers: Vec<u32> = crowded.iter().map(|s| s.pedestrians).collect();
+        assert_eq!(walkers, [0, 40, 160, 0, 40, 160]);
+        for (a, b) in base.iter().zip(&crowded) {
+            assert_eq!(
+                (a.id, &a.route, a.seed, a.vehicles),
+                (b.id, &b.route, b.seed, b.vehicles)
+            );
+        }
+        for bad in [-1.0, 21.0, f64::NAN] {
+            let err = crowd(&mut crowded.clone(), bad).unwrap_err();
+            assert!(err.contains("from 0 to 20"), "{err}");
         }
     }
 

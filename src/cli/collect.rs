@@ -31,6 +31,11 @@ pub struct CollectArgs {
     /// Longest episode (seconds simulated).
     #[arg(long, default_value_t = 90.0)]
     pub max_s: f64,
+    /// Multiplies every episode's pedestrian count (the plan cycles through the paper's
+    /// 0, 10 and 40), 0 to 20 (`dataset::collect::crowd`): a crowded set has more walkers
+    /// in the ego's path to learn braking from. Collect it into its own directory.
+    #[arg(long, default_value_t = 1.0)]
+    pub pedestrians_scale: f64,
     /// Mean seconds between two perturbations of the expert (0: no noise).
     #[arg(long, default_value_t = 4.0)]
     pub noise_gap_s: f64,
@@ -64,7 +69,9 @@ pub fn collect(a: CollectArgs) -> anyhow::Result<()> {
         a.carla.display()
     );
     let repo = std::env::current_dir()?;
-    let plan = collect::plan(preset, a.episodes, &a.carla, &repo);
+    let mut plan = collect::plan(preset, a.episodes, &a.carla, &repo);
+    collect::crowd(&mut plan, a.pedestrians_scale)
+        .map_err(|e| anyhow::anyhow!("--pedestrians-scale: {e}"))?;
     let mut cfg = CollectConfig::cpu_default(preset.name());
     cfg.max_s = a.max_s;
     cfg.noise.mean_gap_s = a.noise_gap_s;
