@@ -152,15 +152,12 @@ impl Summary {
             for &c in &shard.command {
                 s.commands[usize::from(c)] += 1;
             }
-            for ego in &shard.ego {
+            for (ego, actors) in shard.ego.iter().zip(&shard.actors) {
                 s.speeds[speed_bin(ego.speed)] += 1;
+                if pedestrian_ahead(ego, actors).is_some() {
+                    s.pedestrian_ahead += 1;
+                }
             }
-            s.pedestrian_ahead += shard
-                .ego
-                .iter()
-                .zip(&shard.actors)
-                .filter(|(ego, actors)| pedestrian_ahead(ego, actors).is_some())
-                .count() as u64;
             *s.towns.entry(e.town.clone()).or_default() += n;
             let route = match &e.route.file {
                 Some(file) => {

@@ -215,17 +215,21 @@ fn im2col(x: &Fmap, conv: &Conv, wo: usize, rows: std::ops::Range<usize>, col: &
 /// cuts the inner dimension itself, into the same pieces everywhere.
 const K_BLOCK: usize = 512;
 
+/// The length of [`matmul`]'s pieces of an inner dimension `k`: `ceil(k / K_BLOCK)`
+/// near-equal pieces, none longer than [`K_BLOCK`] (at least 1, a valid step).
+fn piece_len(k: usize) -> usize {
+    k.div_ceil(k.div_ceil(K_BLOCK).max(1)).max(1)
+}
+
 /// `out [m, n] = lhs [m, k] x rhs [k, n]`, all row-major, overwriting `out`, on this thread.
 ///
-/// The inner dimension is cut into `ceil(k / K_BLOCK)` near-equal pieces, each one `gemm`
-/// call that adds its product to `out`: the same arithmetic in the same order on any CPU
-/// (tested against a scalar fused multiply-add loop, bit for bit).
+/// The inner dimension is cut into pieces of [`piece_len`], each one `gemm` call that adds
+/// its product to `out`: the same arithmetic in the same order on any CPU (tested against
+/// a scalar fused multiply-add loop, bit for bit).
 fn matmul(lhs: &[f32], rhs: &[f32], out: &mut [f32], m: usize, k: usize, n: usize) {
     assert!(lhs.len() >= m * k && rhs.len() >= k * n && out.len() >= m * n);
-    let pieces = k.div_ceil(K_BLOCK).max(1);
-    let piece = k.div_ceil(pieces);
-    let mut k0 = 0;
-    while k0 < k {
+    let piece = piece_len(k);
+    for k0 in (0..k).step_by(piece) {
         let kp = piece.min(k - k0);
         let first = k0 == 0;
         // SAFETY: the slices hold at least m*k, k*n and m*n elements (asserted above);
@@ -256,7 +260,6 @@ fn matmul(lhs: &[f32], rhs: &[f32], out: &mut [f32], m: usize, k: usize, n: usiz
                 gemm::Parallelism::None,
             );
         }
-        k0 += kp;
     }
 }
 
@@ -632,8 +635,7 @@ mod tests {
             let mut out = vec![f32::NAN; m * n];
             matmul(&lhs, &rhs, &mut out, m, k, n);
 
-            let pieces = k.div_ceil(K_BLOCK);
-            let piece = k.div_ceil(pieces);
+            let piece = piece_len(k);
             assert!(piece <= K_BLOCK);
             for i in 0..m {
                 for j in 0..n {
