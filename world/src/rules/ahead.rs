@@ -4,6 +4,15 @@
 //! path (a polyline starting at the asking vehicle's reference point, points
 //! about 1 m apart) and lies in front of the path's start. Its distance is
 //! measured along the path to the near edge of its footprint.
+//!
+//! A walking pedestrian counts where it will be, too: its footprint is also
+//! tested at [`PEDESTRIAN_PREDICT_S`] seconds ahead, along its heading at its
+//! speed, in steps of [`PEDESTRIAN_PREDICT_STEP_S`], and the nearest hit
+//! along the path wins. A walker about to step off the kerb is then ahead
+//! before it is in the lane, as it is for World on Rails' autopilot (which
+//! intersects each walker's heading line, 8 m long, with the ego's). Vehicles
+//! follow lanes, so a straight-line guess would be wrong for them; they count
+//! where they are.
 
 use crate::agents::actor::ActorKind;
 use glam::Vec2;
@@ -43,6 +52,29 @@ pub struct Ahead {
 /// Chord length of the coarse pass (path points).
 const COARSE: usize = 5;
 
+/// How far ahead a walking pedestrian's position is predicted (seconds): about
+/// the time a car at 6 m/s needs to stop at 3 m/s^2.
+pub const PEDESTRIAN_PREDICT_S: f32 = 2.0;
+
+/// Step of the predicted pedestrian positions (seconds).
+pub const PEDESTRIAN_PREDICT_STEP_S: f32 = 0.25;
+
+/// Below this speed a pedestrian counts as standing (metres per second).
+const PEDESTRIAN_STANDING_MPS: f32 = 0.1;
+
+/// Where an actor's footprint is tested: where it is now, and for a walking
+/// pedestrian where it will be at each prediction step.
+fn test_positions(a: &ActorView) -> impl Iterator<Item = Vec2> + '_ {
+    let walking = a.kind == ActorKind::Pedestrian && a.speed_mps > PEDESTRIAN_STANDING_MPS;
+    let steps = if walking {
+        (PEDESTRIAN_PREDICT_S / PEDESTRIAN_PREDICT_STEP_S).round() as usize
+    } else {
+        0
+    };
+    let step = Vec2::from_angle(a.yaw) * (a.speed_mps * PEDESTRIAN_PREDICT_STEP_S);
+    (0..=steps).map(move |k| a.position + step * k as f32)
+}
+
 /// Nearest actor (other than `exclude`) ahead along `path` within `max_m`, whose footprint comes within `corridor_half_m` of the path (metres).
 pub fn nearest_ahead(
     path: &[Vec2],
@@ -64,62 +96,86 @@ pub fn nearest_ahead(
     lo -= Vec2::splat(pad);
     hi += Vec2::splat(pad);
     let mut best: Option<Ahead> = None;
-    let n = path.len();
     for a in actors {
-        if Some(a.id) == exclude || a.position.cmplt(lo).any() || a.position.cmpgt(hi).any() {
+        if Some(a.id) == exclude {
             continue;
         }
-        let reach = corridor_half_m + a.half_length_m.max(a.half_width_m);
-        // Coarse pass over chords of COARSE segments (their sagitta is below 1 m on
-        // our lanes), then a fine pass around the first chord that comes near.
-        let mut k = 0;
-        while k + 1 < n {
-            let k2 = (k + COARSE).min(n - 1);
-            if seg_dist(a.position, path[k], path[k2]).0 > reach + 1.0 {
-                k = k2;
+        for position in test_positions(a) {
+            if position.cmplt(lo).any() || position.cmpgt(hi).any() {
                 continue;
             }
-            let lo = k.saturating_sub(COARSE);
-            let hi = (k2 + COARSE).min(n - 1);
-            let mut near: Option<(f32, usize, f32)> = None;
-            for i in lo..hi {
-                let (d, t) = seg_dist(a.position, path[i], path[i + 1]);
-                if near.is_none_or(|b| d < b.0) {
-                    near = Some((d, i, t));
-                }
-            }
-            k = hi;
-            let Some((d, i, t)) = near else { continue };
-            if d > reach {
-                continue;
-            }
-            let seg = path[i + 1] - path[i];
-            let seg_len = seg.length().max(1e-6);
-            let dir = seg / seg_len;
-            let rel = Vec2::from_angle(a.yaw);
-            let (c, s) = (rel.dot(dir).abs(), rel.perp_dot(dir).abs());
-            let lat_ext = s * a.half_length_m + c * a.half_width_m;
-            let long_ext = c * a.half_length_m + s * a.half_width_m;
-            let lateral = dir.perp_dot(a.position - path[i]).abs();
-            if lateral > corridor_half_m + lat_ext {
-                continue;
-            }
-            if i == 0 && t <= 0.0 && (a.position - path[0]).dot(dir) < 0.0 {
-                continue; // behind the start
-            }
-            let along = path_len_to(path, i) + t * seg_len;
-            let dist = (along - long_ext).max(0.0);
-            if dist > max_m {
-                continue;
-            }
-            if best.is_none_or(|b| dist < b.distance_m) {
+            if let Some(dist) = footprint_ahead(path, a, position, corridor_half_m, max_m)
+                && best.is_none_or(|b| dist.0 < b.distance_m)
+            {
                 best = Some(Ahead {
                     id: a.id,
                     kind: a.kind,
-                    distance_m: dist,
-                    speed_along_mps: a.speed_mps * rel.dot(dir),
+                    distance_m: dist.0,
+                    speed_along_mps: dist.1,
                 });
             }
+        }
+    }
+    best
+}
+
+/// Whether the footprint of `a`, placed at `position`, reaches into the
+/// corridor ahead along `path`: its path distance (metres, the nearest
+/// crossing) and its speed along the path there (m/s).
+fn footprint_ahead(
+    path: &[Vec2],
+    a: &ActorView,
+    position: Vec2,
+    corridor_half_m: f32,
+    max_m: f32,
+) -> Option<(f32, f32)> {
+    let n = path.len();
+    let mut best: Option<(f32, f32)> = None;
+    let reach = corridor_half_m + a.half_length_m.max(a.half_width_m);
+    // Coarse pass over chords of COARSE segments (their sagitta is below 1 m on
+    // our lanes), then a fine pass around the first chord that comes near.
+    let mut k = 0;
+    while k + 1 < n {
+        let k2 = (k + COARSE).min(n - 1);
+        if seg_dist(position, path[k], path[k2]).0 > reach + 1.0 {
+            k = k2;
+            continue;
+        }
+        let lo = k.saturating_sub(COARSE);
+        let hi = (k2 + COARSE).min(n - 1);
+        let mut near: Option<(f32, usize, f32)> = None;
+        for i in lo..hi {
+            let (d, t) = seg_dist(position, path[i], path[i + 1]);
+            if near.is_none_or(|b| d < b.0) {
+                near = Some((d, i, t));
+            }
+        }
+        k = hi;
+        let Some((d, i, t)) = near else { continue };
+        if d > reach {
+            continue;
+        }
+        let seg = path[i + 1] - path[i];
+        let seg_len = seg.length().max(1e-6);
+        let dir = seg / seg_len;
+        let rel = Vec2::from_angle(a.yaw);
+        let (c, s) = (rel.dot(dir).abs(), rel.perp_dot(dir).abs());
+        let lat_ext = s * a.half_length_m + c * a.half_width_m;
+        let long_ext = c * a.half_length_m + s * a.half_width_m;
+        let lateral = dir.perp_dot(position - path[i]).abs();
+        if lateral > corridor_half_m + lat_ext {
+            continue;
+        }
+        if i == 0 && t <= 0.0 && (position - path[0]).dot(dir) < 0.0 {
+            continue; // behind the start
+        }
+        let along = path_len_to(path, i) + t * seg_len;
+        let dist = (along - long_ext).max(0.0);
+        if dist > max_m {
+            continue;
+        }
+        if best.is_none_or(|b| dist < b.0) {
+            best = Some((dist, a.speed_mps * rel.dot(dir)));
         }
     }
     best
@@ -184,12 +240,13 @@ mod tests {
             .map(|i| Vec2::from_angle(i as f32 / 10.0) * 10.0)
             .collect();
         let on = Vec2::from_angle(1.2) * 10.0;
+        // A standing walker: only where it is counts.
         let actors = [ActorView {
             id: 7,
             kind: ActorKind::Pedestrian,
             position: on,
             yaw: 0.0,
-            speed_mps: 1.0,
+            speed_mps: 0.0,
             half_length_m: 0.3,
             half_width_m: 0.3,
         }];
@@ -204,5 +261,49 @@ mod tests {
             ..actors[0]
         }];
         assert!(nearest_ahead(&path, &off, None, 1.0, 30.0).is_none());
+    }
+
+    fn walker(x: f32, y: f32, yaw: f32, speed_mps: f32) -> ActorView {
+        ActorView {
+            id: 9,
+            kind: ActorKind::Pedestrian,
+            position: Vec2::new(x, y),
+            yaw,
+            speed_mps,
+            half_length_m: 0.3,
+            half_width_m: 0.3,
+        }
+    }
+
+    #[test]
+    fn a_walker_heading_for_the_path_is_ahead_before_it_steps_in() {
+        use std::f32::consts::FRAC_PI_2;
+        let path: Vec<Vec2> = (0..40).map(|i| Vec2::new(i as f32, 0.0)).collect();
+        // 3.1 m to the left of the path, 9 m ahead: outside the 1.4 m corridor.
+        let toward = walker(9.0, 3.1, -FRAC_PI_2, 1.3);
+        let a = nearest_ahead(&path, &[toward], None, 1.4, 40.0).unwrap();
+        assert_eq!(a.id, 9);
+        assert!((a.distance_m - 8.7).abs() < 0.05, "{}", a.distance_m);
+        assert!(a.speed_along_mps.abs() < 1e-3);
+        // The same walker standing, walking away, or walking too slowly to
+        // reach the corridor within the prediction, is not ahead.
+        for w in [
+            walker(9.0, 3.1, -FRAC_PI_2, 0.0),
+            walker(9.0, 3.1, FRAC_PI_2, 1.3),
+            walker(9.0, 3.1, -FRAC_PI_2, 0.5),
+        ] {
+            assert!(
+                nearest_ahead(&path, &[w], None, 1.4, 40.0).is_none(),
+                "{w:?}"
+            );
+        }
+        // A vehicle with the same motion counts only where it is.
+        let crossing_car = car(3, 9.0, 5.0, -FRAC_PI_2);
+        assert!(nearest_ahead(&path, &[crossing_car], None, 1.4, 40.0).is_none());
+        // Walking along the path, the walker is where it is, not where it goes.
+        let along = walker(20.0, 0.0, 0.0, 1.3);
+        let a = nearest_ahead(&path, &[along], None, 1.4, 40.0).unwrap();
+        assert!((a.distance_m - 19.7).abs() < 0.05, "{}", a.distance_m);
+        assert!((a.speed_along_mps - 1.3).abs() < 1e-4);
     }
 }
