@@ -6,13 +6,11 @@
 //! measured along the path to the near edge of its footprint.
 //!
 //! A walking pedestrian counts where it will be, too: its footprint is also
-//! tested at [`PEDESTRIAN_PREDICT_S`] seconds ahead, along its heading at its
-//! speed, in steps of [`PEDESTRIAN_PREDICT_STEP_S`], and the nearest hit
-//! along the path wins. A walker about to step off the kerb is then ahead
-//! before it is in the lane, as it is for World on Rails' autopilot (which
-//! intersects each walker's heading line, 8 m long, with the ego's). Vehicles
-//! follow lanes, so a straight-line guess would be wrong for them; they count
-//! where they are.
+//! tested every [`PEDESTRIAN_PREDICT_STEP_S`] seconds up to
+//! [`PEDESTRIAN_PREDICT_S`] seconds ahead, moved along its heading at its
+//! speed, and the nearest hit along the path wins. A walker about to step off the kerb is then ahead
+//! before it is in the lane. Vehicles follow lanes, so a straight-line guess
+//! would be wrong for them; they count where they are.
 
 use crate::agents::actor::ActorKind;
 use glam::Vec2;
