@@ -111,6 +111,54 @@ fn a_red_light_within_braking_distance_makes_brake_best() {
     assert!(no_bonus[3][3][index(4, 2)] < green[3][3][index(4, 2)]);
 }
 
+/// What is in the way of `ego` driving east: the rule book's "ahead" along
+/// a straight path from the ego, as the labeller's episode loop asks it.
+fn hazards_east(s: &Situation, ego: EgoRow) -> Hazards {
+    use sim::runner::{AHEAD_CORRIDOR_M, AHEAD_RANGE_M};
+    let path: Vec<Vec2> = (0..=AHEAD_RANGE_M as usize)
+        .map(|k| Vec2::new(ego.x + k as f32, ego.y))
+        .collect();
+    let views: Vec<_> = s.actors.iter().map(ActorRow::view).collect();
+    let ahead = world::rules::nearest_ahead(&path, &views, None, AHEAD_CORRIDOR_M, AHEAD_RANGE_M);
+    let stops = world::rules::RouteStops::default();
+    Hazards::measure(
+        &s.labeller.params,
+        &stops,
+        ego.x,
+        |_| world::LightState::Green,
+        ahead,
+    )
+}
+
+#[test]
+fn a_walker_about_to_step_into_the_lane_makes_brake_best() {
+    let mut s = Situation::new(GREEN);
+    let ego = east_at(40.0);
+    // 8 m ahead, 3.1 m to the left of the lane's centre (outside the 1.4 m
+    // corridor), walking towards the lane at 1.3 m/s: in it within 2 s.
+    let walker = ActorRow {
+        kind: ActorRow::PEDESTRIAN,
+        id: 2,
+        x: ego.x + 8.0,
+        y: ego.y + 3.1,
+        yaw: -std::f32::consts::FRAC_PI_2,
+        length: 0.6,
+        width: 0.6,
+        speed: 1.3,
+    };
+    s.actors.push(walker);
+    let q = s.label(ego, hazards_east(&s, ego));
+    for (b, values) in q[Command::LaneFollow as usize].iter().enumerate().skip(1) {
+        assert_eq!(best(values), BRAKE, "bin {b}: {values:?}");
+    }
+    // Standing at the kerb, the same walker is not in the way.
+    s.actors[0].speed = 0.0;
+    let hazards = hazards_east(&s, ego);
+    assert_eq!(hazards.actor_ahead, None);
+    let q = s.label(ego, hazards);
+    assert_ne!(best(&q[Command::LaneFollow as usize][2]), BRAKE);
+}
+
 #[test]
 fn a_car_stopped_ahead_makes_brake_best() {
     let mut s = Situation::new(GREEN);
