@@ -115,6 +115,13 @@ pub fn pedestrian_y(i: usize) -> f32 {
     }
 }
 
+/// The pedestrian's speed in frame `i` (metres per second): walking while it
+/// crosses, waiting on the sidewalk otherwise (a walker walking towards the
+/// lane would count as ahead: the rule book predicts its path).
+pub fn pedestrian_speed(i: usize) -> f32 {
+    if i % 7 == 3 { 1.2 } else { 0.0 }
+}
+
 /// The command of frame `i` (`world::Command` as u8).
 pub fn command(i: usize) -> u8 {
     if i % 5 == 4 {
@@ -207,7 +214,7 @@ pub fn shard(spec: &SyntheticSpec, e: usize, route: &DenseRoute) -> Shard {
                 yaw: 1.5,
                 length: 0.5,
                 width: 0.5,
-                speed: 1.2,
+                speed: pedestrian_speed(i),
             },
         ]);
         s.lights.push(vec![light(i); lights]);
