@@ -408,10 +408,19 @@ mod tests {
             ticks[first_seen].state.speed_mps > 4.0,
             "it was cruising when the walker stepped out"
         );
-        // It brakes within half a second of seeing the walker and stops at
-        // least 2 m short of it (the walker's near edge is at x = 44.7).
+        // The rule book predicts a walking pedestrian's path, so the walker
+        // is ahead before its footprint reaches the corridor (1.4 m around
+        // the lane's centre, y = -1.75), at 2 + (7 - 3.45) / 1.5 = 4.37 s.
+        let enters = ((2.0 + (7.0 - 3.45) / 1.5) / DT).round() as usize;
         assert!(
-            ticks[first_seen..first_seen + 20]
+            first_seen < enters,
+            "seen at tick {first_seen}, enters at {enters}"
+        );
+        // It brakes no later than half a second after the walker enters the
+        // corridor and stops at least 2 m short of it (the walker's near edge
+        // is at x = 44.7).
+        assert!(
+            ticks[first_seen..enters + 20]
                 .iter()
                 .any(|t| t.control.brake > 0.0),
             "no brake after seeing the walker"
