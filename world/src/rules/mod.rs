@@ -11,7 +11,7 @@
 //! | [`pursuit`] | the pure-pursuit lookahead |
 //! | [`lanes`] | the lane under a point (heading agreement, one width lookup), the nearest lane, and [`LaneGrid`] |
 //! | [`conflicts`] | which connecting lanes of a junction conflict |
-//! | [`ahead`] | what is ahead along a path: the nearest actor whose footprint reaches into a corridor, and its distance along the path |
+//! | [`ahead`] | what is ahead along a path: the nearest actor whose footprint reaches into a corridor (a walking pedestrian's also where it will be within 2 s), and its distance along the path |
 //!
 //! Each rule is a plain function or table built from a [`Town`] (and a
 //! [`crate::DenseRoute`]): none needs a running [`crate::traffic::Traffic`].
