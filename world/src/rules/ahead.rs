@@ -8,9 +8,9 @@
 //! A walking pedestrian counts where it will be, too: its footprint is also
 //! tested every [`PEDESTRIAN_PREDICT_STEP_S`] seconds up to
 //! [`PEDESTRIAN_PREDICT_S`] seconds ahead, moved along its heading at its
-//! speed, and the nearest hit along the path wins. A walker about to step off the kerb is then ahead
-//! before it is in the lane. Vehicles follow lanes, so a straight-line guess
-//! would be wrong for them; they count where they are.
+//! speed, and the nearest hit along the path wins. A walker about to step off
+//! the kerb is then ahead before it is in the lane. Vehicles follow lanes, so
+//! a straight-line guess would be wrong for them; they count where they are.
 
 use crate::agents::actor::ActorKind;
 use glam::Vec2;
@@ -73,7 +73,7 @@ fn test_positions(a: &ActorView) -> impl Iterator<Item = Vec2> + '_ {
     (0..=steps).map(move |k| a.position + step * k as f32)
 }
 
-/// Nearest actor (other than `exclude`) ahead along `path` within `max_m`, whose footprint comes within `corridor_half_m` of the path (metres).
+/// Nearest actor (other than `exclude`) ahead along `path` within `max_m`, whose footprint comes within `corridor_half_m` of the path (metres); a walking pedestrian's footprint is also tested where it will be (see the module's doc).
 pub fn nearest_ahead(
     path: &[Vec2],
     actors: &[ActorView],
@@ -98,11 +98,12 @@ pub fn nearest_ahead(
         if Some(a.id) == exclude {
             continue;
         }
+        let heading = Vec2::from_angle(a.yaw);
         for position in test_positions(a) {
             if position.cmplt(lo).any() || position.cmpgt(hi).any() {
                 continue;
             }
-            if let Some(dist) = footprint_ahead(path, a, position, corridor_half_m, max_m)
+            if let Some(dist) = footprint_ahead(path, a, heading, position, corridor_half_m, max_m)
                 && best.is_none_or(|b| dist.0 < b.distance_m)
             {
                 best = Some(Ahead {
@@ -117,12 +118,13 @@ pub fn nearest_ahead(
     best
 }
 
-/// Whether the footprint of `a`, placed at `position`, reaches into the
-/// corridor ahead along `path`: its path distance (metres, the nearest
-/// crossing) and its speed along the path there (m/s).
+/// Whether the footprint of `a` (unit `heading`), placed at `position`,
+/// reaches into the corridor ahead along `path`: its path distance (metres,
+/// the nearest crossing) and its speed along the path there (m/s).
 fn footprint_ahead(
     path: &[Vec2],
     a: &ActorView,
+    heading: Vec2,
     position: Vec2,
     corridor_half_m: f32,
     max_m: f32,
@@ -156,8 +158,7 @@ fn footprint_ahead(
         let seg = path[i + 1] - path[i];
         let seg_len = seg.length().max(1e-6);
         let dir = seg / seg_len;
-        let rel = Vec2::from_angle(a.yaw);
-        let (c, s) = (rel.dot(dir).abs(), rel.perp_dot(dir).abs());
+        let (c, s) = (heading.dot(dir).abs(), heading.perp_dot(dir).abs());
         let lat_ext = s * a.half_length_m + c * a.half_width_m;
         let long_ext = c * a.half_length_m + s * a.half_width_m;
         let lateral = dir.perp_dot(position - path[i]).abs();
@@ -173,7 +174,7 @@ fn footprint_ahead(
             continue;
         }
         if best.is_none_or(|b| dist < b.0) {
-            best = Some((dist, a.speed_mps * rel.dot(dir)));
+            best = Some((dist, a.speed_mps * heading.dot(dir)));
         }
     }
     best
