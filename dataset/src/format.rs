@@ -129,6 +129,13 @@ pub struct Episode {
     pub vehicles: u32,
     /// Target pedestrians.
     pub pedestrians: u32,
+    /// Walkers sent across the road ahead of the ego per minute
+    /// (`dataset::collect::CROSSINGS_PER_MIN`; 0 in an index written before it).
+    #[serde(default)]
+    pub crossings_per_min: f32,
+    /// Walkers that were sent.
+    #[serde(default)]
+    pub walkers_sent: u32,
     /// Simulated time driven (seconds).
     pub sim_time_s: f64,
     /// The label file's name, once labelled.
@@ -335,6 +342,7 @@ pub fn pedestrian_ahead(ego: &EgoRow, actors: &[ActorRow]) -> Option<f32> {
         None,
         sim::runner::AHEAD_CORRIDOR_M,
         PEDESTRIAN_AHEAD_M,
+        world::rules::walker_horizon_s(ego.speed),
     )
     .map(|a| a.distance_m)
 }

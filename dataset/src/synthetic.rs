@@ -265,6 +265,8 @@ pub fn write(dir: &Path, spec: &SyntheticSpec) -> Result<Index, DataError> {
             seed: u64::from(e),
             vehicles: 1,
             pedestrians: 1,
+            crossings_per_min: 0.0,
+            walkers_sent: 0,
             sim_time_s: f64::from(spec.frames) * 0.25,
             labels: None,
         };

@@ -415,6 +415,7 @@ pub(crate) mod tests {
                     traffic: RealisedTraffic {
                         vehicles: 5,
                         pedestrians: 10,
+                        walkers_sent: 0,
                     },
                     completion_pct: if success { 100.0 } else { 50.0 },
                     success,

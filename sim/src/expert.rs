@@ -206,7 +206,7 @@ mod tests {
     use world::agents::{VehicleParams, VehicleState};
     use world::map::testtown::{grid, planned_route};
     use world::route::DenseRoute;
-    use world::rules::{ActorView, nearest_ahead};
+    use world::rules::{ActorView, nearest_ahead, walker_horizon_s};
     use world::rules::{RouteStops, StopLines};
     use world::{ActorKind, ActorSnapshot, LightState, Town, Vec2, Vec3};
 
@@ -273,6 +273,7 @@ mod tests {
                     Some(0),
                     AHEAD_CORRIDOR_M,
                     AHEAD_RANGE_M,
+                    walker_horizon_s(state.speed_mps),
                 );
                 let ego = ActorSnapshot {
                     id: 0,

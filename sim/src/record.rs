@@ -101,6 +101,14 @@ pub struct RealisedTraffic {
     pub vehicles: u32,
     /// Pedestrians spawned.
     pub pedestrians: u32,
+    /// Walkers sent across the road ahead of the ego
+    /// (`traffic.ego_crossings_per_min`; left out of the JSON when 0).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub walkers_sent: u32,
+}
+
+fn is_zero(n: &u32) -> bool {
+    *n == 0
 }
 
 /// Wall-clock figures of a run.

@@ -194,6 +194,7 @@ pub fn traffic_config(scenario: &Scenario) -> TrafficConfig {
         tick_s: scenario.timing.tick_s as f32,
         pedestrian: PedestrianParams {
             cross_factor: scenario.traffic.cross_factor,
+            ego_crossings_per_min: scenario.traffic.ego_crossings_per_min,
             ..defaults.pedestrian
         },
         ..defaults
@@ -736,6 +737,7 @@ pub fn run(
         traffic: RealisedTraffic {
             vehicles: world.traffic.realised_vehicles() as u32,
             pedestrians: world.traffic.realised_pedestrians() as u32,
+            walkers_sent: world.traffic.stats().walkers_sent as u32,
         },
         completion_pct,
         success,

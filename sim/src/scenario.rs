@@ -92,8 +92,18 @@ pub struct TrafficSpec {
     /// Share of pedestrians that cross the road away from crosswalks, in [0, 1]
     /// (CARLA's cross factor).
     pub cross_factor: f32,
+    /// Walkers sent across the road just ahead of the ego, per minute of
+    /// driving, in [0, 60]: a data-collection aid like CARLA's
+    /// pedestrian-crossing scenarios (`world::traffic::crossings`); 0, the
+    /// default, in every evaluation scenario.
+    #[serde(skip_serializing_if = "is_off")]
+    pub ego_crossings_per_min: f32,
     /// The seed every random choice of the run is derived from.
     pub seed: u64,
+}
+
+fn is_off(rate: &f32) -> bool {
+    *rate == 0.0
 }
 
 impl Default for TrafficSpec {
@@ -102,6 +112,7 @@ impl Default for TrafficSpec {
             vehicles: 0,
             pedestrians: 0,
             cross_factor: 0.1,
+            ego_crossings_per_min: 0.0,
             seed: 0,
         }
     }
@@ -485,6 +496,13 @@ impl Scenario {
                 "traffic.cross_factor",
                 self.traffic.cross_factor.to_string(),
                 "use a share in [0, 1]",
+            );
+        }
+        if !(0.0..=60.0).contains(&self.traffic.ego_crossings_per_min) {
+            return bad(
+                "traffic.ego_crossings_per_min",
+                self.traffic.ego_crossings_per_min.to_string(),
+                "use a rate in [0, 60] per minute (0: no walkers sent; collection uses 4)",
             );
         }
         let r = &self.resolution;

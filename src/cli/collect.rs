@@ -36,6 +36,11 @@ pub struct CollectArgs {
     /// in the ego's path to learn braking from. Collect it into its own directory.
     #[arg(long, default_value_t = 1.0)]
     pub pedestrians_scale: f64,
+    /// Walkers sent across the road just ahead of the ego per minute of driving, 0 to 60
+    /// (`world::traffic::crossings`; episodes without pedestrians get none): examples of
+    /// braking for a walker in the way, rare otherwise. 0 collects as the data before label version 4 was.
+    #[arg(long, default_value_t = collect::CROSSINGS_PER_MIN)]
+    pub crossings_per_min: f32,
     /// Mean seconds between two perturbations of the expert (0: no noise).
     #[arg(long, default_value_t = 4.0)]
     pub noise_gap_s: f64,
@@ -72,6 +77,14 @@ pub fn collect(a: CollectArgs) -> anyhow::Result<()> {
     let mut plan = collect::plan(preset, a.episodes, &a.carla, &repo);
     collect::crowd(&mut plan, a.pedestrians_scale)
         .map_err(|e| anyhow::anyhow!("--pedestrians-scale: {e}"))?;
+    anyhow::ensure!(
+        (0.0..=60.0).contains(&a.crossings_per_min),
+        "--crossings-per-min {}: give a rate from 0 to 60 per minute",
+        a.crossings_per_min
+    );
+    for spec in &mut plan {
+        spec.crossings_per_min = a.crossings_per_min;
+    }
     let mut cfg = CollectConfig::cpu_default(preset.name());
     cfg.max_s = a.max_s;
     cfg.noise.mean_gap_s = a.noise_gap_s;

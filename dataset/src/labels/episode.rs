@@ -10,7 +10,7 @@ use rayon::prelude::*;
 use sim::runner::{AHEAD_CORRIDOR_M, AHEAD_RANGE_M};
 use world::agents::VehicleParams;
 use world::route::DenseRoute;
-use world::rules::{ActorView, nearest_ahead};
+use world::rules::{ActorView, nearest_ahead, walker_horizon_s};
 use world::rules::{RouteStops, route_ahead};
 use world::{Town, Vec2};
 
@@ -46,7 +46,14 @@ pub fn hazards(
         &mut path,
     );
     let views: Vec<ActorView> = shard.actors[i].iter().map(ActorRow::view).collect();
-    let ahead = nearest_ahead(&path, &views, None, AHEAD_CORRIDOR_M, AHEAD_RANGE_M);
+    let ahead = nearest_ahead(
+        &path,
+        &views,
+        None,
+        AHEAD_CORRIDOR_M,
+        AHEAD_RANGE_M,
+        walker_horizon_s(ego.speed),
+    );
     let light = |l: world::LightIdx| {
         shard.lights[i]
             .get(l.0 as usize)

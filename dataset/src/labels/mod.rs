@@ -32,7 +32,7 @@ use maps::{StaticMaps, StepMaps, TownLanes, static_maps, step_maps};
 
 /// The version of the labels this build makes; label files of another
 /// version are refused (bump it whenever the values change).
-pub const LABEL_VERSION: u32 = 3;
+pub const LABEL_VERSION: u32 = 4;
 
 /// How far along the lane graph a junction's connecting lanes count as the
 /// ego's (metres): beyond the grid's reach.

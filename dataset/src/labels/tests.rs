@@ -119,7 +119,14 @@ fn hazards_east(s: &Situation, ego: EgoRow) -> Hazards {
         .map(|k| Vec2::new(ego.x + k as f32, ego.y))
         .collect();
     let views: Vec<_> = s.actors.iter().map(ActorRow::view).collect();
-    let ahead = world::rules::nearest_ahead(&path, &views, None, AHEAD_CORRIDOR_M, AHEAD_RANGE_M);
+    let ahead = world::rules::nearest_ahead(
+        &path,
+        &views,
+        None,
+        AHEAD_CORRIDOR_M,
+        AHEAD_RANGE_M,
+        world::rules::walker_horizon_s(ego.speed),
+    );
     let stops = world::rules::RouteStops::default();
     Hazards::measure(
         &s.labeller.params,

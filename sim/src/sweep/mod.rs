@@ -77,6 +77,7 @@ pub(crate) mod fixtures {
                 traffic: RealisedTraffic {
                     vehicles: spec.density.unwrap_or((0, 0)).0,
                     pedestrians: spec.density.unwrap_or((0, 0)).1,
+                    walkers_sent: 0,
                 },
                 completion_pct: 100.0,
                 success: spec.seed.is_multiple_of(2),

@@ -25,7 +25,7 @@
 use crate::agents::vehicle::{VehicleControl, VehicleParams, VehicleState};
 use crate::map::town::{LaneIdx, LightIdx, LightState, Town};
 use crate::road::lane_path::LanePath;
-use crate::rules::ahead::{ActorView, nearest_ahead};
+use crate::rules::ahead::{ActorView, nearest_ahead, walker_horizon_s};
 use crate::rules::{self, RuleBook};
 use glam::Vec2;
 use rand::RngExt;
@@ -229,7 +229,14 @@ pub fn decide(
 
     // Actors ahead.
     let corridor = vp.width_m * 0.5 + p.corridor_margin_m;
-    if let Some(a) = nearest_ahead(pts, actors, Some(npc.id), corridor, look + half) {
+    if let Some(a) = nearest_ahead(
+        pts,
+        actors,
+        Some(npc.id),
+        corridor,
+        look + half,
+        walker_horizon_s(v),
+    ) {
         let gap = a.distance_m - half;
         let s0 = if a.kind == crate::agents::actor::ActorKind::Pedestrian {
             p.pedestrian_gap_m

@@ -48,6 +48,9 @@ pub struct PedestrianParams {
     pub max_wait_s: f32,
     /// A spawn spot is refused when a vehicle or walker is this close (metres).
     pub spawn_clearance_m: f32,
+    /// Walkers sent across the road just ahead of the ego, per minute of
+    /// driving: a collection aid (`traffic/crossings.rs`); 0 (off) by default.
+    pub ego_crossings_per_min: f32,
 }
 
 impl Default for PedestrianParams {
@@ -62,6 +65,7 @@ impl Default for PedestrianParams {
             wait_time_gap_s: 4.0,
             max_wait_s: 10.0,
             spawn_clearance_m: 0.5,
+            ego_crossings_per_min: 0.0,
         }
     }
 }
@@ -318,6 +322,9 @@ pub struct Pedestrian {
     pub crosswalk_legs: u32,
     /// Times it has crossed the road between crosswalks.
     pub jaywalk_legs: u32,
+    /// Sent across the road ahead of the ego (`traffic/crossings.rs`): until it
+    /// reaches its next node it does not wait at the kerb for moving vehicles.
+    pub sent: bool,
     /// Its own random stream.
     pub rng: ChaCha8Rng,
 }
@@ -352,7 +359,7 @@ impl Pedestrian {
         let at_curb = (self.position - g.nodes[self.from as usize].position).length() < 0.05;
         if matches!(kind, Some(EdgeKind::Crosswalk | EdgeKind::Jaywalk)) && at_curb {
             let a = self.position;
-            let patient = (self.wait_ticks as f32 * dt_s) < p.max_wait_s;
+            let patient = !self.sent && (self.wait_ticks as f32 * dt_s) < p.max_wait_s;
             let busy = vehicles.iter().any(|v| {
                 if v.kind == ActorKind::Pedestrian {
                     return false;
@@ -435,6 +442,7 @@ impl Pedestrian {
             }
             self.from = next;
             self.route.remove(0);
+            self.sent = false;
         }
     }
 }
@@ -465,6 +473,7 @@ impl Pedestrian {
             held_by_vehicle: false,
             crosswalk_legs: 0,
             jaywalk_legs: 0,
+            sent: false,
             rng,
         }
     }

@@ -6,11 +6,17 @@
 //! measured along the path to the near edge of its footprint.
 //!
 //! A walking pedestrian counts where it will be, too: its footprint is also
-//! tested every [`PEDESTRIAN_PREDICT_STEP_S`] seconds up to
-//! [`PEDESTRIAN_PREDICT_S`] seconds ahead, moved along its heading at its
-//! speed, and the nearest hit along the path wins. A walker about to step off
-//! the kerb is then ahead before it is in the lane. Vehicles follow lanes, so
-//! a straight-line guess would be wrong for them; they count where they are.
+//! tested every [`PEDESTRIAN_PREDICT_STEP_S`] seconds up to a horizon,
+//! moved along its heading at its speed, and the nearest hit along the path
+//! wins. A walker about to step off the kerb is then ahead before it is in
+//! the lane. The horizon is the asking vehicle's stopping time
+//! ([`walker_horizon_s`]: its speed over [`STOPPING_DECEL_MPS2`], at most
+//! [`PEDESTRIAN_PREDICT_S`]): a moving car brakes for a walker it would
+//! otherwise reach, and a standing car (horizon 0) is held only by a walker
+//! already in its way. Without that a car waiting at a busy crosswalk would
+//! never start, since walkers yield only to moving vehicles. Vehicles follow
+//! lanes, so a straight-line guess would be wrong for them; they count where
+//! they are.
 
 use crate::agents::actor::ActorKind;
 use glam::Vec2;
@@ -50,9 +56,19 @@ pub struct Ahead {
 /// Chord length of the coarse pass (path points).
 const COARSE: usize = 5;
 
-/// How far ahead a walking pedestrian's position is predicted (seconds): about
-/// the time a car at 6 m/s needs to stop at 3 m/s^2.
+/// The longest horizon of a walking pedestrian's predicted position (seconds):
+/// about the time a car at 6 m/s needs to stop at [`STOPPING_DECEL_MPS2`].
 pub const PEDESTRIAN_PREDICT_S: f32 = 2.0;
+
+/// The deceleration that sets a vehicle's stopping time in [`walker_horizon_s`] (m/s^2).
+pub const STOPPING_DECEL_MPS2: f32 = 3.0;
+
+/// How far ahead (seconds) a vehicle moving at `speed_mps` predicts walking
+/// pedestrians: its stopping time at [`STOPPING_DECEL_MPS2`], at most
+/// [`PEDESTRIAN_PREDICT_S`]; 0 when it stands.
+pub fn walker_horizon_s(speed_mps: f32) -> f32 {
+    (speed_mps.max(0.0) / STOPPING_DECEL_MPS2).min(PEDESTRIAN_PREDICT_S)
+}
 
 /// Step of the predicted pedestrian positions (seconds).
 pub const PEDESTRIAN_PREDICT_STEP_S: f32 = 0.25;
@@ -61,11 +77,11 @@ pub const PEDESTRIAN_PREDICT_STEP_S: f32 = 0.25;
 const PEDESTRIAN_STANDING_MPS: f32 = 0.1;
 
 /// Where an actor's footprint is tested: where it is now, and for a walking
-/// pedestrian where it will be at each prediction step.
-fn test_positions(a: &ActorView) -> impl Iterator<Item = Vec2> + '_ {
+/// pedestrian where it will be at each prediction step up to `horizon_s`.
+fn test_positions(a: &ActorView, horizon_s: f32) -> impl Iterator<Item = Vec2> + '_ {
     let walking = a.kind == ActorKind::Pedestrian && a.speed_mps > PEDESTRIAN_STANDING_MPS;
     let steps = if walking {
-        (PEDESTRIAN_PREDICT_S / PEDESTRIAN_PREDICT_STEP_S).round() as usize
+        (horizon_s.clamp(0.0, PEDESTRIAN_PREDICT_S) / PEDESTRIAN_PREDICT_STEP_S).round() as usize
     } else {
         0
     };
@@ -73,13 +89,14 @@ fn test_positions(a: &ActorView) -> impl Iterator<Item = Vec2> + '_ {
     (0..=steps).map(move |k| a.position + step * k as f32)
 }
 
-/// Nearest actor (other than `exclude`) ahead along `path` within `max_m`, whose footprint comes within `corridor_half_m` of the path (metres); a walking pedestrian's footprint is also tested where it will be (see the module's doc).
+/// Nearest actor (other than `exclude`) ahead along `path` within `max_m`, whose footprint comes within `corridor_half_m` of the path (metres); a walking pedestrian's footprint is also tested where it will be up to `walker_horizon_s` seconds ahead (give [`walker_horizon_s`] of the asking vehicle's speed; see the module's doc).
 pub fn nearest_ahead(
     path: &[Vec2],
     actors: &[ActorView],
     exclude: Option<u32>,
     corridor_half_m: f32,
     max_m: f32,
+    walker_horizon_s: f32,
 ) -> Option<Ahead> {
     if path.len() < 2 {
         return None;
@@ -99,7 +116,7 @@ pub fn nearest_ahead(
             continue;
         }
         let heading = Vec2::from_angle(a.yaw);
-        for position in test_positions(a) {
+        for position in test_positions(a, walker_horizon_s) {
             if position.cmplt(lo).any() || position.cmpgt(hi).any() {
                 continue;
             }
@@ -217,7 +234,7 @@ mod tests {
             car(4, -6.0, 0.0, 0.0), // behind
             car(5, 15.0, 2.5, std::f32::consts::FRAC_PI_2), // crossing, nose in the corridor
         ];
-        let a = nearest_ahead(&path, &actors, None, 1.2, 50.0).unwrap();
+        let a = nearest_ahead(&path, &actors, None, 1.2, 50.0, PEDESTRIAN_PREDICT_S).unwrap();
         assert_eq!(a.id, 5);
         assert!(
             (a.distance_m - (15.0 - 1.1)).abs() < 0.05,
@@ -225,11 +242,21 @@ mod tests {
             a.distance_m
         );
         assert!(a.speed_along_mps.abs() < 1e-3);
-        let a = nearest_ahead(&path, &actors[..4], None, 1.2, 50.0).unwrap();
+        let a = nearest_ahead(&path, &actors[..4], None, 1.2, 50.0, PEDESTRIAN_PREDICT_S).unwrap();
         assert_eq!(a.id, 1);
         assert!((a.distance_m - 17.6).abs() < 0.05);
         assert!((a.speed_along_mps - 2.0).abs() < 1e-4);
-        assert!(nearest_ahead(&path, &actors[..4], Some(1), 1.2, 10.0).is_none());
+        assert!(
+            nearest_ahead(
+                &path,
+                &actors[..4],
+                Some(1),
+                1.2,
+                10.0,
+                PEDESTRIAN_PREDICT_S
+            )
+            .is_none()
+        );
     }
 
     #[test]
@@ -249,7 +276,7 @@ mod tests {
             half_length_m: 0.3,
             half_width_m: 0.3,
         }];
-        let a = nearest_ahead(&path, &actors, None, 1.0, 30.0).unwrap();
+        let a = nearest_ahead(&path, &actors, None, 1.0, 30.0, PEDESTRIAN_PREDICT_S).unwrap();
         assert!(
             (a.distance_m - (12.0 - 0.3)).abs() < 0.2,
             "{}",
@@ -259,7 +286,7 @@ mod tests {
             position: on * 1.3,
             ..actors[0]
         }];
-        assert!(nearest_ahead(&path, &off, None, 1.0, 30.0).is_none());
+        assert!(nearest_ahead(&path, &off, None, 1.0, 30.0, PEDESTRIAN_PREDICT_S).is_none());
     }
 
     fn walker(x: f32, y: f32, yaw: f32, speed_mps: f32) -> ActorView {
@@ -280,7 +307,7 @@ mod tests {
         let path: Vec<Vec2> = (0..40).map(|i| Vec2::new(i as f32, 0.0)).collect();
         // 3.1 m to the left of the path, 9 m ahead: outside the 1.4 m corridor.
         let toward = walker(9.0, 3.1, -FRAC_PI_2, 1.3);
-        let a = nearest_ahead(&path, &[toward], None, 1.4, 40.0).unwrap();
+        let a = nearest_ahead(&path, &[toward], None, 1.4, 40.0, PEDESTRIAN_PREDICT_S).unwrap();
         assert_eq!(a.id, 9);
         assert!((a.distance_m - 8.7).abs() < 0.05, "{}", a.distance_m);
         assert!(a.speed_along_mps.abs() < 1e-3);
@@ -292,16 +319,41 @@ mod tests {
             walker(9.0, 3.1, -FRAC_PI_2, 0.5),
         ] {
             assert!(
-                nearest_ahead(&path, &[w], None, 1.4, 40.0).is_none(),
+                nearest_ahead(&path, &[w], None, 1.4, 40.0, PEDESTRIAN_PREDICT_S).is_none(),
                 "{w:?}"
             );
         }
+        // The horizon is the asker's stopping time: a car at 6 m/s looks 2 s
+        // ahead and sees the walker; a standing car (0 s) does not until it is
+        // in the corridor, and a car at 1.5 m/s (0.5 s: 0.65 m) does not either.
+        assert_eq!(walker_horizon_s(6.0), PEDESTRIAN_PREDICT_S);
+        assert_eq!(walker_horizon_s(0.0), 0.0);
+        assert!(nearest_ahead(&path, &[toward], None, 1.4, 40.0, walker_horizon_s(6.0)).is_some());
+        for speed in [0.0, 1.5] {
+            let h = walker_horizon_s(speed);
+            assert!(
+                nearest_ahead(&path, &[toward], None, 1.4, 40.0, h).is_none(),
+                "{speed}"
+            );
+        }
+        let stepped_in = walker(9.0, 1.5, -FRAC_PI_2, 1.3);
+        assert!(nearest_ahead(&path, &[stepped_in], None, 1.4, 40.0, 0.0).is_some());
         // A vehicle with the same motion counts only where it is.
         let crossing_car = car(3, 9.0, 5.0, -FRAC_PI_2);
-        assert!(nearest_ahead(&path, &[crossing_car], None, 1.4, 40.0).is_none());
+        assert!(
+            nearest_ahead(
+                &path,
+                &[crossing_car],
+                None,
+                1.4,
+                40.0,
+                PEDESTRIAN_PREDICT_S
+            )
+            .is_none()
+        );
         // Walking along the path, the walker is where it is, not where it goes.
         let along = walker(20.0, 0.0, 0.0, 1.3);
-        let a = nearest_ahead(&path, &[along], None, 1.4, 40.0).unwrap();
+        let a = nearest_ahead(&path, &[along], None, 1.4, 40.0, PEDESTRIAN_PREDICT_S).unwrap();
         assert!((a.distance_m - 19.7).abs() < 0.05, "{}", a.distance_m);
         assert!((a.speed_along_mps - 1.3).abs() < 1e-4);
     }

@@ -28,7 +28,7 @@ pub mod pursuit;
 pub mod route;
 pub mod stop_lines;
 
-pub use ahead::{ActorView, Ahead, nearest_ahead};
+pub use ahead::{ActorView, Ahead, nearest_ahead, walker_horizon_s};
 pub use conflicts::JunctionConflicts;
 pub use crossing::{crossing_offset_m, crossing_point};
 pub use lanes::{LaneGrid, heading_agrees, nearest_lane, project_on_lane};

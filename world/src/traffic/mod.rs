@@ -24,8 +24,10 @@
 //! | `stats.rs` | the counters ([`TrafficStats`]) |
 //! | `views.rs` | actor views, snapshots, what is ahead of the ego |
 //! | [`soak`] | soak runs and the realised-count table (Table I) |
+//! | [`crossings`] | walkers sent across the road ahead of the ego (a collection aid) |
 //! | [`light_controller`] | the traffic-light controllers |
 
+pub mod crossings;
 pub mod light_controller;
 pub mod reservations;
 pub mod soak;
@@ -124,6 +126,8 @@ pub struct Traffic {
     stats: TrafficStats,
     scratch: Scratch,
     spawn_lanes: Vec<LaneIdx>,
+    crossing_edges: Vec<(u32, u32)>,
+    crossing_rng: rand_chacha::ChaCha8Rng,
 }
 
 impl Traffic {

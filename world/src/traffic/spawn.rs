@@ -43,6 +43,8 @@ impl Traffic {
             })
             .map(|i| LaneIdx(i as u32))
             .collect();
+        let crossing_edges = super::crossings::crossing_edges(&walk.edges);
+        let crossing_rng = actor_rng(cfg.seed, u32::MAX);
         let mut t = Traffic {
             town,
             cfg,
@@ -58,6 +60,8 @@ impl Traffic {
             stats: TrafficStats::default(),
             scratch: Scratch::default(),
             spawn_lanes,
+            crossing_edges,
+            crossing_rng,
         };
         if let Some(e) = ego {
             t.teleport_ego(e);

@@ -22,6 +22,8 @@ pub struct TrafficStats {
     pub npc_static_collisions: u64,
     /// Times an NPC had been stopped for more than 60 s.
     pub deadlocks: u64,
+    /// Walkers sent across the road ahead of the ego (`crossings.rs`).
+    pub walkers_sent: u64,
 }
 
 impl TrafficStats {

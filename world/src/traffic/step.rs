@@ -22,6 +22,9 @@ impl Traffic {
     pub fn step(&mut self, lights: &[LightState]) -> &[ContactEvent] {
         let vp = self.cfg.vehicle;
         let dt = self.cfg.tick_s;
+        if self.maybe_send_walker() {
+            self.refresh_views();
+        }
         self.update_reservations(lights);
         // Decide.
         let mut decisions = Vec::with_capacity(self.npcs.len());

@@ -7,7 +7,7 @@ use glam::{Vec2, Vec3};
 use super::Traffic;
 use crate::agents::{ActorKind, ActorSnapshot};
 use crate::physics::{PEDESTRIAN_HEIGHT_M, PEDESTRIAN_RADIUS_M};
-use crate::rules::{ActorView, Ahead, nearest_ahead};
+use crate::rules::{ActorView, Ahead, nearest_ahead, walker_horizon_s};
 
 impl Traffic {
     /// Every actor as the behaviours see it (start of the next tick).
@@ -22,7 +22,15 @@ impl Traffic {
         corridor_half_m: f32,
         max_m: f32,
     ) -> Option<Ahead> {
-        nearest_ahead(path, &self.views, Some(0), corridor_half_m, max_m)
+        let speed = self.ego.as_ref().map_or(0.0, |e| e.state.speed_mps);
+        nearest_ahead(
+            path,
+            &self.views,
+            Some(0),
+            corridor_half_m,
+            max_m,
+            walker_horizon_s(speed),
+        )
     }
 
     pub(super) fn refresh_views(&mut self) {
