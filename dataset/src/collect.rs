@@ -724,6 +724,7 @@ mod tests {
             seed: 0,
             vehicles: 0,
             pedestrians: 0,
+            crossings_per_min: 0.0,
         };
         let err = match prepare(&spec, &mut TownCache::default()) {
             Err(e) => e,

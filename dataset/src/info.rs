@@ -96,6 +96,8 @@ pub struct Summary {
     /// Frames with a pedestrian in the ego's corridor straight ahead
     /// ([`crate::format::pedestrian_ahead`], the rule the loader's `pedestrian_repeat` uses).
     pub pedestrian_ahead: u64,
+    /// Walkers sent across the road ahead of the ego (`Episode::walkers_sent`, summed).
+    pub walkers_sent: u64,
     /// Frames per speed bin ([`SPEED_EDGES_MPS`]).
     pub speeds: [u64; SPEED_BINS],
     /// Frames per town.
@@ -127,6 +129,11 @@ impl Summary {
             views: index.view_yaws_deg.len(),
             episodes: index.episodes.len(),
             driven_s: index.episodes.iter().map(|e| e.sim_time_s).sum(),
+            walkers_sent: index
+                .episodes
+                .iter()
+                .map(|e| u64::from(e.walkers_sent))
+                .sum(),
             ..Summary::default()
         };
         let mut random = std::collections::BTreeSet::new();
@@ -287,6 +294,12 @@ impl fmt::Display for Summary {
             percent(self.pedestrian_ahead, self.frames),
             self.pedestrian_ahead
         )?;
+        writeln!(
+            f,
+            "walkers sent across the road ahead of the ego: {} ({:.2} per simulated minute)",
+            self.walkers_sent,
+            self.walkers_sent as f64 / (self.driven_s / 60.0).max(1e-9)
+        )?;
         write!(f, "speed (m/s):")?;
         for (b, &n) in self.speeds.iter().enumerate() {
             let range = match b {
@@ -375,6 +388,7 @@ mod tests {
         assert!(text.contains("LEFT 20.0 %"), "{text}");
         assert!(text.contains("33.3 % of 60 frames"), "{text}");
         assert!(text.contains("(<= 20 m): 13.33 % (8 frames)"), "{text}");
+        assert!(text.contains("ahead of the ego: 0 (0.00 per"), "{text}");
     }
 
     #[test]

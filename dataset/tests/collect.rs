@@ -14,14 +14,25 @@ fn root() -> &'static Path {
 
 /// Two short episodes of the retargeting plan (our generated towns: no
 /// ../shared needed), collected into `dir`; `None` without a renderer.
-fn collect_into(dir: &Path, episodes: usize) -> Option<Index> {
-    let plan: Vec<_> = collect::plan(Preset::Retarget, 3, Path::new("/no/carla"), root())
+/// The first `episodes` episodes of the retargeting plan on our generated towns.
+fn plan(episodes: usize) -> Vec<collect::EpisodeSpec> {
+    collect::plan(Preset::Retarget, 3, Path::new("/no/carla"), root())
         .into_iter()
         .filter(|s| matches!(s.route, collect::RouteChoice::File { .. }))
         .take(episodes)
-        .collect();
+        .collect()
+}
+
+/// The collection's configuration: 4 s episodes.
+fn config() -> CollectConfig {
     let mut cfg = CollectConfig::cpu_default("retarget");
     cfg.max_s = 4.0;
+    cfg
+}
+
+fn collect_into(dir: &Path, episodes: usize) -> Option<Index> {
+    let plan = plan(episodes);
+    let cfg = config();
     match collect::collect(&plan, &cfg, dir, &mut |_, _| {}) {
         Ok(index) => Some(index),
         Err(e) if e.to_string().contains("adapter") || e.to_string().contains("camera") => {
@@ -86,6 +97,18 @@ fn collection_and_labels_are_deterministic_and_resume() {
             "{name} differs"
         );
     }
+    // Resuming with other traffic would mix two datasets: refused, naming the flag.
+    let mut other = plan(2);
+    for spec in &mut other {
+        spec.crossings_per_min = 0.0;
+    }
+    let err = collect::collect(&other, &config(), a.path(), &mut |_, _| {})
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("episode 0") && err.contains("--crossings-per-min"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -643,6 +643,15 @@ mod tests {
             err.contains("timing.latency_jitter") && err.contains("sigma"),
             "{err}"
         );
+        let err = parse(&format!("{MINIMAL}[traffic]\nego_crossings_per_min = 90\n"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("traffic.ego_crossings_per_min") && err.contains("[0, 60]"),
+            "{err}"
+        );
+        let s = parse(&format!("{MINIMAL}[traffic]\nego_crossings_per_min = 4\n")).unwrap();
+        assert_eq!(s.traffic.ego_crossings_per_min, 4.0);
         let learned = format!("{MINIMAL}[resolution]\nselector = \"learned\"\n");
         let err = parse(&learned).unwrap_err().to_string();
         assert!(

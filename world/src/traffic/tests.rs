@@ -504,3 +504,102 @@ fn a_free_npc_drives_at_the_speed_limit() {
         .pose_at(tr.npcs()[0].path.s_m);
     assert!((lp - tr.npcs()[0].state.position).length() < 0.3);
 }
+
+/// A walker sent across the road ahead of the ego, as a test sees it.
+#[derive(Debug, Clone, PartialEq)]
+struct Send {
+    tick: u64,
+    id: u32,
+    /// Where it was put, and the node it heads for.
+    kerb: Vec2,
+    next: Vec2,
+    /// Where it was the tick before, and where the ego was.
+    before: Vec2,
+    ego: Vec2,
+    /// The ego's distance to the kerb and its speed when the walker left it.
+    left_kerb: Option<(f32, f32)>,
+}
+
+/// Drives the ego east at about 6 m/s along a straight road with 40 walkers
+/// and `rate` crossings per minute for `seconds`; returns the sends and the traffic.
+fn drive_with_crossings(rate: f32, seconds: f32) -> (Vec<Send>, Traffic) {
+    let t = Arc::new(grid(4, 1, 200.0));
+    let ego = EgoStart {
+        position: Vec2::new(20.0, -1.75),
+        z: 0.0,
+        yaw: 0.0,
+    };
+    let mut c = cfg(0, 40, 5);
+    c.pedestrian.ego_crossings_per_min = rate;
+    let mut tr = Traffic::new(t, c, Some(ego));
+    let mut sends: Vec<Send> = Vec::new();
+    let mut before: Vec<(Vec2, bool)> = tr
+        .pedestrians()
+        .iter()
+        .map(|p| (p.position, p.sent))
+        .collect();
+    for tick in 0..(seconds / DT_S).round() as u64 {
+        let speed = tr.ego().unwrap().state.speed_mps;
+        tr.set_ego_control(VehicleControl {
+            steer: 0.0,
+            throttle: if speed < 6.0 { 0.5 } else { 0.0 },
+            brake: 0.0,
+        });
+        tr.step(&[]);
+        let ego = tr.ego().unwrap().state;
+        for (i, p) in tr.pedestrians().iter().enumerate() {
+            if p.sent && !before[i].1 {
+                sends.push(Send {
+                    tick,
+                    id: p.id,
+                    kerb: p.position,
+                    next: tr.walk_graph().nodes[p.route[0] as usize].position,
+                    before: before[i].0,
+                    ego: ego.position,
+                    left_kerb: None,
+                });
+            }
+            if let Some(s) = sends.iter_mut().rev().find(|s| s.id == p.id)
+                && s.left_kerb.is_none()
+                && (p.position - s.kerb).length() > 1e-3
+            {
+                s.left_kerb = Some(((s.kerb - ego.position).length(), ego.speed_mps));
+            }
+            before[i] = (p.position, p.sent);
+        }
+    }
+    (sends, tr)
+}
+
+#[test]
+fn walkers_are_sent_across_the_road_ahead_of_a_driving_ego() {
+    let (sends, tr) = drive_with_crossings(30.0, 30.0);
+    assert!(sends.len() >= 3, "{} walkers sent", sends.len());
+    assert_eq!(tr.stats().walkers_sent, sends.len() as u64);
+    let mut stepped_out_before_the_ego = 0;
+    for s in &sends {
+        // Moved from out of the camera's range to a kerb 15-35 m ahead, its
+        // next leg across the ego's heading line (y = -1.75).
+        assert!((s.before - s.ego).length() >= crossings::FAR_M, "{s:?}");
+        let ahead = (s.kerb - s.ego).x;
+        assert!((14.0..36.0).contains(&ahead), "{s:?}");
+        assert!(
+            (s.kerb.y + 1.75).signum() != (s.next.y + 1.75).signum(),
+            "{s:?}"
+        );
+        // A walker waits at the kerb while a vehicle moving at 6 m/s is within
+        // 24 m (4 s); a sent one steps out.
+        if let Some((d, v)) = s.left_kerb
+            && d < 20.0
+            && v > 5.0
+        {
+            stepped_out_before_the_ego += 1;
+        }
+    }
+    assert!(stepped_out_before_the_ego > 0, "{sends:?}");
+    let (again, _) = drive_with_crossings(30.0, 30.0);
+    assert_eq!(sends, again, "the same seed sends the same walkers");
+    let (none, quiet) = drive_with_crossings(0.0, 30.0);
+    assert!(none.is_empty());
+    assert_eq!(quiet.stats().walkers_sent, 0);
+}
