@@ -3,7 +3,7 @@
 //! | task | what it does |
 //! | --- | --- |
 //! | `setup` | installs what the tests and the camera need and are missing (Debian packages, a Python venv) |
-//! | `run [ARGS]` | `setup`, then `cargo run --release -- run scenarios/default.toml` (or the given arguments) |
+//! | `run [ARGS]` | `setup`, then `cargo run --release -- run scenarios/default.toml` (the expert); flags alone (`--seed 3`, `--checkpoint models/ra.safetensors`) are added to that, other arguments replace it |
 //! | `test [ARGS]` | `setup`, then the whole test suite in release mode; ends with the count of skipped tests and why |
 //! | `ci` | what `.ci/run` runs: formatting, then `test` with every skip turned into a failure |
 //! | `lint` | `cargo fmt --check` and `cargo clippy --all-targets -- -D warnings` (run before committing; kept out of CI because it needs a second, check-mode build of every dependency) |
@@ -172,11 +172,11 @@ fn python_venv(root: &Path) -> Result<PathBuf, String> {
 
 fn run(root: &Path, env: &Env, args: &[String]) -> Result<(), String> {
     let mut cmd: Vec<&str> = vec!["cargo", "run", "--release", "--"];
-    if args.is_empty() {
+    // Flags alone (`cargo xtask run --expert`) go to `mrdrive run` on the default scenario.
+    if args.first().is_none_or(|a| a.starts_with("--")) {
         cmd.extend(["run", "scenarios/default.toml"]);
-    } else {
-        cmd.extend(args.iter().map(String::as_str));
     }
+    cmd.extend(args.iter().map(String::as_str));
     status_in(root, &cmd, &borrow(env))
 }
 
@@ -579,6 +579,7 @@ fn bench(root: &Path, env: &Env) -> Result<(), String> {
                 bin,
                 "run",
                 "scenarios/default.toml",
+                "--expert",
                 "--quiet",
                 "--json",
                 &j1,
@@ -590,6 +591,7 @@ fn bench(root: &Path, env: &Env) -> Result<(), String> {
                 bin,
                 "run",
                 "scenarios/default.toml",
+                "--expert",
                 "--quiet",
                 "--camera",
                 "--json",
