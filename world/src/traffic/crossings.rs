@@ -29,6 +29,7 @@ use rand::RngExt;
 
 use super::Traffic;
 use crate::agents::pedestrian::EdgeKind;
+use crate::road::geometry::segments_intersect;
 
 /// The ego must drive at least this fast for a crossing to start (m/s).
 pub const MIN_EGO_SPEED_MPS: f32 = 2.0;
@@ -52,20 +53,6 @@ pub(super) fn crossing_edges(edges: &[Vec<(u32, f32, EdgeKind)>]) -> Vec<(u32, u
         .collect()
 }
 
-/// Where segment `a`-`b` cuts the ray from `origin` along unit `dir`: the
-/// distance along the ray (metres), if it does.
-fn cut_along(origin: Vec2, dir: Vec2, a: Vec2, b: Vec2) -> Option<f32> {
-    let ab = b - a;
-    let denom = dir.perp_dot(ab);
-    if denom.abs() < 1e-6 {
-        return None;
-    }
-    let rel = a - origin;
-    let t = rel.perp_dot(ab) / denom;
-    let u = rel.perp_dot(dir) / denom;
-    (0.0..=1.0).contains(&u).then_some(t)
-}
-
 impl Traffic {
     /// Maybe sends a walker across the road ahead of the ego (see the module docs); returns whether one was sent.
     pub(super) fn maybe_send_walker(&mut self) -> bool {
@@ -81,19 +68,20 @@ impl Traffic {
         }
         let origin = ego.state.position;
         let dir = Vec2::from_angle(ego.state.yaw);
+        // The stretch of the heading line a crossing must cut.
+        let (line_a, line_b) = (origin + dir * AHEAD_M.start, origin + dir * AHEAD_M.end);
         let nodes = &self.walk.nodes;
         let candidates: Vec<(u32, u32)> = self
             .crossing_edges
             .iter()
             .copied()
             .filter(|&(a, b)| {
-                cut_along(
-                    origin,
-                    dir,
+                segments_intersect(
+                    line_a,
+                    line_b,
                     nodes[a as usize].position,
                     nodes[b as usize].position,
                 )
-                .is_some_and(|t| AHEAD_M.contains(&t))
             })
             .collect();
         let far: Vec<usize> = (0..self.pedestrians.len())
@@ -126,28 +114,5 @@ impl Traffic {
         self.physics.teleport(w.id, kerb.position, w.yaw);
         self.stats.walkers_sent += 1;
         true
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_segment_across_the_ray_is_cut_at_its_distance() {
-        let o = Vec2::ZERO;
-        let east = Vec2::X;
-        let across = cut_along(o, east, Vec2::new(20.0, -4.0), Vec2::new(20.0, 4.0));
-        assert!((across.unwrap() - 20.0).abs() < 1e-5);
-        // Beside the ray, parallel to it, or behind: no cut ahead.
-        assert_eq!(
-            cut_along(o, east, Vec2::new(20.0, 1.0), Vec2::new(20.0, 4.0)),
-            None
-        );
-        assert_eq!(
-            cut_along(o, east, Vec2::new(5.0, 1.0), Vec2::new(25.0, 1.0)),
-            None
-        );
-        assert!(cut_along(o, east, Vec2::new(-9.0, -4.0), Vec2::new(-9.0, 4.0)).unwrap() < 0.0);
     }
 }
