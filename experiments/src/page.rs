@@ -254,6 +254,18 @@ fn header(cfg: &PaperConfig, opts: &RunOptions, results: &Results) -> String {
               different backends are not run-for-run comparable; rerun one backend's runs into a \
               fresh folder.\n\n";
     }
+    let checkpoints = results.checkpoints();
+    if !checkpoints.is_empty() {
+        s += &format!(
+            "Checkpoints (file, first digits of its SHA-256, from the run records; a resumed \
+             run refuses a folder whose checkpoint has changed since): {}.\n\n",
+            checkpoints
+                .into_iter()
+                .map(|c| format!("`{c}`"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
     s += &format!(
         "Builds: {}. Render backend: {}.\n\n",
         if builds.is_empty() {

@@ -132,6 +132,22 @@ impl Results {
             .collect()
     }
 
+    /// The checkpoints (file name and the first digits of its SHA-256) that
+    /// drove the finished runs, like "ra.safetensors sha256 1a2b3c4d5e6f".
+    pub fn checkpoints(&self) -> std::collections::BTreeSet<String> {
+        self.units
+            .values()
+            .flat_map(|u| u.runs.iter())
+            .filter_map(|r| r.record.result.provenance.checkpoint.as_ref())
+            .map(|id| {
+                let name = std::path::Path::new(&id.file)
+                    .file_name()
+                    .map_or(id.file.clone(), |n| n.to_string_lossy().into_owned());
+                format!("{name} sha256 {}", id.short())
+            })
+            .collect()
+    }
+
     /// The render backends of the finished runs that rendered (the expert's
     /// "none" left out).
     pub fn backends(&self) -> std::collections::BTreeSet<String> {

@@ -37,6 +37,8 @@ pub struct PolicyDriver {
     trigger: Option<Trigger>,
     /// The trigger's probability on the last frame.
     hint: Option<f32>,
+    /// The checkpoint file and its digest, for run records.
+    checkpoint: Option<sim::record::CheckpointId>,
 }
 
 impl PolicyDriver {
@@ -55,6 +57,7 @@ impl PolicyDriver {
             warned: false,
             trigger: None,
             hint: None,
+            checkpoint: None,
         }
     }
 
@@ -97,6 +100,12 @@ impl PolicyDriver {
             format!("burn, {:?}", driver.device)
         };
         driver.name = format!("policy:{} ({engine})", weights.display());
+        let id = sim::record::CheckpointId::of(weights).map_err(|source| CheckpointError::Io {
+            path: weights.to_path_buf(),
+            source,
+            fix: "check that the checkpoint file is readable",
+        })?;
+        driver.checkpoint = Some(id);
         Ok(driver)
     }
 
@@ -255,6 +264,10 @@ fn nearest_branch(scales: &[f32], scale: f32) -> usize {
 impl Driver for PolicyDriver {
     fn name(&self) -> String {
         self.name.clone()
+    }
+
+    fn checkpoint(&self) -> Option<sim::record::CheckpointId> {
+        self.checkpoint.clone()
     }
 
     fn needs(&self) -> DriverNeeds {
@@ -493,6 +506,11 @@ mod tests {
             driver.name()
         );
         assert!(driver.needs().camera);
+        // Its records carry the checkpoint's digest.
+        let id = driver.checkpoint().expect("a policy names its checkpoint");
+        assert!(id.file.ends_with("tiny.safetensors"), "{}", id.file);
+        let bytes = std::fs::read(tmp.path().join("tiny.safetensors")).unwrap();
+        assert_eq!(id.sha256, sim::record::sha256_hex(&bytes));
         scenario.driver.device = Some("tpu".into());
         let e = error_chain(&drivers.driver(&scenario, &prepared).err().unwrap());
         assert!(e.contains("driver.device") && e.contains("tpu"), "{e}");

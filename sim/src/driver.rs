@@ -85,4 +85,9 @@ pub trait Driver {
     fn scale_hint(&self) -> Option<f32> {
         None
     }
+    /// The checkpoint this driver runs (file and digest), written into its
+    /// run records; `None` for drivers without one (the expert).
+    fn checkpoint(&self) -> Option<crate::record::CheckpointId> {
+        None
+    }
 }

@@ -74,6 +74,45 @@ pub struct Provenance {
     pub build: String,
     /// The render backend and adapter, or "none" if nothing was rendered.
     pub render_backend: String,
+    /// A policy's checkpoint file and the digest of its bytes, so that a
+    /// resumed sweep never mixes the runs of two checkpoints saved under one
+    /// name; `None` for the expert (and left out of the JSON).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub checkpoint: Option<CheckpointId>,
+}
+
+/// Which checkpoint drove a run: its file as the driver opened it and the
+/// SHA-256 of the file's bytes.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct CheckpointId {
+    /// The weights file (`.safetensors`) as the driver opened it.
+    pub file: String,
+    /// SHA-256 of the file's bytes, lower-case hex.
+    pub sha256: String,
+}
+
+impl CheckpointId {
+    /// Reads and digests a checkpoint file.
+    pub fn of(file: &Path) -> std::io::Result<Self> {
+        Ok(Self {
+            file: file.display().to_string(),
+            sha256: sha256_hex(&std::fs::read(file)?),
+        })
+    }
+
+    /// The first 12 hex digits, for pages and messages.
+    pub fn short(&self) -> &str {
+        &self.sha256[..self.sha256.len().min(12)]
+    }
+}
+
+/// SHA-256 of some bytes, lower-case hex.
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    use sha2::Digest;
+    sha2::Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
 }
 
 /// The settings a run used.
@@ -194,4 +233,23 @@ pub fn read(path: &Path) -> Result<RunRecord, ReadRecordError> {
         path: path.to_path_buf(),
         source,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_digest_is_sha256() {
+        // FIPS 180-2's test vector for "abc".
+        assert_eq!(
+            sha256_hex(b"abc"),
+            "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"
+        );
+        let id = CheckpointId {
+            file: "m.safetensors".into(),
+            sha256: sha256_hex(b"abc"),
+        };
+        assert_eq!(id.short(), "ba7816bf8f01");
+    }
 }

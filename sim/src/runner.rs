@@ -725,6 +725,7 @@ pub fn run(
             driver: driver.name(),
             build: build_id(),
             render_backend: camera.as_ref().map_or("none".to_string(), |c| c.backend()),
+            checkpoint: driver.checkpoint(),
         },
         settings: RunSettings {
             seed: scenario.traffic.seed,

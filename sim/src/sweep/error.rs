@@ -56,6 +56,23 @@ pub enum SweepError {
         /// The shard folder.
         shard: PathBuf,
     },
+    /// The folder's records were made by a checkpoint whose file has changed
+    /// since (or by a policy whose records name no digest).
+    #[error(
+        "{root}: its runs were made by {file} with SHA-256 {recorded}, but that file now {now}; \
+         fix: move the folder aside (or give another --out folder) so that the runs of two \
+         checkpoints are never mixed, or put the old checkpoint back"
+    )]
+    CheckpointChanged {
+        /// The sweep folder.
+        root: PathBuf,
+        /// The checkpoint file as the records name it.
+        file: String,
+        /// The digest in the records ("none recorded" for records from before digests).
+        recorded: String,
+        /// What the file is now ("has SHA-256 ...", "cannot be read: ...").
+        now: String,
+    },
     /// A merge without shards.
     #[error("no shard folders to merge; fix: give at least one")]
     NoShards,

@@ -1,6 +1,7 @@
 //! The folder layout of a sweep: its plan and one record per finished run.
 
-use std::path::PathBuf;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 
 use super::{RunSpec, SweepError, SweepPlan};
 use crate::record::{self, RunRecord};
@@ -29,7 +30,8 @@ impl SweepDir {
     }
 
     /// Writes the plan, or checks that it matches the one already there (a
-    /// resumed sweep must be the same sweep).
+    /// resumed sweep must be the same sweep) and that the checkpoints its
+    /// records were made by have not changed ([`Self::same_checkpoints`]).
     pub fn prepare(&self, plan: &SweepPlan) -> Result<(), SweepError> {
         std::fs::create_dir_all(self.runs_dir())
             .map_err(|e| SweepError::io("create", self.runs_dir(), e))?;
@@ -40,10 +42,49 @@ impl SweepDir {
                     root: self.root.clone(),
                 });
             }
-            return Ok(());
+            return self.same_checkpoints();
         }
         let text = serde_json::to_string_pretty(plan).expect("a plan serialises");
         std::fs::write(&path, text).map_err(|e| SweepError::io("write", path, e))
+    }
+
+    /// Checks that every policy that made a record here is still the same
+    /// file: the digest its records carry is the digest of the file now.
+    /// Records of a policy that carry no digest (made before digests were
+    /// recorded) cannot be checked and are refused too.
+    pub fn same_checkpoints(&self) -> Result<(), SweepError> {
+        let mut now: BTreeMap<String, String> = BTreeMap::new();
+        for rec in read_records(self)? {
+            let p = &rec.result.provenance;
+            let Some(id) = &p.checkpoint else {
+                if p.driver.starts_with("policy:") {
+                    return Err(SweepError::CheckpointChanged {
+                        root: self.root.clone(),
+                        file: p.driver.clone(),
+                        recorded: "none recorded".into(),
+                        now: "cannot be told apart from another checkpoint".into(),
+                    });
+                }
+                continue;
+            };
+            if !now.contains_key(&id.file) {
+                let digest = match record::CheckpointId::of(Path::new(&id.file)) {
+                    Ok(here) => format!("has SHA-256 {}", here.sha256),
+                    Err(e) => format!("cannot be read: {e}"),
+                };
+                now.insert(id.file.clone(), digest);
+            }
+            let here = &now[&id.file];
+            if *here != format!("has SHA-256 {}", id.sha256) {
+                return Err(SweepError::CheckpointChanged {
+                    root: self.root.clone(),
+                    file: id.file.clone(),
+                    recorded: id.sha256.clone(),
+                    now: here.clone(),
+                });
+            }
+        }
+        Ok(())
     }
 
     /// Reads the plan.
@@ -72,7 +113,7 @@ pub fn read_records(dir: &SweepDir) -> Result<Vec<RunRecord>, SweepError> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::fixtures::plan;
+    use super::super::fixtures::{fake_record, plan};
     use super::*;
 
     #[test]
@@ -86,6 +127,45 @@ mod tests {
         let other = SweepPlan::cross(&["a.toml".into()], &[Some(0.0)], &[None], &[None], &[1]);
         let e = dir.prepare(&other).unwrap_err().to_string();
         assert!(e.contains("different sweep") && e.contains("--out"), "{e}");
+    }
+
+    #[test]
+    fn a_folder_made_by_a_checkpoint_that_has_changed_since_is_refused() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = SweepDir {
+            root: tmp.path().join("sweep"),
+        };
+        let p = plan();
+        dir.prepare(&p).unwrap();
+        let weights = tmp.path().join("ra.safetensors");
+        std::fs::write(&weights, b"the first weights").unwrap();
+        let mut rec = fake_record(&p.runs[0]);
+        rec.result.provenance.driver = format!("policy:{} (cpu, fused)", weights.display());
+        rec.result.provenance.checkpoint = Some(record::CheckpointId::of(&weights).unwrap());
+        record::write_atomically(&dir.record_path(&p.runs[0]), &rec).unwrap();
+        // The same file: the sweep resumes.
+        dir.prepare(&p).unwrap();
+        // Retrained under the same name: refused, naming the file and the fix.
+        std::fs::write(&weights, b"other weights").unwrap();
+        let e = dir.prepare(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("ra.safetensors") && e.contains("move the folder aside"),
+            "{e}"
+        );
+        assert!(e.contains(&record::sha256_hex(b"the first weights")), "{e}");
+        // Gone: refused too.
+        std::fs::remove_file(&weights).unwrap();
+        let e = dir.prepare(&p).unwrap_err().to_string();
+        assert!(e.contains("cannot be read"), "{e}");
+        // A policy's record without a digest cannot be checked.
+        rec.result.provenance.checkpoint = None;
+        record::write_atomically(&dir.record_path(&p.runs[0]), &rec).unwrap();
+        let e = dir.prepare(&p).unwrap_err().to_string();
+        assert!(e.contains("none recorded"), "{e}");
+        // The expert's records carry none and need none.
+        rec.result.provenance.driver = "expert".into();
+        record::write_atomically(&dir.record_path(&p.runs[0]), &rec).unwrap();
+        dir.prepare(&p).unwrap();
     }
 
     #[test]

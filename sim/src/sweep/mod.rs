@@ -65,6 +65,7 @@ pub(crate) mod fixtures {
                     driver: "expert".into(),
                     build: "test".into(),
                     render_backend: "none".into(),
+                    checkpoint: None,
                 },
                 settings: RunSettings {
                     seed: spec.seed,
