@@ -33,6 +33,16 @@ impl SweepDir {
     /// resumed sweep must be the same sweep) and that the checkpoints its
     /// records were made by have not changed ([`Self::same_checkpoints`]).
     pub fn prepare(&self, plan: &SweepPlan) -> Result<(), SweepError> {
+        if self.prepare_plan(plan)? {
+            self.same_checkpoints()?;
+        }
+        Ok(())
+    }
+
+    /// Writes the plan, or checks that it matches the one already there;
+    /// whether there was one. (A merge, which runs nothing, checks the
+    /// checkpoints by [`one_digest_per_checkpoint`] instead.)
+    pub fn prepare_plan(&self, plan: &SweepPlan) -> Result<bool, SweepError> {
         std::fs::create_dir_all(self.runs_dir())
             .map_err(|e| SweepError::io("create", self.runs_dir(), e))?;
         let path = self.plan_path();
@@ -42,10 +52,11 @@ impl SweepDir {
                     root: self.root.clone(),
                 });
             }
-            return self.same_checkpoints();
+            return Ok(true);
         }
         let text = serde_json::to_string_pretty(plan).expect("a plan serialises");
-        std::fs::write(&path, text).map_err(|e| SweepError::io("write", path, e))
+        std::fs::write(&path, text).map_err(|e| SweepError::io("write", path, e))?;
+        Ok(false)
     }
 
     /// Checks that every policy that made a record here is still the same
@@ -99,6 +110,35 @@ impl SweepDir {
     pub fn is_done(&self, spec: &RunSpec) -> bool {
         record::read(&self.record_path(spec)).is_ok()
     }
+}
+
+/// Checks that records, from one folder or several, name one digest per
+/// checkpoint file: what a merge of shards run elsewhere (where the files
+/// may not be) can check. Each record comes with the folder it was read from,
+/// which an error names.
+pub fn one_digest_per_checkpoint<'a>(
+    records: impl IntoIterator<Item = (&'a Path, &'a RunRecord)>,
+) -> Result<(), SweepError> {
+    let mut seen: BTreeMap<&str, &str> = BTreeMap::new();
+    for (from, rec) in records {
+        if let Some(id) = &rec.result.provenance.checkpoint {
+            match seen.get(id.file.as_str()) {
+                Some(&d) if d != id.sha256 => {
+                    return Err(SweepError::CheckpointChanged {
+                        root: from.to_path_buf(),
+                        file: id.file.clone(),
+                        recorded: d.to_string(),
+                        now: format!("has SHA-256 {} in this folder's records", id.sha256),
+                    });
+                }
+                Some(_) => {}
+                None => {
+                    seen.insert(&id.file, &id.sha256);
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Reads every record of a sweep folder that its plan names.

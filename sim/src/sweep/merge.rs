@@ -2,6 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
+use super::folder::one_digest_per_checkpoint;
 use super::{RunSpec, SweepDir, SweepError, SweepPlan};
 use crate::record;
 
@@ -28,18 +29,27 @@ pub fn merge(shards: &[PathBuf], out: &Path) -> Result<Vec<String>, SweepError> 
         }
     }
     let plan = plan.ok_or(SweepError::NoShards)?;
-    out_dir.prepare(&plan)?;
-    for shard in shards {
-        let dir = SweepDir {
-            root: shard.clone(),
-        };
+    out_dir.prepare_plan(&plan)?;
+    // Every record first, so that shards made by two checkpoints saved under
+    // one name are refused before anything is copied.
+    let mut records = Vec::new();
+    for root in shards.iter().chain([&out_dir.root]) {
+        let dir = SweepDir { root: root.clone() };
         for spec in &plan.runs {
             let from = dir.record_path(spec);
-            let to = out_dir.record_path(spec);
-            if from.exists() && !to.exists() {
-                let rec = record::read(&from)?;
-                record::write_atomically(&to, &rec).map_err(|e| SweepError::io("write", to, e))?;
+            if from.exists() {
+                records.push((root.clone(), spec.key(), record::read(&from)?));
             }
+        }
+    }
+    one_digest_per_checkpoint(records.iter().map(|(root, _, r)| (root.as_path(), r)))?;
+    for spec in &plan.runs {
+        let to = out_dir.record_path(spec);
+        if to.exists() {
+            continue;
+        }
+        if let Some((_, _, rec)) = records.iter().find(|(_, key, _)| *key == spec.key()) {
+            record::write_atomically(&to, rec).map_err(|e| SweepError::io("write", to, e))?;
         }
     }
     Ok(plan
@@ -82,6 +92,40 @@ mod tests {
             read_records(&SweepDir { root: out }).unwrap().len(),
             p.runs.len() - 1
         );
+    }
+
+    #[test]
+    fn shards_made_by_two_checkpoints_of_one_name_are_not_merged() {
+        let tmp = tempfile::tempdir().unwrap();
+        let p = plan();
+        let shards: Vec<PathBuf> = (0..2)
+            .map(|i| tmp.path().join(format!("shard{i}")))
+            .collect();
+        for (i, root) in shards.iter().enumerate() {
+            let dir = SweepDir { root: root.clone() };
+            dir.prepare(&p).unwrap();
+            // Each shard's machine had its own models/ra.safetensors.
+            let weights = format!("weights of machine {i}");
+            let run = |s: &RunSpec| {
+                let mut r = fake_record(s);
+                r.result.provenance.checkpoint = Some(record::CheckpointId {
+                    file: "models/ra.safetensors".into(),
+                    sha256: record::sha256_hex(weights.as_bytes()),
+                });
+                Ok::<_, String>(r)
+            };
+            let mine = p.shard(i, 2);
+            execute(&dir, &mine, 1, run, |_| {});
+        }
+        let out = tmp.path().join("merged");
+        let e = merge(&shards, &out).unwrap_err().to_string();
+        assert!(
+            e.contains("models/ra.safetensors") && e.contains("shard1"),
+            "{e}"
+        );
+        assert!(read_records(&SweepDir { root: out }).unwrap().is_empty());
+        // One shard alone merges.
+        merge(&shards[..1], &tmp.path().join("one")).unwrap();
     }
 
     #[test]
