@@ -131,7 +131,9 @@ impl CollectConfig {
 /// The two datasets of the study.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Preset {
-    /// The original model's data: Town01 routes 2-9 and random Town01 routes.
+    /// The original model's data: Town01 routes 2-9 and random Town01
+    /// routes (the first [`ORIGINAL_TOWN01_EPISODES`] episodes), then random
+    /// routes through our generated towns.
     Original,
     /// The retargeting data, disjoint from it: the generated towns' routes
     /// and other random Town01 routes.
@@ -150,6 +152,12 @@ impl Preset {
 
 /// Traffic densities the plans cycle through: the paper's three.
 pub const DENSITIES: [(u32, u32); 3] = [(0, 0), (5, 10), (20, 40)];
+
+/// Episodes of the original plan in CARLA's Town01; the ones after drive
+/// random routes through our generated towns (gen01, gen02), so that the
+/// policies know the towns of the built-in default scenario. The paper's
+/// original model saw Town01 only; Town02 stays unseen either way.
+pub const ORIGINAL_TOWN01_EPISODES: usize = 60;
 
 /// Town01 routes kept for evaluation (PROTOCOL §2): never collected.
 pub const EVALUATION_ROUTES: [&str; 2] = ["0", "1"];
@@ -186,8 +194,18 @@ pub fn plan(preset: Preset, episodes: usize, carla: &Path, repo: &Path) -> Vec<E
                     },
                     ..base
                 },
-                Preset::Original => EpisodeSpec {
+                Preset::Original if i < ORIGINAL_TOWN01_EPISODES => EpisodeSpec {
                     route: RouteChoice::Random { seed: id as u64 },
+                    ..base
+                },
+                // Random routes through our towns, alternating; random seeds
+                // from 2e6 on never meet the retargeting set's routes.
+                Preset::Original => EpisodeSpec {
+                    map: ours[i % 2].0.clone(),
+                    generate_lights: true,
+                    route: RouteChoice::Random {
+                        seed: 2_000_000 + id as u64,
+                    },
                     ..base
                 },
                 // Our towns' routes 0-2 and Town01 random routes alternate;
@@ -678,6 +696,11 @@ mod tests {
                 .collect::<std::collections::HashSet<_>>()
         };
         assert!(routes(&original).is_disjoint(&routes(&retarget)));
+        // The original set drives our towns only after its Town01 episodes.
+        for (i, spec) in original.iter().enumerate() {
+            let town01 = spec.map.ends_with("Town01.xodr");
+            assert_eq!(town01, i < ORIGINAL_TOWN01_EPISODES, "{spec:?}");
+        }
         // Every training route of Town01 (2-9) at every density is in the original set.
         for id in 2..=9 {
             for &(v, p) in &DENSITIES {

@@ -10,7 +10,7 @@ use dataset::labels::episode::label_dataset;
 /// Which dataset to collect.
 #[derive(Debug, Clone, Copy, ValueEnum)]
 pub enum PresetArg {
-    /// The original model's data: Town01 routes 2-9, random Town01 routes.
+    /// The original model's data: Town01 routes 2-9, random Town01 routes, then random routes through our towns.
     Original,
     /// The retargeting data: our generated towns and other random Town01 routes.
     Retarget,

@@ -290,7 +290,7 @@ fn gpu_test(root: &Path, env: &Env, args: &[String]) -> Result<(), String> {
 /// The datasets of the study: (preset, directory, episodes). Sized for the
 /// training issue: see docs/dataset.md for frames, hours and disk size.
 const DATASETS: &[(&str, &str, &str)] = &[
-    ("original", "data/original", "60"),
+    ("original", "data/original", "76"),
     ("retarget", "data/retarget", "40"),
 ];
 
