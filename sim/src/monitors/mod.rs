@@ -10,7 +10,7 @@
 //! | [`red_light`] | passages over a red light's stop line |
 //! | [`outside_lane`] | the share of the distance driven off the driving lanes (or against them) |
 //! | [`route`] | route completion, success, deviation from the route |
-//! | [`blocked`] | stuck, low-speed and route timeouts |
+//! | [`blocked`] | stuck, low-speed (not counting time held by a red light) and route timeouts |
 //! | [`score`] | leaderboard-1.0's driving score from the counts above |
 
 pub mod blocked;
@@ -127,9 +127,10 @@ impl Monitors {
             route: route::RouteMonitor::new(route, deviation_m),
             collisions: collision::CollisionMonitor::default(),
             lane_crossings: lane_crossing::LaneCrossingMonitor::new(town),
-            red_lights: red_light::RedLightMonitor::new(rules),
+            red_lights: red_light::RedLightMonitor::new(rules.clone()),
             outside_lane: outside_lane::OutsideLaneMonitor::default(),
-            blocked: blocked::BlockedMonitor::new(stuck_s, low_speed_s, timeout_s),
+            blocked: blocked::BlockedMonitor::new(stuck_s, low_speed_s, timeout_s)
+                .waiting_at_lights_of(rules),
         }
     }
 

@@ -10,7 +10,8 @@
 
 use glam::Vec2;
 
-use crate::map::town::{LaneIdx, LightIdx, Town};
+use super::{crossing_point, heading_agrees, light_state, must_stop};
+use crate::map::town::{LaneIdx, LightIdx, LightState, Town};
 use crate::route::planner::DenseRoute;
 
 /// One stop line of a town, as the table lists it.
@@ -92,6 +93,36 @@ impl StopLines {
             .map_or(&[][..], |v| &v[..])
             .iter()
             .map(|&k| &self.lines[k])
+    }
+
+    /// The stop line whose light holds a standing vehicle at `position`
+    /// (metres) heading `heading` (radians), `length_m` long: a line in its
+    /// driving direction ([`heading_agrees`]) whose light says stop to a
+    /// standing vehicle ([`must_stop`]: red or yellow), which the vehicle's
+    /// crossing point ([`crossing_point`]) has not passed, with the front
+    /// bumper at most `queue_m` metres before it (room for the cars queued
+    /// ahead) and within the line's width (plus half a metre) sideways.
+    /// `lights` is indexed by [`LightIdx`].
+    pub fn holding(
+        &self,
+        position: Vec2,
+        heading: f32,
+        length_m: f32,
+        lights: &[LightState],
+        queue_m: f32,
+    ) -> Option<&StopLineEntry> {
+        let forward = Vec2::from_angle(heading);
+        let front = position + forward * (length_m / 2.0);
+        let cross = crossing_point(position, heading, length_m);
+        self.lines.iter().find(|line| {
+            let along = Vec2::from_angle(line.heading);
+            let half_width = line.ends[0].distance(line.ends[1]) / 2.0;
+            heading_agrees(line.heading, heading)
+                && must_stop(light_state(lights, line.light), 0.0, 0.0, 1.0)
+                && (line.position - cross).dot(along) > 0.0
+                && (line.position - front).dot(along) <= queue_m
+                && (front - line.position).dot(along.perp()).abs() <= half_width + 0.5
+        })
     }
 
     /// The stop lines a dense route crosses, in route order. A line counts
@@ -192,6 +223,67 @@ mod tests {
         // The oncoming lane 1 (-x) ends at the corner junction (0, 0): unlit.
         assert_eq!(lines.on_lane(LaneIdx(1)).count(), 0);
         assert_eq!(lines.on_lane(LaneIdx(999)).count(), 0);
+    }
+
+    #[test]
+    fn a_red_light_holds_a_car_standing_before_its_line_in_its_direction() {
+        let t = grid(3, 3, 60.0);
+        let lines = StopLines::new(&t);
+        // Lane 0's line: heading +x at y = -1.75, governed by `light`.
+        let line = *lines.on_lane(LaneIdx(0)).next().unwrap();
+        let x = line.position.x;
+        let mut lights = vec![LightState::Green; t.lights.len()];
+        let red = |lights: &mut Vec<LightState>, s| lights[line.light.0 as usize] = s;
+        let car = 4.6;
+        // The car's front 1 m before the line.
+        let at = |dx: f32, dy: f32| Vec2::new(x - car / 2.0 - 1.0 + dx, -1.75 + dy);
+        assert_eq!(lines.holding(at(0.0, 0.0), 0.0, car, &lights, 20.0), None);
+        red(&mut lights, LightState::Red);
+        assert_eq!(
+            lines.holding(at(0.0, 0.0), 0.0, car, &lights, 20.0),
+            Some(&line)
+        );
+        red(&mut lights, LightState::Yellow);
+        assert!(
+            lines
+                .holding(at(0.0, 0.0), 0.0, car, &lights, 20.0)
+                .is_some()
+        );
+        red(&mut lights, LightState::Red);
+        // Queued 15 m back: held; 25 m back: not.
+        assert!(
+            lines
+                .holding(at(-15.0, 0.0), 0.0, car, &lights, 20.0)
+                .is_some()
+        );
+        assert!(
+            lines
+                .holding(at(-25.0, 0.0), 0.0, car, &lights, 20.0)
+                .is_none()
+        );
+        // Nose over the line, the crossing point (4.14 m behind the front) not: still
+        // held; the crossing point past the line: not.
+        assert!(
+            lines
+                .holding(at(2.0, 0.0), 0.0, car, &lights, 20.0)
+                .is_some()
+        );
+        assert!(
+            lines
+                .holding(at(6.0, 0.0), 0.0, car, &lights, 20.0)
+                .is_none()
+        );
+        // In the oncoming lane, or facing the other way: not held by it.
+        assert!(
+            lines
+                .holding(at(0.0, 3.5), 0.0, car, &lights, 20.0)
+                .is_none()
+        );
+        assert!(
+            lines
+                .holding(at(0.0, 0.0), PI, car, &lights, 20.0)
+                .is_none()
+        );
     }
 
     #[test]
