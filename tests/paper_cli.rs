@@ -83,9 +83,13 @@ fn the_quick_paper_writes_every_table_and_figure_and_resumes() {
         .find(|l| l.contains("\"render_backend\""))
         .unwrap()
         .to_string();
+    let comma = if backend.ends_with(',') { "," } else { "" };
     std::fs::write(
         &one,
-        text.replace(&backend, "      \"render_backend\": \"Gl elsewhere\""),
+        text.replace(
+            &backend,
+            &format!("      \"render_backend\": \"Gl elsewhere\"{comma}"),
+        ),
     )
     .unwrap();
     let mixed = common::run(&["paper", "--quick", "--out", out_s]);
@@ -94,6 +98,23 @@ fn the_quick_paper_writes_every_table_and_figure_and_resumes() {
         !mixed.status.success() && err.contains("rendered by `Gl elsewhere`"),
         "{err}"
     );
+    // Nor runs of another checkpoint saved under the same name: a record
+    // whose digest is not the file's is refused, naming the file.
+    let digest = text
+        .lines()
+        .find(|l| l.contains("\"sha256\""))
+        .expect("a policy's record carries its checkpoint's digest")
+        .to_string();
+    std::fs::write(&one, text.replace(&digest, "        \"sha256\": \"0000\"")).unwrap();
+    let retrained = common::run(&["paper", "--quick", "--out", out_s]);
+    let err = String::from_utf8_lossy(&retrained.stderr);
+    assert!(
+        !retrained.status.success()
+            && err.contains("ra.safetensors")
+            && err.contains("move the folder aside"),
+        "{err}"
+    );
+    std::fs::write(&one, &text).unwrap();
     // A name that is not an experiment is refused with the list.
     let bad = common::run(&["paper", "--quick", "--out", out_s, "--only", "fig9"]);
     let err = String::from_utf8_lossy(&bad.stderr);
