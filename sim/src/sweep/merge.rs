@@ -66,25 +66,37 @@ mod tests {
     use super::super::{execute, read_records};
     use super::*;
 
+    /// Two shard folders of `p` under `root`, each run with `record(shard,
+    /// spec)`; shard 1 loses its last `lose` runs.
+    fn two_shards(
+        root: &Path,
+        p: &SweepPlan,
+        lose: usize,
+        record: impl Fn(usize, &RunSpec) -> record::RunRecord + Sync,
+    ) -> Vec<PathBuf> {
+        let shards: Vec<PathBuf> = (0..2).map(|i| root.join(format!("shard{i}"))).collect();
+        for (i, dir_root) in shards.iter().enumerate() {
+            let dir = SweepDir {
+                root: dir_root.clone(),
+            };
+            dir.prepare(p).unwrap();
+            let mine = p.shard(i, 2);
+            let keep = if i == 1 {
+                mine.len() - lose
+            } else {
+                mine.len()
+            };
+            let run = |s: &RunSpec| Ok::<_, String>(record(i, s));
+            execute(&dir, &mine[..keep], 1, run, |_| {});
+        }
+        shards
+    }
+
     #[test]
     fn merge_joins_shards_and_reports_missing_runs() {
         let tmp = tempfile::tempdir().unwrap();
         let p = plan();
-        let shards: Vec<PathBuf> = (0..2)
-            .map(|i| tmp.path().join(format!("shard{i}")))
-            .collect();
-        for (i, root) in shards.iter().enumerate() {
-            let dir = SweepDir { root: root.clone() };
-            dir.prepare(&p).unwrap();
-            let mine = p.shard(i, 2);
-            // Shard 1 loses its last run.
-            let mine = if i == 1 {
-                &mine[..mine.len() - 1]
-            } else {
-                &mine[..]
-            };
-            execute(&dir, mine, 1, |s| Ok::<_, String>(fake_record(s)), |_| {});
-        }
+        let shards = two_shards(tmp.path(), &p, 1, |_, s| fake_record(s));
         let out = tmp.path().join("merged");
         let missing = merge(&shards, &out).unwrap();
         assert_eq!(missing, vec![p.shard(1, 2).last().unwrap().key()]);
@@ -98,25 +110,15 @@ mod tests {
     fn shards_made_by_two_checkpoints_of_one_name_are_not_merged() {
         let tmp = tempfile::tempdir().unwrap();
         let p = plan();
-        let shards: Vec<PathBuf> = (0..2)
-            .map(|i| tmp.path().join(format!("shard{i}")))
-            .collect();
-        for (i, root) in shards.iter().enumerate() {
-            let dir = SweepDir { root: root.clone() };
-            dir.prepare(&p).unwrap();
-            // Each shard's machine had its own models/ra.safetensors.
-            let weights = format!("weights of machine {i}");
-            let run = |s: &RunSpec| {
-                let mut r = fake_record(s);
-                r.result.provenance.checkpoint = Some(record::CheckpointId {
-                    file: "models/ra.safetensors".into(),
-                    sha256: record::sha256_hex(weights.as_bytes()),
-                });
-                Ok::<_, String>(r)
-            };
-            let mine = p.shard(i, 2);
-            execute(&dir, &mine, 1, run, |_| {});
-        }
+        // Each shard's machine had its own models/ra.safetensors.
+        let shards = two_shards(tmp.path(), &p, 0, |i, s| {
+            let mut r = fake_record(s);
+            r.result.provenance.checkpoint = Some(record::CheckpointId {
+                file: "models/ra.safetensors".into(),
+                sha256: record::sha256_hex(format!("weights of machine {i}").as_bytes()),
+            });
+            r
+        });
         let out = tmp.path().join("merged");
         let e = merge(&shards, &out).unwrap_err().to_string();
         assert!(
