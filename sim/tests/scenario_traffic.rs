@@ -22,6 +22,7 @@ fn pedestrian_track(cross_factor: f32, seconds: u64) -> Vec<Vec<[f32; 2]>> {
     scenario.traffic.pedestrians = 40;
     scenario.traffic.seed = 3;
     scenario.traffic.cross_factor = cross_factor;
+    scenario.driver = sim::scenario::DriverSpec::default();
     let prepared = runner::prepare(&scenario).unwrap();
     let mut driver = Drivers::new().driver(&scenario, &prepared).unwrap();
     let mut selector = build::selector_for(&scenario, None).unwrap();
