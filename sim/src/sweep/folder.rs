@@ -64,7 +64,8 @@ impl SweepDir {
     /// Records of a policy that carry no digest (made before digests were
     /// recorded) cannot be checked and are refused too.
     pub fn same_checkpoints(&self) -> Result<(), SweepError> {
-        let mut now: BTreeMap<String, String> = BTreeMap::new();
+        // Each file's digest now (or why it cannot be read), read once.
+        let mut now: BTreeMap<String, Result<String, String>> = BTreeMap::new();
         for rec in read_records(self)? {
             let p = &rec.result.provenance;
             let Some(id) = &p.checkpoint else {
@@ -78,20 +79,20 @@ impl SweepDir {
                 }
                 continue;
             };
-            if !now.contains_key(&id.file) {
-                let digest = match record::CheckpointId::of(Path::new(&id.file)) {
-                    Ok(here) => format!("has SHA-256 {}", here.sha256),
-                    Err(e) => format!("cannot be read: {e}"),
-                };
-                now.insert(id.file.clone(), digest);
-            }
-            let here = &now[&id.file];
-            if *here != format!("has SHA-256 {}", id.sha256) {
+            let here = now.entry(id.file.clone()).or_insert_with(|| {
+                record::CheckpointId::of(Path::new(&id.file))
+                    .map(|here| here.sha256)
+                    .map_err(|e| e.to_string())
+            });
+            if here.as_deref() != Ok(id.sha256.as_str()) {
                 return Err(SweepError::CheckpointChanged {
                     root: self.root.clone(),
                     file: id.file.clone(),
                     recorded: id.sha256.clone(),
-                    now: here.clone(),
+                    now: match here {
+                        Ok(d) => format!("has SHA-256 {d}"),
+                        Err(e) => format!("cannot be read: {e}"),
+                    },
                 });
             }
         }

@@ -48,7 +48,8 @@ pub fn merge(shards: &[PathBuf], out: &Path) -> Result<Vec<String>, SweepError> 
         if to.exists() {
             continue;
         }
-        if let Some((_, _, rec)) = records.iter().find(|(_, key, _)| *key == spec.key()) {
+        let key = spec.key();
+        if let Some((_, _, rec)) = records.iter().find(|(_, k, _)| *k == key) {
             record::write_atomically(&to, rec).map_err(|e| SweepError::io("write", to, e))?;
         }
     }
