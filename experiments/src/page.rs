@@ -257,8 +257,8 @@ fn header(cfg: &PaperConfig, opts: &RunOptions, results: &Results) -> String {
     let checkpoints = results.checkpoints();
     if !checkpoints.is_empty() {
         s += &format!(
-            "Checkpoints (file, first digits of its SHA-256, from the run records; a resumed \
-             run refuses a folder whose checkpoint has changed since): {}.\n\n",
+            "Checkpoints and learned triggers (file, first digits of its SHA-256, from the run \
+             records; a resumed run refuses a folder whose files have changed since): {}.\n\n",
             checkpoints
                 .into_iter()
                 .map(|c| format!("`{c}`"))

@@ -404,6 +404,7 @@ pub(crate) mod tests {
                         build: "test".into(),
                         render_backend: "none".into(),
                         checkpoint: None,
+                        trigger: None,
                     },
                     settings: RunSettings {
                         seed,

@@ -132,13 +132,14 @@ impl Results {
             .collect()
     }
 
-    /// The checkpoints (file name and the first digits of its SHA-256) that
-    /// drove the finished runs, like "ra.safetensors sha256 1a2b3c4d5e6f".
+    /// The checkpoints and learned triggers (file name and the first digits
+    /// of its SHA-256) that drove the finished runs, like
+    /// "ra.safetensors sha256 1a2b3c4d5e6f".
     pub fn checkpoints(&self) -> std::collections::BTreeSet<String> {
         self.units
             .values()
             .flat_map(|u| u.runs.iter())
-            .filter_map(|r| r.record.result.provenance.checkpoint.as_ref())
+            .flat_map(|r| r.record.result.provenance.model_files())
             .map(|id| {
                 let name = std::path::Path::new(&id.file)
                     .file_name()

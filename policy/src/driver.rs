@@ -39,6 +39,8 @@ pub struct PolicyDriver {
     hint: Option<f32>,
     /// The checkpoint file and its digest, for run records.
     checkpoint: Option<sim::record::CheckpointId>,
+    /// The trigger file and its digest, for run records.
+    trigger_file: Option<sim::record::CheckpointId>,
 }
 
 impl PolicyDriver {
@@ -58,6 +60,7 @@ impl PolicyDriver {
             trigger: None,
             hint: None,
             checkpoint: None,
+            trigger_file: None,
         }
     }
 
@@ -77,6 +80,16 @@ impl PolicyDriver {
         self.name = format!("{}+trigger:{}", self.name, path.display());
         self.trigger = Some(trigger);
         Ok(self)
+    }
+
+    /// Reads the trigger file at `path` and drives with it as
+    /// [`PolicyDriver::with_trigger`] does; its run records name the file
+    /// and its digest ([`Driver::trigger`]).
+    pub fn with_trigger_file(self, path: &Path) -> Result<Self, TriggerError> {
+        let (trigger, id) = Trigger::load_identified(path)?;
+        let mut driver = self.with_trigger(trigger, path)?;
+        driver.trigger_file = Some(id);
+        Ok(driver)
     }
 
     /// Loads a checkpoint (NAME.safetensors + NAME.json); the driver is named after the file.
@@ -235,10 +248,7 @@ impl DriverFactory for PolicyFactory {
         let driver = PolicyDriver::from_checkpoint(weights, device)?;
         Ok(Box::new(match &scenario.driver.trigger {
             Some(path) => driver
-                .with_trigger(
-                    Trigger::load(path).map_err(PolicyDriverError::Trigger)?,
-                    path,
-                )
+                .with_trigger_file(path)
                 .map_err(PolicyDriverError::Trigger)?,
             None => driver,
         }))
@@ -268,6 +278,10 @@ impl Driver for PolicyDriver {
 
     fn checkpoint(&self) -> Option<sim::record::CheckpointId> {
         self.checkpoint.clone()
+    }
+
+    fn trigger(&self) -> Option<sim::record::CheckpointId> {
+        self.trigger_file.clone()
     }
 
     fn needs(&self) -> DriverNeeds {
@@ -324,6 +338,7 @@ mod tests {
     use super::*;
     use crate::backbone::Depth;
     use crate::model::PolicyConfig;
+    use crate::trigger::{TRIGGER_FORMAT, TriggerCard};
     use sim::driver::Command;
     use sim::render::image::test_pattern;
 
@@ -369,7 +384,6 @@ mod tests {
 
     #[test]
     fn a_trigger_gives_a_hint_on_the_fused_path_only() {
-        use crate::trigger::{TRIGGER_FORMAT, TriggerCard};
         let device = Device::flex();
         device.seed(11);
         let cfg = PolicyConfig::new(Depth::Resnet18, [4, 8, 8, 16])
@@ -511,6 +525,28 @@ mod tests {
         assert!(id.file.ends_with("tiny.safetensors"), "{}", id.file);
         let bytes = std::fs::read(tmp.path().join("tiny.safetensors")).unwrap();
         assert_eq!(id.sha256, sim::record::sha256_hex(&bytes));
+        assert_eq!(driver.trigger(), None);
+        // And a learned trigger's, when the scenario names one.
+        let trigger_path = tmp.path().join("tiny.trigger.json");
+        Trigger {
+            format: TRIGGER_FORMAT.into(),
+            low: 0.75,
+            high: 1.0,
+            mean: vec![0.0; 16],
+            std: vec![1.0; 16],
+            weights: vec![0.0; 16],
+            bias: 2.0,
+            card: TriggerCard::new("c".into(), "d".into(), 1),
+        }
+        .save(&trigger_path)
+        .unwrap();
+        scenario.driver.trigger = Some(trigger_path.clone());
+        let with_trigger = drivers.driver(&scenario, &prepared).unwrap();
+        let id = with_trigger.trigger().expect("the trigger is named");
+        assert_eq!(id.file, trigger_path.display().to_string());
+        let bytes = std::fs::read(&trigger_path).unwrap();
+        assert_eq!(id.sha256, sim::record::sha256_hex(&bytes));
+        scenario.driver.trigger = None;
         scenario.driver.device = Some("tpu".into());
         let e = error_chain(&drivers.driver(&scenario, &prepared).err().unwrap());
         assert!(e.contains("driver.device") && e.contains("tpu"), "{e}");

@@ -185,11 +185,24 @@ impl Trigger {
 
     /// Reads a trigger file and checks that it is one.
     pub fn load(path: &Path) -> Result<Trigger, TriggerError> {
-        let text = std::fs::read_to_string(path).map_err(|source| TriggerError::Read {
+        Self::load_identified(path).map(|(t, _)| t)
+    }
+
+    /// Like [`Trigger::load`], with the file and the SHA-256 of the bytes
+    /// read, which run records carry so that a resumed sweep never mixes two
+    /// triggers saved under one name.
+    pub fn load_identified(
+        path: &Path,
+    ) -> Result<(Trigger, sim::record::CheckpointId), TriggerError> {
+        let bytes = std::fs::read(path).map_err(|source| TriggerError::Read {
             path: path.to_path_buf(),
             source,
         })?;
-        let t: Trigger = serde_json::from_str(&text).map_err(|e| TriggerError::Parse {
+        let id = sim::record::CheckpointId {
+            file: path.display().to_string(),
+            sha256: sim::record::sha256_hex(&bytes),
+        };
+        let t: Trigger = serde_json::from_slice(&bytes).map_err(|e| TriggerError::Parse {
             path: path.to_path_buf(),
             why: e.to_string(),
         })?;
@@ -213,7 +226,7 @@ impl Trigger {
                 fix: "make the file again with `mrdrive policy trigger`".into(),
             });
         }
-        Ok(t)
+        Ok((t, id))
     }
 
     /// Checks that the trigger reads features of a policy whose pooled

@@ -90,4 +90,9 @@ pub trait Driver {
     fn checkpoint(&self) -> Option<crate::record::CheckpointId> {
         None
     }
+    /// The learned trigger this driver reads (file and digest), written into
+    /// its run records; `None` for drivers without one.
+    fn trigger(&self) -> Option<crate::record::CheckpointId> {
+        None
+    }
 }

@@ -79,6 +79,19 @@ pub struct Provenance {
     /// name; `None` for the expert (and left out of the JSON).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub checkpoint: Option<CheckpointId>,
+    /// A policy's learned trigger (the `learned` selector's head) and the
+    /// digest of its file, for the same reason; `None` without one (and
+    /// left out of the JSON).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trigger: Option<CheckpointId>,
+}
+
+impl Provenance {
+    /// The model files that drove the run, each with its digest: the
+    /// checkpoint, then the trigger.
+    pub fn model_files(&self) -> impl Iterator<Item = &CheckpointId> {
+        self.checkpoint.iter().chain(&self.trigger)
+    }
 }
 
 /// Which checkpoint drove a run: its file as the driver opened it and the

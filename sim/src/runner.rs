@@ -726,6 +726,7 @@ pub fn run(
             build: build_id(),
             render_backend: camera.as_ref().map_or("none".to_string(), |c| c.backend()),
             checkpoint: driver.checkpoint(),
+            trigger: driver.trigger(),
         },
         settings: RunSettings {
             seed: scenario.traffic.seed,

@@ -56,17 +56,18 @@ pub enum SweepError {
         /// The shard folder.
         shard: PathBuf,
     },
-    /// The folder's records were made by a checkpoint whose file has changed
-    /// since (or by a policy whose records name no digest).
+    /// The folder's records were made by a checkpoint (or learned trigger)
+    /// whose file has changed since (or by a policy whose records name no
+    /// digest).
     #[error(
         "{root}: its runs were made by {file} with SHA-256 {recorded}, but that file now {now}; \
          fix: move the folder aside (or give another --out folder) so that the runs of two \
-         checkpoints are never mixed, or put the old checkpoint back"
+         checkpoints or triggers are never mixed, or put the old file back"
     )]
     CheckpointChanged {
         /// The sweep folder.
         root: PathBuf,
-        /// The checkpoint file as the records name it.
+        /// The checkpoint (or trigger) file as the records name it.
         file: String,
         /// The digest in the records ("none recorded" for records from before digests).
         recorded: String,

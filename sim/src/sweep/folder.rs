@@ -60,40 +60,40 @@ impl SweepDir {
     }
 
     /// Checks that every policy that made a record here is still the same
-    /// file: the digest its records carry is the digest of the file now.
-    /// Records of a policy that carry no digest (made before digests were
-    /// recorded) cannot be checked and are refused too.
+    /// file: the digest its records carry is the digest of the file now
+    /// (the checkpoint's, and the learned trigger's where a record names
+    /// one). Records of a policy that carry no checkpoint digest (made
+    /// before digests were recorded) cannot be checked and are refused too.
     pub fn same_checkpoints(&self) -> Result<(), SweepError> {
         // Each file's digest now (or why it cannot be read), read once.
         let mut now: BTreeMap<String, Result<String, String>> = BTreeMap::new();
         for rec in read_records(self)? {
             let p = &rec.result.provenance;
-            let Some(id) = &p.checkpoint else {
-                if p.driver.starts_with("policy:") {
-                    return Err(SweepError::CheckpointChanged {
-                        root: self.root.clone(),
-                        file: p.driver.clone(),
-                        recorded: "none recorded".into(),
-                        now: "cannot be told apart from another checkpoint".into(),
-                    });
-                }
-                continue;
-            };
-            let here = now.entry(id.file.clone()).or_insert_with(|| {
-                record::CheckpointId::of(Path::new(&id.file))
-                    .map(|here| here.sha256)
-                    .map_err(|e| e.to_string())
-            });
-            if here.as_deref() != Ok(id.sha256.as_str()) {
+            if p.checkpoint.is_none() && p.driver.starts_with("policy:") {
                 return Err(SweepError::CheckpointChanged {
                     root: self.root.clone(),
-                    file: id.file.clone(),
-                    recorded: id.sha256.clone(),
-                    now: match here {
-                        Ok(d) => format!("has SHA-256 {d}"),
-                        Err(e) => format!("cannot be read: {e}"),
-                    },
+                    file: p.driver.clone(),
+                    recorded: "none recorded".into(),
+                    now: "cannot be told apart from another checkpoint".into(),
                 });
+            }
+            for id in p.model_files() {
+                let here = now.entry(id.file.clone()).or_insert_with(|| {
+                    record::CheckpointId::of(Path::new(&id.file))
+                        .map(|here| here.sha256)
+                        .map_err(|e| e.to_string())
+                });
+                if here.as_deref() != Ok(id.sha256.as_str()) {
+                    return Err(SweepError::CheckpointChanged {
+                        root: self.root.clone(),
+                        file: id.file.clone(),
+                        recorded: id.sha256.clone(),
+                        now: match here {
+                            Ok(d) => format!("has SHA-256 {d}"),
+                            Err(e) => format!("cannot be read: {e}"),
+                        },
+                    });
+                }
             }
         }
         Ok(())
@@ -122,7 +122,7 @@ pub fn one_digest_per_checkpoint<'a>(
 ) -> Result<(), SweepError> {
     let mut seen: BTreeMap<&str, &str> = BTreeMap::new();
     for (from, rec) in records {
-        if let Some(id) = &rec.result.provenance.checkpoint {
+        for id in rec.result.provenance.model_files() {
             match seen.get(id.file.as_str()) {
                 Some(&d) if d != id.sha256 => {
                     return Err(SweepError::CheckpointChanged {
@@ -194,6 +194,18 @@ mod tests {
             "{e}"
         );
         assert!(e.contains(&record::sha256_hex(b"the first weights")), "{e}");
+        // The learned trigger beside it is checked the same way.
+        std::fs::write(&weights, b"the first weights").unwrap();
+        let trigger = tmp.path().join("ra.trigger.json");
+        std::fs::write(&trigger, b"{\"the first\": \"trigger\"}").unwrap();
+        let mut with_trigger = rec.clone();
+        with_trigger.result.provenance.trigger = Some(record::CheckpointId::of(&trigger).unwrap());
+        record::write_atomically(&dir.record_path(&p.runs[0]), &with_trigger).unwrap();
+        dir.prepare(&p).unwrap();
+        std::fs::write(&trigger, b"{\"refit\": \"trigger\"}").unwrap();
+        let e = dir.prepare(&p).unwrap_err().to_string();
+        assert!(e.contains("ra.trigger.json"), "{e}");
+        record::write_atomically(&dir.record_path(&p.runs[0]), &rec).unwrap();
         // Gone: refused too.
         std::fs::remove_file(&weights).unwrap();
         let e = dir.prepare(&p).unwrap_err().to_string();

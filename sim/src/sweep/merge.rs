@@ -129,6 +129,23 @@ mod tests {
         assert!(read_records(&SweepDir { root: out }).unwrap().is_empty());
         // One shard alone merges.
         merge(&shards[..1], &tmp.path().join("one")).unwrap();
+        // One checkpoint but two learned triggers of one name: not merged either.
+        let shards = two_shards(&tmp.path().join("t"), &p, 0, |i, s| {
+            let mut r = fake_record(s);
+            r.result.provenance.checkpoint = Some(record::CheckpointId {
+                file: "models/ra.safetensors".into(),
+                sha256: record::sha256_hex(b"the weights"),
+            });
+            r.result.provenance.trigger = Some(record::CheckpointId {
+                file: "models/ra.trigger.json".into(),
+                sha256: record::sha256_hex(format!("trigger of machine {i}").as_bytes()),
+            });
+            r
+        });
+        let e = merge(&shards, &tmp.path().join("t-merged"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("models/ra.trigger.json"), "{e}");
     }
 
     #[test]

@@ -66,6 +66,7 @@ pub(crate) mod fixtures {
                     build: "test".into(),
                     render_backend: "none".into(),
                     checkpoint: None,
+                    trigger: None,
                 },
                 settings: RunSettings {
                     seed: spec.seed,
