@@ -63,6 +63,27 @@ fn the_quick_paper_writes_every_table_and_figure_and_resumes() {
     );
     let t3 = std::fs::read_to_string(docs.join("table3.csv")).unwrap();
     assert!(t3.contains("RA oracle switcher (50/100 ms)"), "{t3}");
+    // The wall-time log counted every finished run, in one invocation.
+    let wall: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(docs.join("wall.json")).unwrap()).unwrap();
+    assert_eq!(wall["runs"], planned, "{wall}");
+    assert_eq!(wall["invocations"], 1, "{wall}");
+    // The learned switcher's records name the trigger file and its digest.
+    let learned = std::fs::read_dir(out.join("sweeps/ra-learned-100-50/runs"))
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    let rec: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&learned).unwrap()).unwrap();
+    let trigger = &rec["result"]["provenance"]["trigger"];
+    assert_eq!(trigger["file"], "models/ra.trigger.json", "{rec}");
+    assert_eq!(
+        trigger["sha256"],
+        sim::record::sha256_hex(&std::fs::read("models/ra.trigger.json").unwrap()),
+        "{rec}"
+    );
     // A second run finds every run done and writes the same page.
     let again = run_ok(&["paper", "--quick", "--out", out_s]);
     assert!(again.contains("0 runs finished now, 0 failed"), "{again}");

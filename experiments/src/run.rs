@@ -79,10 +79,14 @@ impl WallLog {
             .unwrap_or_default()
     }
 
+    /// Writes `OUT/wall.json` whole or not at all (a temporary file, then a
+    /// rename), so a kill never leaves a torn log that reads as zero.
     fn write(&self, out: &Path) -> Result<(), PaperError> {
         let p = Self::path(out);
+        let tmp = out.join("wall.json.tmp");
         let text = serde_json::to_string_pretty(self).expect("a wall log serialises");
-        std::fs::write(&p, text).map_err(|e| PaperError::io("write", &p, e))
+        std::fs::write(&tmp, text).map_err(|e| PaperError::io("write", &tmp, e))?;
+        std::fs::rename(&tmp, &p).map_err(|e| PaperError::io("write", &p, e))
     }
 }
 
@@ -99,7 +103,8 @@ pub fn run_paper(
     let units = units_of(&opts.experiments, cfg);
     if !opts.report_only {
         same_backend(cfg, opts, &units)?;
-        let mut clock = WallClock::start();
+        // Logged as each run finishes, so a kill loses only the runs in flight.
+        let clock = std::sync::Mutex::new(WallClock::start());
         let mut plans = Vec::new();
         for u in &units {
             let dir = u.dir(cfg, &opts.out);
@@ -124,15 +129,24 @@ pub fn run_paper(
                             .map(|r| r.record)
                             .map_err(|e| sim::build::error_chain(&e))
                     },
-                    |spec| progress.run_done(spec),
+                    |spec| {
+                        let mut c = clock.lock().unwrap_or_else(|e| e.into_inner());
+                        if let Err(e) = c.log(opts, usize::from(dir.is_done(spec))) {
+                            c.error.get_or_insert(e);
+                        }
+                        drop(c);
+                        progress.run_done(spec);
+                    },
                 );
+                if let Some(e) = clock.lock().unwrap_or_else(|e| e.into_inner()).error.take() {
+                    return Err(e);
+                }
                 outcome.finished += o.finished;
                 for (key, why) in o.failed {
                     outcome.failed.push((u.id(cfg), key, why));
                 }
                 if o.finished > 0 {
                     // The page follows the runs, so a run cut short leaves it current.
-                    clock.log(opts, o.finished)?;
                     report(cfg, opts)?;
                 }
             }
@@ -174,6 +188,8 @@ fn same_backend(
 struct WallClock {
     last: Instant,
     counted: bool,
+    /// The first failure to write the log, reported once the sweep is done.
+    error: Option<PaperError>,
 }
 
 impl WallClock {
@@ -181,6 +197,7 @@ impl WallClock {
         WallClock {
             last: Instant::now(),
             counted: false,
+            error: None,
         }
     }
 
@@ -204,4 +221,38 @@ impl WallClock {
 fn report(cfg: &PaperConfig, opts: &RunOptions) -> Result<Vec<PathBuf>, PaperError> {
     let results = Results::load(cfg, &opts.out, &units_of(&Experiment::ALL, cfg))?;
     page::write_all(cfg, opts, &results)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_wall_log_grows_run_by_run_across_invocations() {
+        let tmp = tempfile::tempdir().unwrap();
+        let opts = RunOptions {
+            out: tmp.path().to_path_buf(),
+            jobs: 2,
+            experiments: Vec::new(),
+            report_only: false,
+            label: "quick".into(),
+            seeds: None,
+        };
+        // One invocation: two runs finish, one fails (time, no run).
+        let mut clock = WallClock::start();
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        clock.log(&opts, 1).unwrap();
+        let after_one = WallLog::read(&opts.out);
+        assert_eq!((after_one.runs, after_one.invocations), (1, 1));
+        assert!(after_one.sweep_s >= 0.02, "{after_one:?}");
+        clock.log(&opts, 1).unwrap();
+        clock.log(&opts, 0).unwrap();
+        // A second invocation (a resume after a kill) adds to it.
+        WallClock::start().log(&opts, 1).unwrap();
+        let log = WallLog::read(&opts.out);
+        assert_eq!((log.runs, log.invocations, log.jobs), (3, 2, 2));
+        assert!(log.sweep_s >= after_one.sweep_s);
+        // Written whole: no temporary file is left beside it.
+        assert!(!opts.out.join("wall.json.tmp").exists());
+    }
 }
