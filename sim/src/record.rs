@@ -94,11 +94,11 @@ impl Provenance {
     }
 }
 
-/// Which checkpoint drove a run: its file as the driver opened it and the
-/// SHA-256 of the file's bytes.
+/// A model file that drove a run (a checkpoint, or a learned trigger): the
+/// file as the driver opened it and the SHA-256 of its bytes.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct CheckpointId {
-    /// The weights file (`.safetensors`) as the driver opened it.
+    /// The file (`.safetensors` weights, or a `.trigger.json`) as the driver opened it.
     pub file: String,
     /// SHA-256 of the file's bytes, lower-case hex.
     pub sha256: String,
