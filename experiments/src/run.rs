@@ -129,9 +129,9 @@ pub fn run_paper(
                             .map(|r| r.record)
                             .map_err(|e| sim::build::error_chain(&e))
                     },
-                    |spec| {
+                    |spec, written| {
                         let mut c = clock.lock().unwrap_or_else(|e| e.into_inner());
-                        if let Err(e) = c.log(opts, usize::from(dir.is_done(spec))) {
+                        if let Err(e) = c.log(opts, usize::from(written)) {
                             c.error.get_or_insert(e);
                         }
                         drop(c);

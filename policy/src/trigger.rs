@@ -198,10 +198,7 @@ impl Trigger {
             path: path.to_path_buf(),
             source,
         })?;
-        let id = sim::record::CheckpointId {
-            file: path.display().to_string(),
-            sha256: sim::record::sha256_hex(&bytes),
-        };
+        let id = sim::record::CheckpointId::of_bytes(path, &bytes);
         let t: Trigger = serde_json::from_slice(&bytes).map_err(|e| TriggerError::Parse {
             path: path.to_path_buf(),
             why: e.to_string(),

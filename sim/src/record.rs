@@ -107,10 +107,15 @@ pub struct CheckpointId {
 impl CheckpointId {
     /// Reads and digests a checkpoint file.
     pub fn of(file: &Path) -> std::io::Result<Self> {
-        Ok(Self {
+        Ok(Self::of_bytes(file, &std::fs::read(file)?))
+    }
+
+    /// The id of `file` whose bytes are `bytes` (already read by the caller).
+    pub fn of_bytes(file: &Path, bytes: &[u8]) -> Self {
+        Self {
             file: file.display().to_string(),
-            sha256: sha256_hex(&std::fs::read(file)?),
-        })
+            sha256: sha256_hex(bytes),
+        }
     }
 
     /// The first 12 hex digits, for pages and messages.

@@ -206,7 +206,7 @@ fn run_sweep(a: SweepRunArgs) -> anyhow::Result<()> {
             }
             Ok::<_, String>(done.record)
         },
-        |_| bar.inc(1),
+        |_, _| bar.inc(1),
     );
     bar.finish_and_clear();
     for (key, why) in &outcome.failed {

@@ -43,14 +43,15 @@ pub fn run_spec(
 
 /// Runs the shard's runs that are not done yet, `jobs` at a time, writing
 /// each record as soon as it is finished. `run` turns a spec into a record;
-/// `on_done` is called after each (for a progress bar). A failing run is
+/// `on_done` is called after each with whether its record was written (for a
+/// progress bar, a wall-time log). A failing run is
 /// reported (with its error and causes) and the others go on.
 pub fn execute<E: Display>(
     dir: &SweepDir,
     runs: &[&RunSpec],
     jobs: usize,
     run: impl Fn(&RunSpec) -> Result<record::RunRecord, E> + Sync,
-    on_done: impl Fn(&RunSpec) + Sync,
+    on_done: impl Fn(&RunSpec, bool) + Sync,
 ) -> SweepOutcome {
     let todo: Vec<&RunSpec> = runs.iter().copied().filter(|s| !dir.is_done(s)).collect();
     let skipped = runs.len() - todo.len();
@@ -67,7 +68,7 @@ pub fn execute<E: Display>(
                     record::write_atomically(&path, &rec)
                         .map_err(|e| format!("cannot write {}: {e}", path.display()))
                 });
-                on_done(spec);
+                on_done(spec, outcome.is_ok());
                 (spec.key(), outcome)
             })
             .collect()
@@ -117,7 +118,7 @@ mod tests {
                     Ok(fake_record(spec))
                 }
             },
-            |_| {},
+            |_, _| {},
         );
         assert_eq!(first.finished, 10);
         assert_eq!(first.failed.len(), p.runs.len() - 10);
@@ -144,7 +145,7 @@ mod tests {
                 ran.lock().unwrap().push(spec.key());
                 Ok::<_, String>(fake_record(spec))
             },
-            |_| {},
+            |_, _| {},
         );
         assert_eq!(second.skipped, 10);
         assert_eq!(second.finished, p.runs.len() - 10);

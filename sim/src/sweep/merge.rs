@@ -88,7 +88,7 @@ mod tests {
                 mine.len()
             };
             let run = |s: &RunSpec| Ok::<_, String>(record(i, s));
-            execute(&dir, &mine[..keep], 1, run, |_| {});
+            execute(&dir, &mine[..keep], 1, run, |_, _| {});
         }
         shards
     }

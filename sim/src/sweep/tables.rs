@@ -431,7 +431,7 @@ mod tests {
             &all[..4],
             1,
             |s| Ok::<_, String>(fake_record(s)),
-            |_| {},
+            |_, _| {},
         );
         let t = write_tables(&dir).unwrap();
         assert_eq!(t.records, 4);
