@@ -19,9 +19,10 @@ fn the_quick_paper_writes_every_table_and_figure_and_resumes() {
     let first = run_ok(&["paper", "--quick", "--out", out_s]);
     // 2 densities x 1 seed on one route: the expert and the three compared
     // policies at 3 delays (RA at 2 scales), the Original at D = 0, 3 switchers
-    // (oracle, lookahead, the learned trigger), and under jitter the 2 fixed
-    // scales and 2 switchers.
-    let planned = 2 * (3 + 3 + 3 + 3 * 2 + 1 + 3 + 4);
+    // (oracle, lookahead, the learned trigger), under jitter the 2 fixed
+    // scales and 2 switchers, and the more-scales network at its 2 quick
+    // scales and with 2 switchers between them.
+    let planned = 2 * (3 + 3 + 3 + 3 * 2 + 1 + 3 + 4 + 2 + 2);
     assert!(
         first.contains(&format!("{planned} runs finished now, 0 failed")),
         "{first}"
@@ -40,17 +41,19 @@ fn the_quick_paper_writes_every_table_and_figure_and_resumes() {
         "| table2 | 12 / 12 |",
         "RA learned switcher (50/100 ms) | 2 |",
         "## Beyond the paper: latency jitter",
+        "## Beyond the paper: more scales in one network",
+        "| scales | 16 / 16 |",
     ] {
         assert!(page.contains(section), "no {section:?} in:\n{page}");
     }
-    for stem in ["fig3", "fig4", "fig5", "frontier", "jitter"] {
+    for stem in ["fig3", "fig4", "fig5", "frontier", "jitter", "scales"] {
         let png = image::open(docs.join(format!("{stem}.png"))).unwrap();
         assert!(png.width() >= 800, "{stem}");
         let svg = std::fs::read_to_string(docs.join(format!("{stem}.svg"))).unwrap();
         assert!(svg.starts_with("<svg"), "{stem}");
     }
     for csv in [
-        "table1", "table2", "fig3", "fig4", "fig5", "table3", "frontier", "jitter",
+        "table1", "table2", "fig3", "fig4", "fig5", "table3", "frontier", "jitter", "scales",
     ] {
         let text = std::fs::read_to_string(docs.join(format!("{csv}.csv"))).unwrap();
         assert!(text.lines().count() >= 2, "{csv}.csv has no rows:\n{text}");

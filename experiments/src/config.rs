@@ -31,6 +31,10 @@ pub struct Models {
     /// The RA network's learned trigger (`mrdrive policy trigger`), for
     /// the `learned` selector's rows; `None` leaves them out.
     pub trigger: Option<PathBuf>,
+    /// An RA network with a BN branch for every scale of
+    /// [`PaperConfig::ladder`] (`mrdrive train --stage ra --scales ...`), for
+    /// the more-scales study; `None` leaves it out.
+    pub ladder: Option<PathBuf>,
 }
 
 /// A latency envelope of Table III: the high scale runs at `high_ms`, the
@@ -48,6 +52,18 @@ impl Envelope {
     pub fn label(&self) -> String {
         format!("{}->{} ms", self.high_ms, self.low_ms)
     }
+
+    /// The execution latency of any scale (milliseconds): the straight line
+    /// through the envelope's two points, `low_ms` at `low` and `high_ms` at
+    /// `high`, never below 0. Under 150->100 ms with scales 0.75 and 1.0 it
+    /// gives 0.5x 50 ms, 0.625x 75 ms and 0.875x 125 ms.
+    pub fn latency_ms_at(&self, scale: f64, low: f64, high: f64) -> f64 {
+        if (high - low).abs() < 1e-12 {
+            return self.high_ms;
+        }
+        let slope = (self.high_ms - self.low_ms) / (high - low);
+        (self.low_ms + slope * (scale - low)).max(0.0)
+    }
 }
 
 /// Everything that fixes a paper run.
@@ -64,6 +80,9 @@ pub struct PaperConfig {
     pub delays_ms: Vec<f64>,
     /// The low input scale (fraction of S0).
     pub low: f64,
+    /// The scales of the more-scales study, ascending (each driven alone by
+    /// [`Models::ladder`] at its own latency under each envelope).
+    pub ladder: Vec<f64>,
     /// The high input scale (the training scale).
     pub high: f64,
     /// Table III's latency envelopes.
@@ -104,6 +123,7 @@ impl PaperConfig {
             seeds: vec![0, 1, 2],
             delays_ms: vec![0.0, 50.0, 100.0, 150.0, 200.0],
             low: 0.75,
+            ladder: vec![0.5, 0.625, 0.75, 0.875, 1.0],
             high: 1.0,
             envelopes: vec![
                 Envelope {
@@ -121,6 +141,7 @@ impl PaperConfig {
                 nra_high: model("nra-1.0"),
                 ra: model("ra"),
                 trigger: Some(PathBuf::from("models/ra.trigger.json")),
+                ladder: Some(model("ra5")),
             },
             jitters: vec![0.25, 0.5],
             resets: 10,
@@ -130,11 +151,13 @@ impl PaperConfig {
 
     /// A smoke test of every table and figure: Town01 route 0 only, two
     /// densities, one seed, D in {0, 50, 100}, one envelope, one jitter,
-    /// runs capped at 8 simulated seconds, 2 resets for Table I.
+    /// runs capped at 8 simulated seconds, 2 resets for Table I, the
+    /// more-scales study at its two ends.
     pub fn quick() -> Self {
         let full = Self::full();
         PaperConfig {
             routes: full.routes[..1].to_vec(),
+            ladder: vec![0.5, 1.0],
             densities: vec![(0, 0), (5, 10)],
             seeds: vec![0],
             delays_ms: vec![0.0, 50.0, 100.0],
@@ -154,6 +177,17 @@ impl PaperConfig {
             s.push(SelectorKind::Learned);
         }
         s
+    }
+
+    /// The latencies of the ladder's two ends under `e` (see
+    /// [`Envelope::latency_ms_at`]): the envelope a switcher between them
+    /// runs under. 150->100 ms with the ladder 0.5x-1.0x gives 150->50 ms.
+    pub fn ladder_envelope(&self, e: Envelope) -> Option<Envelope> {
+        let (lo, hi) = (*self.ladder.first()?, *self.ladder.last()?);
+        Some(Envelope {
+            high_ms: e.latency_ms_at(hi, self.low, self.high),
+            low_ms: e.latency_ms_at(lo, self.low, self.high),
+        })
     }
 
     /// The towns in route order, each once.

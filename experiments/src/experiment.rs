@@ -28,11 +28,14 @@ pub enum Experiment {
     /// Beyond the paper: fixed scales and switchers as the execution
     /// latency spreads (log-normal jitter) under the first envelope.
     Jitter,
+    /// Beyond the paper: one RA network with more scales, each scale alone
+    /// at the latency each envelope gives it.
+    Scales,
 }
 
 impl Experiment {
     /// Every experiment, in the order the page shows them.
-    pub const ALL: [Experiment; 8] = [
+    pub const ALL: [Experiment; 9] = [
         Experiment::Table1,
         Experiment::Table2,
         Experiment::Fig3,
@@ -41,6 +44,7 @@ impl Experiment {
         Experiment::Table3,
         Experiment::Frontier,
         Experiment::Jitter,
+        Experiment::Scales,
     ];
 
     /// Its name on the command line and in file names.
@@ -54,6 +58,7 @@ impl Experiment {
             Experiment::Table3 => "table3",
             Experiment::Frontier => "frontier",
             Experiment::Jitter => "jitter",
+            Experiment::Scales => "scales",
         }
     }
 
@@ -148,6 +153,33 @@ impl Experiment {
                 }
                 u
             }
+            Experiment::Scales => {
+                if cfg.models.ladder.is_none() {
+                    return Vec::new();
+                }
+                // The two-scale RA at the same latencies, to pair with.
+                let mut u: Vec<Unit> = Vec::new();
+                for e in &cfg.envelopes {
+                    for d in [e.low_ms, e.high_ms] {
+                        let fixed = Unit::fixed(Driver::Ra, d);
+                        if !u.contains(&fixed) {
+                            u.push(fixed);
+                        }
+                    }
+                }
+                // The widest envelope first: the 150 ms cliff is where the
+                // scales part ways. Each envelope's ladder, then the map's
+                // switchers between the ladder's two ends.
+                for e in cfg.envelopes.iter().rev() {
+                    u.push(Unit::ladder(*e));
+                    if let Some(ends) = cfg.ladder_envelope(*e) {
+                        for s in [SelectorKind::Oracle, SelectorKind::Lookahead] {
+                            u.push(Unit::ladder_switch(s, ends));
+                        }
+                    }
+                }
+                u
+            }
         }
     }
 }
@@ -165,6 +197,7 @@ impl Experiment {
             Experiment::Fig5 => 5,
             Experiment::Frontier => 6,
             Experiment::Jitter => 7,
+            Experiment::Scales => 8,
         }
     }
 }
@@ -219,12 +252,29 @@ mod tests {
         );
         let all = units_of(&Experiment::ALL, &cfg);
         // 5 at D = 0, 3 policies x 4 more delays, the expert at 4 more, 6 switchers,
-        // 2 jitters x (fixed, oracle, lookahead).
-        assert_eq!(all.len(), 5 + 12 + 4 + 6 + 6);
+        // 2 jitters x (fixed, oracle, lookahead), a ladder and 2 switchers per envelope.
+        assert_eq!(all.len(), 5 + 12 + 4 + 6 + 6 + 6);
+        assert_eq!(
+            ids(Experiment::Scales.units(&cfg)),
+            [
+                "ra-d050",
+                "ra-d100",
+                "ra-d150",
+                "ra5-ladder-150-100",
+                "ra5-oracle-150-50",
+                "ra5-lookahead-150-50",
+                "ra5-ladder-100-50",
+                "ra5-oracle-100-0",
+                "ra5-lookahead-100-0"
+            ]
+        );
         // Without a trigger the learned rows are left out.
         let mut bare = cfg.clone();
         bare.models.trigger = None;
         assert_eq!(Experiment::Table3.units(&bare).len(), 7);
+        // Without a ladder network the more-scales study has no runs.
+        bare.models.ladder = None;
+        assert!(Experiment::Scales.units(&bare).is_empty());
         assert_eq!(
             ids(Experiment::Jitter.units(&cfg))[3..],
             [
@@ -241,7 +291,7 @@ mod tests {
             Experiment::parse_list("fig5, table2,fig5").unwrap(),
             [Experiment::Table2, Experiment::Fig5]
         );
-        assert_eq!(Experiment::parse_list("").unwrap().len(), 8);
+        assert_eq!(Experiment::parse_list("").unwrap().len(), 9);
         let e = Experiment::parse_list("fig9").unwrap_err().to_string();
         assert!(e.contains("--only fig9") && e.contains("table3"), "{e}");
     }

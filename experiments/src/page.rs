@@ -2,6 +2,7 @@
 //! it: our numbers next to the paper's, with the checks of the paper's
 //! shapes written out from the numbers.
 
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use crate::PaperError;
@@ -15,6 +16,7 @@ use crate::results::{Results, Run};
 use crate::run::{RunOptions, WallLog};
 use crate::units::{Driver, Unit, scale_label, selector_name};
 use sim::scenario::SelectorKind;
+use sim::sweep::stats::Paired;
 
 /// What the paper reports (its §IV), set beside ours.
 pub mod paper {
@@ -160,6 +162,7 @@ pub fn write_all(
         table3(cfg, results, &mut w)?,
         frontier(cfg, results, &mut w)?,
         jitter(cfg, results, &mut w)?,
+        scales(cfg, results, &mut w)?,
     ];
     let page = header(cfg, opts, results) + &shapes(cfg, results) + &sections.join("\n");
     w.text("README.md", &page)?;
@@ -212,11 +215,12 @@ fn header(cfg: &PaperConfig, opts: &RunOptions, results: &Results) -> String {
     let wall = WallLog::read(&opts.out);
     let builds = results.provenance(|p| &p.build);
     let backends = results.backends();
-    let mut s = format!(
+    let mut s =
+        format!(
         "# The paper's evidence, regenerated\n\n\
          Made by `cargo xtask paper{}` (`mrdrive paper`), the {} configuration: {} routes \
          ({}), densities {}, seeds {:?} per (route, density), D in {:?} ms, scales {} and {}, \
-         checkpoints `{}`, `{}`, `{}`, `{}`.{} Every table and figure below is rewritten from \
+         checkpoints `{}`, `{}`, `{}`, `{}`{}.{} Every table and figure below is rewritten from \
          the run records in `sweeps/` beside this page each time the command runs; a killed \
          run resumes where it stopped.\n\n",
         if opts.label == "quick" {
@@ -244,6 +248,11 @@ fn header(cfg: &PaperConfig, opts: &RunOptions, results: &Results) -> String {
         cfg.models.nra_low.display(),
         cfg.models.nra_high.display(),
         cfg.models.ra.display(),
+        cfg.models.ladder.as_ref().map_or(String::new(), |p| format!(
+            " and `{}` (scales {}) for the more-scales study",
+            p.display(),
+            cfg.ladder.iter().map(|&s| x(s)).collect::<Vec<_>>().join(", ")
+        )),
         cfg.timeout_s.map_or(String::new(), |t| format!(
             " Runs are capped at {t} simulated seconds (a smoke test: no run can finish its route)."
         )),
@@ -1325,6 +1334,177 @@ fn jitter(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String
          reproducible); the period stretches with it (Tloop = max(Tc, L)). Sigma 0 is Table III.\n\n\
          ![jitter](jitter.png)\n\n{}\nFiles: `jitter.png`, `jitter.svg`, `jitter.csv`.\n",
         e.label(),
+        t.markdown()
+    ))
+}
+
+/// Beyond the paper: one RA network with a BN branch for every scale of the
+/// ladder, each scale alone at the latency each envelope gives it, paired
+/// with the two-scale RA where both have the scale.
+fn scales(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String, PaperError> {
+    let Some(file) = &cfg.models.ladder else {
+        return Ok(String::new());
+    };
+    let name = Driver::Ladder.id(cfg).to_uppercase();
+    let mut t = Table::new(&[
+        "envelope",
+        "configuration",
+        "latency (ms)",
+        "runs",
+        "success %",
+        "collided %",
+        "red lights per run",
+        "lane crossings per run",
+        "paired vs two-scale RA: success",
+        "collided",
+        "red lights",
+    ]);
+    let mut cells = Cells::new();
+    let mut lines: Vec<(String, Vec<(f64, Stats)>)> = Vec::new();
+    let mut switch_lines: BTreeMap<String, Vec<(f64, Stats)>> = BTreeMap::new();
+    for e in &cfg.envelopes {
+        let mut pts = Vec::new();
+        for &scale in &cfg.ladder {
+            let latency = e.latency_ms_at(scale, cfg.low, cfg.high);
+            let c = Config {
+                label: format!("{name} {}", x(scale)),
+                unit: Unit::ladder(*e),
+                scale: Some(scale),
+            };
+            let runs = c.runs(cfg, results, None);
+            let s = Stats::of(&runs, cfg.high);
+            let two_scale = [cfg.low, cfg.high]
+                .iter()
+                .any(|&k| (k - scale).abs() < 1e-9)
+                .then(|| {
+                    let ra = model_at(cfg, true, scale, latency).runs(cfg, results, None);
+                    Comparison::of(&ra, &runs)
+                });
+            let paired = |f: &dyn Fn(&Comparison) -> &Paired| {
+                two_scale.as_ref().map_or("–".into(), |c| paired_cell(f(c)))
+            };
+            cells.push(
+                &format!("{} [{}]", c.label, e.label()),
+                "all",
+                Some(latency),
+                Some(scale),
+                &s,
+            );
+            t.push(vec![
+                e.label(),
+                c.label.clone(),
+                latency.to_string(),
+                s.n.to_string(),
+                rate_cell(s.success, s.n),
+                rate_cell(s.collided, s.n),
+                mean_ci_cell(s.red, s.red_ci, s.n),
+                mean_sd_cell(s.lane, s.n),
+                paired(&|c| &c.success),
+                paired(&|c| &c.collided),
+                paired(&|c| &c.red),
+            ]);
+            if s.n > 0 {
+                pts.push((latency, s));
+            }
+        }
+        lines.push((
+            format!("{name} at each scale's latency ({})", e.label()),
+            pts,
+        ));
+        // The switchers between the ladder's ends, paired with RA's own under `e`.
+        let Some(ends) = cfg.ladder_envelope(*e) else {
+            continue;
+        };
+        let (lo, hi) = Driver::Ladder.switch_scales(cfg);
+        for sel in [SelectorKind::Oracle, SelectorKind::Lookahead] {
+            let c = Config {
+                label: format!(
+                    "{name} {} switcher {}<->{}",
+                    selector_name(sel),
+                    x(lo),
+                    x(hi)
+                ),
+                unit: Unit::ladder_switch(sel, ends),
+                scale: None,
+            };
+            let runs = c.runs(cfg, results, None);
+            let s = Stats::of(&runs, hi);
+            let ra = Unit::switch(sel, *e);
+            let cmp = Comparison::of(&results.select(cfg, &ra, None, None), &runs);
+            cells.push(
+                &format!("{} [{}]", c.label, ends.label()),
+                "all",
+                Some(ends.high_ms),
+                None,
+                &s,
+            );
+            t.push(vec![
+                e.label(),
+                format!("{} ({})", c.label, ends.label()),
+                ends.high_ms.to_string(),
+                s.n.to_string(),
+                rate_cell(s.success, s.n),
+                rate_cell(s.collided, s.n),
+                mean_ci_cell(s.red, s.red_ci, s.n),
+                mean_sd_cell(s.lane, s.n),
+                paired_cell(&cmp.success),
+                paired_cell(&cmp.collided),
+                paired_cell(&cmp.red),
+            ]);
+            if s.n > 0 {
+                switch_lines
+                    .entry(c.label)
+                    .or_default()
+                    .push((ends.high_ms, s));
+            }
+        }
+    }
+    lines.extend(switch_lines);
+    for scale in [cfg.low, cfg.high] {
+        let pts = cfg
+            .delays_ms
+            .iter()
+            .map(|&d| (d, model_at(cfg, true, scale, d).stats(cfg, results, None)))
+            .filter(|(_, s)| s.n > 0)
+            .collect();
+        lines.push((format!("RA fixed {} (two scales)", x(scale)), pts));
+    }
+    w.cells("scales.csv", &cells)?;
+    w.plot(
+        "scales",
+        &safety_panels(&lines, "worst-case latency (ms)"),
+        1500,
+        480,
+    )?;
+    Ok(format!(
+        "## Beyond the paper: more scales in one network\n\n\
+         `{}` is RA with a BN branch for more scales than two, retargeted like RA (its card in \
+         `models/` says which scales and how it was trained); here it drives at {}. Each scale \
+         drives alone, its latency the injected delay: the straight line through each \
+         envelope's two points (its low latency at {}, its high one at {}){}. The paired \
+         columns set it against the two-scale RA at the same scale and delay, run for run: one \
+         network with more branches should cost nothing. Its oracle and map-lookahead switchers \
+         move between its two ends, the low end costing what the line gives it; they are paired \
+         with RA's own switcher under the envelope, the same worst case with a dearer low \
+         scale. The plot adds the two-scale RA's fixed scales at every injected delay.\n\n\
+         ![scales](scales.png)\n\n{}\nFiles: `scales.png`, `scales.svg`, `scales.csv`.\n",
+        file.display(),
+        cfg.ladder
+            .iter()
+            .map(|&s| x(s))
+            .collect::<Vec<_>>()
+            .join(", "),
+        x(cfg.low),
+        x(cfg.high),
+        cfg.envelopes.last().map_or(String::new(), |e| format!(
+            ", so under {}: {}",
+            e.label(),
+            cfg.ladder
+                .iter()
+                .map(|&s| format!("{} {} ms", x(s), e.latency_ms_at(s, cfg.low, cfg.high)))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )),
         t.markdown()
     ))
 }

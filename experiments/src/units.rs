@@ -25,10 +25,13 @@ pub enum Driver {
     NraHigh,
     /// The multi-resolution network, at both scales.
     Ra,
+    /// The multi-resolution network with a BN branch for every scale of the
+    /// ladder (the more-scales study; not one of Table II's columns).
+    Ladder,
 }
 
 impl Driver {
-    /// Every driver, in table order.
+    /// Table II's drivers, in table order.
     pub const ALL: [Driver; 5] = [
         Driver::Expert,
         Driver::Original,
@@ -45,6 +48,12 @@ impl Driver {
             Driver::NraLow => format!("nra-{}", scale_label(cfg.low)),
             Driver::NraHigh => format!("nra-{}", scale_label(cfg.high)),
             Driver::Ra => "ra".into(),
+            Driver::Ladder => cfg
+                .models
+                .ladder
+                .as_deref()
+                .and_then(Path::file_stem)
+                .map_or_else(|| "ra-ladder".into(), |s| s.to_string_lossy().into_owned()),
         }
     }
 
@@ -62,6 +71,9 @@ impl Driver {
             Driver::NraLow => policy(&cfg.models.nra_low),
             Driver::NraHigh => policy(&cfg.models.nra_high),
             Driver::Ra => policy(&cfg.models.ra),
+            // Never planned without its own checkpoint: the more-scales
+            // study has no units then.
+            Driver::Ladder => policy(cfg.models.ladder.as_ref().unwrap_or(&cfg.models.ra)),
         }
     }
 
@@ -72,6 +84,16 @@ impl Driver {
             Driver::Original | Driver::NraHigh => vec![Some(cfg.high)],
             Driver::NraLow => vec![Some(cfg.low)],
             Driver::Ra => vec![Some(cfg.low), Some(cfg.high)],
+            Driver::Ladder => cfg.ladder.iter().copied().map(Some).collect(),
+        }
+    }
+
+    /// The two scales a switcher driving this network moves between: the
+    /// paper's low and high for RA, the ladder's ends for the ladder network.
+    pub fn switch_scales(self, cfg: &PaperConfig) -> (f64, f64) {
+        match (self, cfg.ladder.first(), cfg.ladder.last()) {
+            (Driver::Ladder, Some(&lo), Some(&hi)) => (lo, hi),
+            _ => (cfg.low, cfg.high),
         }
     }
 }
@@ -103,6 +125,12 @@ pub enum Selection {
         envelope: Envelope,
         /// The latencies' log-normal spread (`timing.latency_jitter`; 0: none).
         jitter: f64,
+    },
+    /// Each of the driver's fixed scales alone, at the latency the envelope
+    /// gives it ([`Envelope::latency_ms_at`]) as the injected delay.
+    Ladder {
+        /// The envelope the latencies are drawn from.
+        envelope: Envelope,
     },
 }
 
@@ -142,6 +170,27 @@ impl Unit {
         }
     }
 
+    /// The ladder network switching between its lowest and highest scale,
+    /// which cost `envelope`'s latencies.
+    pub fn ladder_switch(selector: SelectorKind, envelope: Envelope) -> Self {
+        Unit {
+            driver: Driver::Ladder,
+            selection: Selection::Switch {
+                selector,
+                envelope,
+                jitter: 0.0,
+            },
+        }
+    }
+
+    /// The ladder network's scales, each at its latency under `envelope`.
+    pub fn ladder(envelope: Envelope) -> Self {
+        Unit {
+            driver: Driver::Ladder,
+            selection: Selection::Ladder { envelope },
+        }
+    }
+
     /// Whether its selector is the policy's learned trigger.
     fn learned(&self) -> bool {
         matches!(
@@ -168,6 +217,12 @@ impl Unit {
                 self.driver.id(cfg),
                 switch_tag(selector, envelope, jitter)
             ),
+            Selection::Ladder { envelope } => format!(
+                "{}-ladder-{}-{}",
+                self.driver.id(cfg),
+                envelope.high_ms.round() as u64,
+                envelope.low_ms.round() as u64
+            ),
         }
     }
 
@@ -186,16 +241,32 @@ impl Unit {
         for r in &cfg.routes {
             scenarios.push(self.scenario_for(&r.scenario, cfg, out)?);
         }
-        let (delays, scales) = match self.selection {
-            Selection::Fixed { delay_ms } => (vec![Some(delay_ms)], self.driver.scales(cfg)),
+        let densities: Vec<Option<(u32, u32)>> = cfg.densities.iter().copied().map(Some).collect();
+        let cross = |delays: &[Option<f64>], scales: &[Option<f64>]| {
+            SweepPlan::cross(&scenarios, delays, scales, &densities, &cfg.seeds).runs
+        };
+        let runs = match self.selection {
+            Selection::Fixed { delay_ms } => cross(&[Some(delay_ms)], &self.driver.scales(cfg)),
             Selection::Switch {
                 selector: SelectorKind::Fixed,
                 ..
-            } => (vec![Some(0.0)], self.driver.scales(cfg)),
-            Selection::Switch { .. } => (vec![Some(0.0)], vec![None]),
+            } => cross(&[Some(0.0)], &self.driver.scales(cfg)),
+            Selection::Switch { .. } => cross(&[Some(0.0)], &[None]),
+            // One cross per scale, each at its own delay, scales outermost.
+            Selection::Ladder { envelope } => self
+                .driver
+                .scales(cfg)
+                .into_iter()
+                .flatten()
+                .flat_map(|s| {
+                    cross(
+                        &[Some(envelope.latency_ms_at(s, cfg.low, cfg.high))],
+                        &[Some(s)],
+                    )
+                })
+                .collect(),
         };
-        let densities: Vec<Option<(u32, u32)>> = cfg.densities.iter().copied().map(Some).collect();
-        let mut plan = SweepPlan::cross(&scenarios, &delays, &scales, &densities, &cfg.seeds);
+        let mut plan = SweepPlan { runs };
         let mut driver = self.driver.spec(cfg);
         if self.learned() {
             driver.trigger = cfg.models.trigger.clone();
@@ -220,7 +291,7 @@ impl Unit {
                 envelope,
                 jitter,
             } => Some((selector, envelope, jitter)),
-            Selection::Fixed { .. } => None,
+            Selection::Fixed { .. } | Selection::Ladder { .. } => None,
         };
         if switch.is_none() && cfg.timeout_s.is_none() {
             return Ok(base.to_path_buf());
@@ -233,6 +304,10 @@ impl Unit {
             Some((s, e, j)) => switch_tag(s, e, j),
             None => "fixed".into(),
         };
+        if self.driver == Driver::Ladder {
+            // Its switchers move between other scales than RA's.
+            tag = format!("{}-{tag}", self.driver.id(cfg));
+        }
         if let Some(t) = cfg.timeout_s {
             tag += &format!("-cap{}s", t.round() as u64);
         }
@@ -262,7 +337,8 @@ impl Unit {
         } else {
             None
         };
-        let text = derived_scenario(base, &dir, &name, cfg, switch, driver)?;
+        let scales = self.driver.switch_scales(cfg);
+        let text = derived_scenario(base, &dir, &name, cfg, scales, switch, driver)?;
         std::fs::create_dir_all(&dir).map_err(|e| PaperError::io("create", &dir, e))?;
         let path = dir.join(format!("{name}.toml"));
         std::fs::write(&path, text).map_err(|e| PaperError::io("write", &path, e))?;
@@ -338,6 +414,7 @@ fn derived_scenario(
     dir: &Path,
     name: &str,
     cfg: &PaperConfig,
+    (low, high): (f64, f64),
     switch: Option<(SelectorKind, Envelope, f64)>,
     driver: Option<toml::Table>,
 ) -> Result<String, PaperError> {
@@ -373,8 +450,8 @@ fn derived_scenario(
     if let Some((selector, envelope, jitter)) = switch {
         let mut timing = section(&mut doc, "timing");
         let mut latency = toml::Table::new();
-        latency.insert(scale_label(cfg.low), envelope.low_ms.into());
-        latency.insert(scale_label(cfg.high), envelope.high_ms.into());
+        latency.insert(scale_label(low), envelope.low_ms.into());
+        latency.insert(scale_label(high), envelope.high_ms.into());
         timing.insert("latency_ms".into(), latency.into());
         if jitter > 0.0 {
             timing.insert("latency_jitter".into(), jitter.into());
@@ -382,8 +459,8 @@ fn derived_scenario(
         doc.insert("timing".into(), timing.into());
         let mut resolution = section(&mut doc, "resolution");
         resolution.insert("selector".into(), selector_name(selector).into());
-        resolution.insert("low".into(), cfg.low.into());
-        resolution.insert("high".into(), cfg.high.into());
+        resolution.insert("low".into(), low.into());
+        resolution.insert("high".into(), high.into());
         doc.insert("resolution".into(), resolution.into());
     }
     if let Some(d) = driver {
@@ -445,6 +522,78 @@ mod tests {
             .unwrap();
         assert_eq!(e.runs.len(), 36);
         assert_eq!(e.runs[0].driver.as_ref().unwrap().kind, DriverKind::Expert);
+    }
+
+    #[test]
+    fn a_ladder_unit_drives_each_scale_at_the_latency_its_envelope_gives_it() {
+        let cfg = PaperConfig::full();
+        let tmp = tempfile::tempdir().unwrap();
+        let u = Unit::ladder(cfg.envelopes[1]);
+        assert_eq!(u.id(&cfg), "ra5-ladder-150-100");
+        let plan = u.plan(&cfg, tmp.path()).unwrap();
+        // 5 scales x 4 routes x 3 densities x 3 seeds, each scale at one delay.
+        assert_eq!(plan.runs.len(), 5 * 36);
+        let mut seen: Vec<(f64, f64)> = plan
+            .runs
+            .iter()
+            .map(|r| (r.scale.unwrap(), r.delay_ms.unwrap()))
+            .collect();
+        seen.dedup();
+        assert_eq!(
+            seen,
+            [
+                (0.5, 50.0),
+                (0.625, 75.0),
+                (0.75, 100.0),
+                (0.875, 125.0),
+                (1.0, 150.0)
+            ]
+        );
+        assert!(
+            plan.runs
+                .iter()
+                .all(|r| r.driver.as_ref().unwrap().checkpoint
+                    == Some(PathBuf::from("models/ra5.safetensors")))
+        );
+        // Every run has its own record.
+        let mut keys: Vec<String> = plan.runs.iter().map(|r| r.key()).collect();
+        keys.sort();
+        keys.dedup();
+        assert_eq!(keys.len(), plan.runs.len());
+        // Under 100->50 ms the cheapest scale costs nothing, never less.
+        let e = cfg.envelopes[0];
+        assert_eq!(e.latency_ms_at(0.5, cfg.low, cfg.high), 0.0);
+        assert_eq!(e.latency_ms_at(0.25, cfg.low, cfg.high), 0.0);
+        assert_eq!(e.latency_ms_at(0.875, cfg.low, cfg.high), 75.0);
+    }
+
+    #[test]
+    fn a_ladder_switcher_moves_between_the_ladders_ends_at_their_latencies() {
+        let mut cfg = PaperConfig::full();
+        cfg.routes = vec![crate::config::Route {
+            scenario: root().join("scenarios/default.toml"),
+            town: "gen01".into(),
+            route: "route 0".into(),
+        }];
+        let tmp = tempfile::tempdir().unwrap();
+        let ends = cfg.ladder_envelope(cfg.envelopes[1]).unwrap();
+        assert_eq!((ends.high_ms, ends.low_ms), (150.0, 50.0));
+        let u = Unit::ladder_switch(SelectorKind::Lookahead, ends);
+        assert_eq!(u.id(&cfg), "ra5-lookahead-150-50");
+        let plan = u.plan(&cfg, tmp.path()).unwrap();
+        assert_eq!(plan.runs.len(), 9);
+        assert!(plan.runs.iter().all(|r| r.scale.is_none()
+            && r.driver.as_ref().unwrap().checkpoint
+                == Some(PathBuf::from("models/ra5.safetensors"))));
+        let path = &plan.runs[0].scenario;
+        assert!(
+            path.ends_with("scenarios/default__ra5-lookahead-150-50.toml"),
+            "{path:?}"
+        );
+        let s = sim::scenario::Scenario::from_file(path).unwrap();
+        assert_eq!(s.resolution.selector, SelectorKind::Lookahead);
+        assert_eq!((s.resolution.low, s.resolution.high), (0.5, 1.0));
+        assert_eq!((s.latency_ms_at(0.5), s.latency_ms_at(1.0)), (50.0, 150.0));
     }
 
     #[test]

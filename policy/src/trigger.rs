@@ -13,6 +13,15 @@
 //! so the head also works on whichever scale the car is driving at). No
 //! label of the dataset is read: only its images, commands and speeds.
 //!
+//! **Or what the difference costs** ([`Target::Regret`]). Branches also
+//! disagree where it does not matter: two steering cells of equal value as
+//! the car weaves in its lane. The regret target weighs the disagreement by
+//! the frame's world-on-rails action values: the value the high branch's
+//! distribution expects, `sum_a p_high(a) Q(a)`, less the low branch's, for
+//! the frame's command at its speed. A frame is a positive when that loss is
+//! in the top `positive_share` (and above zero). Frames without a label are
+//! left out of such a fit.
+//!
 //! **The fit.** Features are standardised, then a logistic regression is fit
 //! by full-batch gradient descent with L2, positives weighted up to balance
 //! the classes. Deterministic: the frames are read in dataset order, every
@@ -22,7 +31,8 @@ use std::path::{Path, PathBuf};
 
 use dataset::action::{NUM_ACTIONS, NUM_SPEED_BINS};
 use dataset::decode::{interpolate_speed, softmax};
-use dataset::format::{Index, MappedShard};
+use dataset::format::{Index, MappedLabels, MappedShard, Q_PER_VIEW};
+use dataset::labels::LABEL_VERSION;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use sim::driver::RgbImage;
@@ -70,7 +80,11 @@ pub struct TriggerCard {
     pub frames_held_out: usize,
     /// Share of fit frames called positive.
     pub positive_share: f32,
-    /// The total-variation distance at and above which a frame is positive.
+    /// What a positive is (files written before there was a choice: disagreement).
+    #[serde(default)]
+    pub target: Target,
+    /// The target's score at and above which a frame is positive: the
+    /// total-variation distance, or the regret (reward units).
     pub tv_threshold: f32,
     /// Gradient-descent epochs.
     pub epochs: usize,
@@ -95,12 +109,43 @@ impl TriggerCard {
             frames_fit: 0,
             frames_held_out: 0,
             positive_share: 0.0,
+            target: Target::default(),
             tv_threshold: 0.0,
             epochs: 0,
             lr: 0.0,
             l2: 0.0,
             held_out: Scores::default(),
             fit: Scores::default(),
+        }
+    }
+}
+
+/// What a trigger learns to call a frame that needs the high scale.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Target {
+    /// The two branches' action distributions differ most (total variation).
+    #[default]
+    Disagreement,
+    /// Acting on the low branch loses the most value by the frame's labels.
+    Regret,
+}
+
+impl Target {
+    /// Its name on the command line and in cards.
+    pub fn name(self) -> &'static str {
+        match self {
+            Target::Disagreement => "disagreement",
+            Target::Regret => "regret",
+        }
+    }
+
+    /// A frame's score under this target (`None`: the frame has no label
+    /// and the target needs one).
+    pub fn score(self, s: &FrameSample) -> Option<f32> {
+        match self {
+            Target::Disagreement => Some(s.tv),
+            Target::Regret => s.regret,
         }
     }
 }
@@ -307,6 +352,10 @@ pub struct FrameSample {
     pub high: Vec<f32>,
     /// Total-variation distance between the two branches' action distributions.
     pub tv: f32,
+    /// The value lost by acting on the low branch rather than the high one,
+    /// by the frame's labels: `sum_a (p_high(a) - p_low(a)) Q(a)` (reward
+    /// units; `None` where the frame has no valid label).
+    pub regret: Option<f32>,
     /// Whether the frame's episode is held out.
     pub held_out: bool,
 }
@@ -319,6 +368,11 @@ pub fn command_logits(all: &[f32], command: usize, speed_mps: f32) -> [f32; NUM_
     let bins: [[f32; NUM_ACTIONS]; NUM_SPEED_BINS] =
         std::array::from_fn(|b| std::array::from_fn(|j| z[b * NUM_ACTIONS + j]));
     interpolate_speed(&bins, speed_mps)
+}
+
+/// The value `p` expects over action values `q`: `sum_a p(a) q(a)`.
+pub fn expected_value(p: &[f32; NUM_ACTIONS], q: &[f32; NUM_ACTIONS]) -> f32 {
+    p.iter().zip(q).map(|(a, b)| a * b).sum()
 }
 
 /// Total-variation distance between two distributions over the actions.
@@ -371,6 +425,12 @@ pub fn frame_samples(
             }
         };
         let held_out = ep.id % 5 == 4;
+        // Labels are optional: only the regret target reads them.
+        let labels = ep.labels.as_ref().and_then(|name| {
+            MappedLabels::open(&data.join(name), LABEL_VERSION, shard.len(), views)
+                .map_err(|e| skipped.push(format!("labels left out: {e}")))
+                .ok()
+        });
         let frames: Vec<usize> = (0..shard.len()).step_by(every.max(1)).collect();
         let samples: Vec<FrameSample> = frames
             .par_iter()
@@ -398,10 +458,17 @@ pub fn frame_samples(
                 };
                 let (fl, pl) = through(low, bl);
                 let (fh, ph) = through(high, bh);
+                let regret = labels.as_ref().filter(|l| l.valid[i]).map(|l| {
+                    let mut q = vec![0.0; Q_PER_VIEW];
+                    l.q_into(i, 0, &mut q);
+                    let q = command_logits(&q, command, speed);
+                    expected_value(&ph, &q) - expected_value(&pl, &q)
+                });
                 FrameSample {
                     low: fl,
                     high: fh,
                     tv: total_variation(&pl, &ph),
+                    regret,
                     held_out,
                 }
             })
@@ -422,8 +489,10 @@ pub fn frame_samples(
 /// How to fit a trigger.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FitConfig {
-    /// Share of fit frames called positive (top of the disagreement).
+    /// Share of fit frames called positive (top of the target's score).
     pub positive_share: f32,
+    /// What a positive is.
+    pub target: Target,
     /// Gradient-descent epochs.
     pub epochs: usize,
     /// Learning rate.
@@ -436,6 +505,7 @@ impl Default for FitConfig {
     fn default() -> Self {
         FitConfig {
             positive_share: 0.25,
+            target: Target::Disagreement,
             epochs: 400,
             lr: 0.5,
             l2: 1e-3,
@@ -449,19 +519,42 @@ pub fn fit(
     (low, high): (f32, f32),
     cfg: FitConfig,
     mut card: TriggerCard,
-) -> Trigger {
-    let fit_frames: Vec<&FrameSample> = samples.iter().filter(|s| !s.held_out).collect();
-    let mut tvs: Vec<f32> = fit_frames.iter().map(|s| s.tv).collect();
-    tvs.sort_by(f32::total_cmp);
-    let cut = ((1.0 - cfg.positive_share.clamp(0.0, 1.0)) * tvs.len() as f32) as usize;
-    let tv_threshold = tvs[cut.min(tvs.len() - 1)];
+) -> Result<Trigger, TriggerError> {
+    // The frames the target can score; the rest take no part.
+    let samples: Vec<(&FrameSample, f32)> = samples
+        .iter()
+        .filter_map(|s| cfg.target.score(s).map(|v| (s, v)))
+        .collect();
+    let fit_frames: Vec<f32> = samples
+        .iter()
+        .filter(|(s, _)| !s.held_out)
+        .map(|&(_, v)| v)
+        .collect();
+    if fit_frames.is_empty() {
+        return Err(TriggerError::NoData {
+            data: PathBuf::from(&card.data),
+            why: format!(
+                "no frame outside the held-out episodes has a {} score",
+                cfg.target.name()
+            ),
+            fix: "label the dataset (`mrdrive label`) or fit the disagreement target".into(),
+        });
+    }
+    let mut sorted = fit_frames.clone();
+    sorted.sort_by(f32::total_cmp);
+    let cut = ((1.0 - cfg.positive_share.clamp(0.0, 1.0)) * sorted.len() as f32) as usize;
+    let mut threshold = sorted[cut.min(sorted.len() - 1)];
+    if cfg.target == Target::Regret {
+        // Losing nothing never needs the high scale.
+        threshold = threshold.max(1e-6);
+    }
     // One sample per branch and frame.
     let expand = |held_out: bool| -> (Vec<&[f32]>, Vec<bool>) {
         samples
             .iter()
-            .filter(|s| s.held_out == held_out)
-            .flat_map(|s| {
-                let y = s.tv >= tv_threshold;
+            .filter(|(s, _)| s.held_out == held_out)
+            .flat_map(|&(s, v)| {
+                let y = v >= threshold;
                 [(s.low.as_slice(), y), (s.high.as_slice(), y)]
             })
             .unzip()
@@ -509,7 +602,8 @@ pub fn fit(
         b -= cfg.lr * gb;
     }
     card.positive_share = cfg.positive_share;
-    card.tv_threshold = tv_threshold;
+    card.target = cfg.target;
+    card.tv_threshold = threshold;
     card.epochs = cfg.epochs;
     card.lr = cfg.lr;
     card.l2 = cfg.l2;
@@ -528,7 +622,7 @@ pub fn fit(
     t.card.fit = t.scores(&x, &y);
     let (xh, yh) = expand(true);
     t.card.held_out = t.scores(&xh, &yh);
-    t
+    Ok(t)
 }
 
 #[cfg(test)]
@@ -539,7 +633,8 @@ mod tests {
         TriggerCard::new("c".into(), "d".into(), 1)
     }
 
-    /// Frames whose disagreement grows with feature 0 (feature 1 is noise).
+    /// Frames whose disagreement grows with feature 0 (feature 1 is noise to
+    /// it) and whose regret grows with feature 1.
     fn frames(n: usize) -> Vec<FrameSample> {
         (0..n)
             .map(|i| {
@@ -547,8 +642,10 @@ mod tests {
                 let noise = ((i * 7919) % 13) as f32 / 13.0;
                 FrameSample {
                     low: vec![a * 3.0 + 1.0, noise],
-                    high: vec![a * 3.0 + 1.2, 1.0 - noise],
+                    high: vec![a * 3.0 + 1.2, noise],
                     tv: a,
+                    // The regret follows feature 1, and only odd frames have labels.
+                    regret: (i % 2 == 1).then_some(noise - 0.5),
                     held_out: i % 5 == 4,
                 }
             })
@@ -558,7 +655,7 @@ mod tests {
     #[test]
     fn the_fit_finds_the_feature_that_predicts_disagreement() {
         let s = frames(400);
-        let t = fit(&s, (0.75, 1.0), FitConfig::default(), card());
+        let t = fit(&s, (0.75, 1.0), FitConfig::default(), card()).unwrap();
         // The top quarter of tv: a >= 0.75, i.e. 5 of 20 values.
         assert!((t.card.tv_threshold - 0.75).abs() < 1e-6);
         assert!(t.weights[0] > 0.0 && t.weights[0].abs() > 5.0 * t.weights[1].abs());
@@ -569,7 +666,59 @@ mod tests {
         assert!((t.card.fit.positive_rate - 0.25).abs() < 1e-6);
         assert!(t.p_high(&[3.95, 0.5]) > 0.5 && t.p_high(&[1.0, 0.5]) < 0.5);
         // Deterministic.
-        assert_eq!(t, fit(&s, (0.75, 1.0), FitConfig::default(), card()));
+        assert_eq!(
+            t,
+            fit(&s, (0.75, 1.0), FitConfig::default(), card()).unwrap()
+        );
+    }
+
+    #[test]
+    fn the_regret_target_reads_the_labels_not_the_disagreement() {
+        let s = frames(400);
+        let cfg = FitConfig {
+            target: Target::Regret,
+            ..FitConfig::default()
+        };
+        let t = fit(&s, (0.75, 1.0), cfg, card()).unwrap();
+        assert_eq!(t.card.target, Target::Regret);
+        // Only the labelled (odd) frames take part: 160 of the 320 fit frames.
+        assert_eq!(t.card.frames_fit, 160);
+        // Feature 1 (low branch) carries the regret now, feature 0 does not.
+        assert!(
+            t.weights[1].abs() > 2.0 * t.weights[0].abs(),
+            "{:?}",
+            t.weights
+        );
+        assert!(t.card.tv_threshold > 0.0);
+        // A frame that loses nothing is never a positive, however few lose something.
+        let none: Vec<FrameSample> = frames(100)
+            .into_iter()
+            .map(|f| FrameSample {
+                regret: Some(0.0),
+                ..f
+            })
+            .collect();
+        let t = fit(&none, (0.75, 1.0), cfg, card()).unwrap();
+        assert_eq!(t.card.fit.positive_rate, 0.0);
+        // Without any label there is nothing to fit, and the error says so.
+        let bare: Vec<FrameSample> = frames(100)
+            .into_iter()
+            .map(|f| FrameSample { regret: None, ..f })
+            .collect();
+        let e = fit(&bare, (0.75, 1.0), cfg, card())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("regret") && e.contains("mrdrive label"), "{e}");
+    }
+
+    #[test]
+    fn expected_value_weighs_action_values_by_probability() {
+        let mut p = [0.0f32; NUM_ACTIONS];
+        let mut q = [1.0f32; NUM_ACTIONS];
+        p[0] = 0.25;
+        p[1] = 0.75;
+        q[1] = 3.0;
+        assert_eq!(expected_value(&p, &q), 0.25 + 2.25);
     }
 
     #[test]
@@ -592,7 +741,7 @@ mod tests {
             e.contains("t.json") && e.contains("mrdrive policy trigger"),
             "{e}"
         );
-        let mut t = fit(&frames(100), (0.75, 1.0), FitConfig::default(), card());
+        let mut t = fit(&frames(100), (0.75, 1.0), FitConfig::default(), card()).unwrap();
         t.save(&path).unwrap();
         let back = Trigger::load(&path).unwrap();
         assert_eq!(back, t);

@@ -15,7 +15,7 @@ pub struct PaperArgs {
     /// A smoke test of every table and figure (one route, one seed, runs capped at 8 s): minutes.
     #[arg(long)]
     pub quick: bool,
-    /// Only these experiments, comma-separated: table1, table2, fig3, fig4, fig5, table3, frontier.
+    /// Only these experiments, comma-separated: table1, table2, fig3, fig4, fig5, table3, frontier, jitter, scales.
     #[arg(long, default_value = "")]
     pub only: String,
     /// The folder of everything: sweeps (`sweeps/`), derived scenarios, tables,

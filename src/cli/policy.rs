@@ -83,13 +83,14 @@ enum PolicyCommand {
         scale: f32,
     },
     /// Fit a learned trigger for the `learned` selector: a logistic head on a policy's
-    /// pooled feature that fires where its low- and high-scale branches disagree most
-    /// (policy/src/trigger.rs). Reads the dataset's images, commands and speeds only.
+    /// pooled feature that fires where its low- and high-scale branches disagree most, or
+    /// where acting on the low branch loses the most value by the labels (`--target regret`;
+    /// policy/src/trigger.rs).
     Trigger {
         /// The multi-resolution policy.
         #[arg(long, default_value = "models/ra.safetensors")]
         checkpoint: PathBuf,
-        /// A dataset (labels are not needed).
+        /// A dataset (labels are needed for `--target regret` only).
         #[arg(long)]
         data: PathBuf,
         /// The trigger file to write (JSON).
@@ -98,9 +99,13 @@ enum PolicyCommand {
         /// Use every N-th frame.
         #[arg(long, default_value_t = 2)]
         every: usize,
-        /// Share of frames called positive: the most disagreeing.
+        /// Share of frames called positive: the top of the target's score.
         #[arg(long, default_value_t = 0.25)]
         share: f32,
+        /// What a positive is: `disagreement` (the branches' action distributions
+        /// differ most) or `regret` (the low branch loses the most value by the labels).
+        #[arg(long, default_value = "disagreement", value_parser = parse_target)]
+        target: policy::trigger::Target,
         /// The low scale.
         #[arg(long, default_value_t = 0.75)]
         low: f32,
@@ -234,9 +239,10 @@ pub fn run_policy(args: PolicyArgs) -> Result<()> {
             out,
             every,
             share,
+            target,
             low,
             high,
-        } => fit_trigger(&weights, &data, &out, every, share, (low, high)),
+        } => fit_trigger(&weights, &data, &out, every, (share, target), (low, high)),
         PolicyCommand::Info { weights } => {
             let (cfg, card) = checkpoint::read_manifest(&weights)?;
             println!(
@@ -254,7 +260,7 @@ fn fit_trigger(
     data: &std::path::Path,
     out: &std::path::Path,
     every: usize,
-    share: f32,
+    (share, target): (f32, policy::trigger::Target),
     scales: (f32, f32),
 ) -> Result<()> {
     use policy::trigger::{self, FitConfig, TriggerCard};
@@ -277,16 +283,21 @@ fn fit_trigger(
     );
     let cfg = FitConfig {
         positive_share: share,
+        target,
         ..FitConfig::default()
     };
-    let t = trigger::fit(&samples, scales, cfg, card);
+    let t = trigger::fit(&samples, scales, cfg, card)?;
     t.save(out)
         .map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", out.display()))?;
     let c = &t.card;
     println!(
-        "{} frames fit, {} held out (episodes 4 mod 5); positive: total variation >= {:.3} (top {:.0} %)",
+        "{} frames fit, {} held out (episodes 4 mod 5); positive: {} >= {:.3} (top {:.0} %)",
         c.frames_fit,
         c.frames_held_out,
+        match target {
+            policy::trigger::Target::Disagreement => "total variation",
+            policy::trigger::Target::Regret => "regret",
+        },
         c.tv_threshold,
         100.0 * share
     );
@@ -307,6 +318,15 @@ fn fit_trigger(
         started.elapsed().as_secs_f64()
     );
     Ok(())
+}
+
+/// `--target disagreement|regret`.
+fn parse_target(text: &str) -> Result<policy::trigger::Target, String> {
+    use policy::trigger::Target;
+    [Target::Disagreement, Target::Regret]
+        .into_iter()
+        .find(|t| t.name() == text)
+        .ok_or_else(|| format!("`{text}`: choose disagreement or regret"))
 }
 
 #[derive(Debug, Subcommand)]

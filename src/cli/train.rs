@@ -23,12 +23,17 @@ pub struct TrainArgs {
     /// The teacher of a retargeting stage [default: <out>/original.safetensors].
     #[arg(long)]
     teacher: Option<PathBuf>,
-    /// Run folders (state, losses) go to <runs>/<stage>.
+    /// Run folders (state, losses) go to <runs>/<name>.
     #[arg(long, default_value = "runs")]
     runs: PathBuf,
-    /// The trained checkpoint is copied to <out>/<stage>.safetensors (+ .json, loss CSV and PNG).
+    /// The trained checkpoint is copied to <out>/<name>.safetensors (+ .json, loss CSV and PNG).
     #[arg(long, default_value = "models")]
     out: PathBuf,
+    /// The name of the run folder and of the published files, for a second
+    /// network of the same stage (e.g. `--stage ra --scales 0.5,0.625,0.75,0.875,1.0
+    /// --name ra5`) [default: the stage].
+    #[arg(long)]
+    name: Option<String>,
     /// Steps [default: the recipe's].
     #[arg(long)]
     steps: Option<usize>,
@@ -190,7 +195,8 @@ pub fn run_train(args: TrainArgs) -> Result<()> {
     }
     let stage = args.stage.clone().expect("clap requires --stage");
     let spec = spec_of(&args, &stage)?;
-    let run_dir = args.runs.join(&spec.name);
+    let name = args.name.clone().unwrap_or_else(|| spec.name.clone());
+    let run_dir = args.runs.join(&name);
     eprintln!(
         "training stage {} ({} preset, scales {:?}) on {}: {} steps of {}, run folder {}",
         spec.name,
@@ -253,15 +259,13 @@ pub fn run_train(args: TrainArgs) -> Result<()> {
     })?;
     bar.finish_and_clear();
     plot::loss_curves(&losses, &png, &spec.name)?;
-    publish(&run_dir, &args.out, &spec.name)?;
+    publish(&run_dir, &args.out, &name)?;
     println!(
         "stage {}: done ({} steps now, {:.0} s of training in all); checkpoint {}",
         spec.name,
         outcome.steps_now,
         outcome.wall_s,
-        args.out
-            .join(format!("{}.safetensors", spec.name))
-            .display()
+        args.out.join(format!("{name}.safetensors")).display()
     );
     Ok(())
 }

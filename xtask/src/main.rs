@@ -8,9 +8,9 @@
 //! | `ci` | what `.ci/run` runs: formatting, then `test` with every skip turned into a failure |
 //! | `lint` | `cargo fmt --check` and `cargo clippy --all-targets -- -D warnings` (run before committing; kept out of CI because it needs a second, check-mode build of every dependency) |
 //! | `data [--quick]` | collects and labels the two datasets of the study into `data/original` and `data/retarget` (resumable; regenerates them bit for bit; `--quick`: 2 short episodes each, for a smoke run) |
-//! | `train [--quick]` | the paper's pipeline, skipping what is done: `data`, then `mrdrive train` for the Original, NRA 0.75, NRA 1.0 and RA (resumable), then the closed-loop bar (`mrdrive sweep` of `scenarios/paper/` at Tc = 50 ms, D = 0, three densities, per model and for the expert) into `models/closed-loop.md`; `--quick`: tiny datasets, 4 steps per stage, one density, into `out/train-quick` |
+//! | `train [--quick]` | the paper's pipeline, skipping what is done: `data`, then `mrdrive train` for the Original, NRA 0.75, NRA 1.0, RA and the five-scale RA5 (resumable), then the closed-loop bar (`mrdrive sweep` of `scenarios/paper/` at Tc = 50 ms, D = 0, three densities, per model and for the expert) into `models/closed-loop.md`; `--quick`: tiny datasets, 4 steps per stage, one density, into `out/train-quick` |
 //! | `bench` | every benchmark on this machine, in one go: physics + traffic ticks/s (20 vehicles, 40 pedestrians), rig frames/s per scale (gen01, Town01), policy inference per scale (fused and burn) and training samples/s, closed-loop real-time factors (expert without and with the rig, RA with the oracle), PyTorch's reference when a Python with torch is found (`MRDRIVE_TORCH_PYTHON`, else `.venv`), peak memory per command; writes `docs/bench.md` |
-//! | `paper [--quick] [--only ID,...]` | the paper's tables and figures from the shipped checkpoints: `mrdrive paper` (resumable sweeps into `out/paper/sweeps/`, then Tables I-III, Figs. 3-5, the latency frontier and the comparison page into `docs/paper/`); `--quick`: every table and figure at toy size into `out/paper-quick` (minutes) |
+//! | `paper [--quick] [--only ID,...]` | the paper's tables and figures from the shipped checkpoints: `mrdrive paper` (resumable sweeps into `out/paper/sweeps/`, then Tables I-III, Figs. 3-5, the latency frontier, latency jitter, the more-scales study and the comparison page into `docs/paper/`); `--quick`: every table and figure at toy size into `out/paper-quick` (minutes) |
 //! | `bless` | rewrites the regression suite's golden files after a deliberate change |
 //! | `gpu-test [FEATURES]` | the policy crate's tests built with burn's GPU backends (default `wgpu`; `wgpu,cuda` for both), in `target/gpu` so the main build is kept; lavapipe is enough for `wgpu`, CUDA needs an NVIDIA GPU |
 //!
@@ -390,9 +390,21 @@ fn train(root: &Path, env: &Env, args: &[String]) -> Result<(), String> {
         status_in(root, &cmd, &vars)?;
     }
     let retarget_data = format!("data/retarget{suffix}");
-    for stage in ["nra-0.75", "nra-1.0", "ra"] {
+    // The three retargeted models of the paper, then RA with five scales for
+    // the more-scales study (`cargo xtask paper --only scales`).
+    let stages: [(&str, &[&str]); 4] = [
+        ("nra-0.75", &[]),
+        ("nra-1.0", &[]),
+        ("ra", &[]),
+        (
+            "ra",
+            &["--scales", "0.5,0.625,0.75,0.875,1.0", "--name", "ra5"],
+        ),
+    ];
+    for (stage, extra) in stages {
         let mut cmd = vec![bin, "train", "--stage", stage, "--data", &retarget_data];
         cmd.extend(["--runs", &runs, "--out", &models]);
+        cmd.extend(extra);
         if quick {
             cmd.extend(toy);
             cmd.extend(["--steps", "4", "--unfreeze-every", "1"]);
