@@ -1120,7 +1120,7 @@ fn table3(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String
          The paper's oracle (0.75x by default, 1.0x within 5 m of a light's stop line, back beyond 15 m) \
          and, past the paper, the map-lookahead selector (switches up at a distance derived from speed \
          and latency, before the light) and the learned trigger (a logistic head on the RA network's \
-         pooled feature, fit to where its two branches disagree most; no map; `mrdrive policy trigger`). Fixed rows are the RA model at one scale with D = its latency.\n\n{}\n\
+         pooled feature, fit to the frames where acting on the low-scale branch loses the most value by the labels, or where the two branches disagree most, as its card says; no map; `mrdrive policy trigger`). Fixed rows are the RA model at one scale with D = its latency.\n\n{}\n\
          Paired over the same route, density and seed:\n\n{}\n{}\n\nFiles: `table3.csv`.\n",
         t.markdown(),
         paired_t.markdown(),
@@ -1178,18 +1178,30 @@ fn safety_panels(lines: &[(String, Vec<(f64, Stats)>)], x_label: &str) -> [Panel
     ]
 }
 
+/// RA at each fixed scale over every injected delay (its worst-case latency),
+/// a plot line per scale labelled "RA fixed 0.75x{suffix}".
+fn ra_fixed_lines(
+    cfg: &PaperConfig,
+    results: &Results,
+    suffix: &str,
+) -> Vec<(String, Vec<(f64, Stats)>)> {
+    [cfg.low, cfg.high]
+        .into_iter()
+        .map(|scale| {
+            let pts = cfg
+                .delays_ms
+                .iter()
+                .map(|&d| (d, model_at(cfg, true, scale, d).stats(cfg, results, None)))
+                .filter(|(_, s)| s.n > 0)
+                .collect();
+            (format!("RA fixed {}{suffix}", x(scale)), pts)
+        })
+        .collect()
+}
+
 /// Beyond the paper: success, collisions and red lights against worst-case latency.
 fn frontier(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String, PaperError> {
-    let mut lines: Vec<(String, Vec<(f64, Stats)>)> = Vec::new();
-    for scale in [cfg.low, cfg.high] {
-        let pts = cfg
-            .delays_ms
-            .iter()
-            .map(|&d| (d, model_at(cfg, true, scale, d).stats(cfg, results, None)))
-            .filter(|(_, s)| s.n > 0)
-            .collect();
-        lines.push((format!("RA fixed {}", x(scale)), pts));
-    }
+    let mut lines = ra_fixed_lines(cfg, results, "");
     for s in cfg.selectors() {
         let pts = cfg
             .envelopes
@@ -1460,15 +1472,7 @@ fn scales(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String
         }
     }
     lines.extend(switch_lines);
-    for scale in [cfg.low, cfg.high] {
-        let pts = cfg
-            .delays_ms
-            .iter()
-            .map(|&d| (d, model_at(cfg, true, scale, d).stats(cfg, results, None)))
-            .filter(|(_, s)| s.n > 0)
-            .collect();
-        lines.push((format!("RA fixed {} (two scales)", x(scale)), pts));
-    }
+    lines.extend(ra_fixed_lines(cfg, results, " (two scales)"));
     w.cells("scales.csv", &cells)?;
     w.plot(
         "scales",
