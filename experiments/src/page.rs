@@ -1257,6 +1257,27 @@ fn frontier(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<Stri
     ))
 }
 
+/// Success and collision rates, red lights per run (with its interval) and
+/// lane crossings per run: the outcome columns of the extension tables.
+fn outcome_cells(s: &Stats) -> [String; 4] {
+    [
+        rate_cell(s.success, s.n),
+        rate_cell(s.collided, s.n),
+        mean_ci_cell(s.red, s.red_ci, s.n),
+        mean_sd_cell(s.lane, s.n),
+    ]
+}
+
+/// The paired success, collision and red-light cells of a comparison ("–" without one).
+fn paired_cells(c: Option<&Comparison>) -> [String; 3] {
+    let cell = |f: fn(&Comparison) -> &Paired| c.map_or("–".into(), |c| paired_cell(f(c)));
+    [
+        cell(|c| &c.success),
+        cell(|c| &c.collided),
+        cell(|c| &c.red),
+    ]
+}
+
 /// Beyond the paper: fixed scales and switchers under the first envelope as
 /// the execution latency spreads.
 fn jitter(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String, PaperError> {
@@ -1313,20 +1334,18 @@ fn jitter(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String
                 c.scale,
                 &s,
             );
-            t.push(vec![
-                j.to_string(),
-                c.label.clone(),
-                s.n.to_string(),
-                rate_cell(s.success, s.n),
-                rate_cell(s.collided, s.n),
-                mean_ci_cell(s.red, s.red_ci, s.n),
-                mean_sd_cell(s.lane, s.n),
-                if s.n == 0 {
-                    "–".into()
-                } else {
-                    format!("{:.0}", s.max_latency_ms)
-                },
-            ]);
+            let max_latency = if s.n == 0 {
+                "–".into()
+            } else {
+                format!("{:.0}", s.max_latency_ms)
+            };
+            t.push(
+                [j.to_string(), c.label.clone(), s.n.to_string()]
+                    .into_iter()
+                    .chain(outcome_cells(&s))
+                    .chain([max_latency])
+                    .collect(),
+            );
             if s.n > 0 {
                 lines[k].1.push((j, s));
             }
@@ -1392,9 +1411,6 @@ fn scales(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String
                     let ra = model_at(cfg, true, scale, latency).runs(cfg, results, None);
                     Comparison::of(&ra, &runs)
                 });
-            let paired = |f: &dyn Fn(&Comparison) -> &Paired| {
-                two_scale.as_ref().map_or("–".into(), |c| paired_cell(f(c)))
-            };
             cells.push(
                 &format!("{} [{}]", c.label, e.label()),
                 "all",
@@ -1402,19 +1418,18 @@ fn scales(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String
                 Some(scale),
                 &s,
             );
-            t.push(vec![
-                e.label(),
-                c.label.clone(),
-                latency.to_string(),
-                s.n.to_string(),
-                rate_cell(s.success, s.n),
-                rate_cell(s.collided, s.n),
-                mean_ci_cell(s.red, s.red_ci, s.n),
-                mean_sd_cell(s.lane, s.n),
-                paired(&|c| &c.success),
-                paired(&|c| &c.collided),
-                paired(&|c| &c.red),
-            ]);
+            t.push(
+                [
+                    e.label(),
+                    c.label.clone(),
+                    latency.to_string(),
+                    s.n.to_string(),
+                ]
+                .into_iter()
+                .chain(outcome_cells(&s))
+                .chain(paired_cells(two_scale.as_ref()))
+                .collect(),
+            );
             if s.n > 0 {
                 pts.push((latency, s));
             }
@@ -1450,19 +1465,18 @@ fn scales(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String
                 None,
                 &s,
             );
-            t.push(vec![
-                e.label(),
-                format!("{} ({})", c.label, ends.label()),
-                ends.high_ms.to_string(),
-                s.n.to_string(),
-                rate_cell(s.success, s.n),
-                rate_cell(s.collided, s.n),
-                mean_ci_cell(s.red, s.red_ci, s.n),
-                mean_sd_cell(s.lane, s.n),
-                paired_cell(&cmp.success),
-                paired_cell(&cmp.collided),
-                paired_cell(&cmp.red),
-            ]);
+            t.push(
+                [
+                    e.label(),
+                    format!("{} ({})", c.label, ends.label()),
+                    ends.high_ms.to_string(),
+                    s.n.to_string(),
+                ]
+                .into_iter()
+                .chain(outcome_cells(&s))
+                .chain(paired_cells(Some(&cmp)))
+                .collect(),
+            );
             if s.n > 0 {
                 switch_lines
                     .entry(c.label)
