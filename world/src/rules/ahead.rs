@@ -76,16 +76,22 @@ pub const PEDESTRIAN_PREDICT_STEP_S: f32 = 0.25;
 /// Below this speed a pedestrian counts as standing (metres per second).
 const PEDESTRIAN_STANDING_MPS: f32 = 0.1;
 
-/// Where an actor's footprint is tested: where it is now, and for a walking
-/// pedestrian where it will be at each prediction step up to `horizon_s`.
-fn test_positions(a: &ActorView, horizon_s: f32) -> impl Iterator<Item = Vec2> + '_ {
+/// How many prediction steps of an actor are tested beyond where it is now:
+/// up to `horizon_s` for a walking pedestrian, none for anyone else.
+fn predicted_steps(a: &ActorView, horizon_s: f32) -> usize {
     let walking = a.kind == ActorKind::Pedestrian && a.speed_mps > PEDESTRIAN_STANDING_MPS;
-    let steps = if walking {
+    if walking {
         (horizon_s.clamp(0.0, PEDESTRIAN_PREDICT_S) / PEDESTRIAN_PREDICT_STEP_S).round() as usize
     } else {
         0
-    };
-    let step = Vec2::from_angle(a.yaw) * (a.speed_mps * PEDESTRIAN_PREDICT_STEP_S);
+    }
+}
+
+/// Where an actor's footprint is tested: where it is now, and for a walking
+/// pedestrian where it will be at each of `steps` prediction steps
+/// ([`predicted_steps`]) along its unit `heading`.
+fn test_positions(a: &ActorView, heading: Vec2, steps: usize) -> impl Iterator<Item = Vec2> + '_ {
+    let step = heading * (a.speed_mps * PEDESTRIAN_PREDICT_STEP_S);
     (0..=steps).map(move |k| a.position + step * k as f32)
 }
 
@@ -115,8 +121,16 @@ pub fn nearest_ahead(
         if Some(a.id) == exclude {
             continue;
         }
+        // Every tested position lies within its travel of where it is now
+        // (1 m more for rounding): most actors are refused here, before
+        // their heading is computed.
+        let steps = predicted_steps(a, walker_horizon_s);
+        let travel = Vec2::splat(a.speed_mps * PEDESTRIAN_PREDICT_STEP_S * steps as f32 + 1.0);
+        if a.position.cmplt(lo - travel).any() || a.position.cmpgt(hi + travel).any() {
+            continue;
+        }
         let heading = Vec2::from_angle(a.yaw);
-        for position in test_positions(a, walker_horizon_s) {
+        for position in test_positions(a, heading, steps) {
             if position.cmplt(lo).any() || position.cmpgt(hi).any() {
                 continue;
             }
@@ -351,6 +365,13 @@ mod tests {
             )
             .is_none()
         );
+        // A quick walker that starts beyond the box the path is searched in
+        // (corridor + 3.5 m to either side) and reaches the corridor within
+        // the horizon is ahead too: the box is grown by its travel.
+        let from_afar = walker(9.0, 6.5, -FRAC_PI_2, 3.0);
+        let a = nearest_ahead(&path, &[from_afar], None, 1.4, 40.0, PEDESTRIAN_PREDICT_S).unwrap();
+        assert_eq!(a.id, 9);
+        assert!(nearest_ahead(&path, &[from_afar], None, 1.4, 40.0, 0.0).is_none());
         // Walking along the path, the walker is where it is, not where it goes.
         let along = walker(20.0, 0.0, 0.0, 1.3);
         let a = nearest_ahead(&path, &[along], None, 1.4, 40.0, PEDESTRIAN_PREDICT_S).unwrap();
