@@ -18,11 +18,11 @@ fn the_quick_paper_writes_every_table_and_figure_and_resumes() {
     let out_s = out.to_str().unwrap();
     let first = run_ok(&["paper", "--quick", "--out", out_s]);
     // 2 densities x 1 seed on one route: the expert and the three compared
-    // policies at 3 delays (RA at 2 scales), the Original at D = 0, 3 switchers
-    // (oracle, lookahead, the learned trigger), under jitter the 2 fixed
-    // scales and 2 switchers, and the more-scales network at its 2 quick
-    // scales and with 2 switchers between them.
-    let planned = 2 * (3 + 3 + 3 + 3 * 2 + 1 + 3 + 4 + 2 + 2);
+    // policies at 3 delays (RA at 2 scales), the Original at D = 0, 4 switchers
+    // (oracle, lookahead, the learned trigger, the braking lookahead), under
+    // jitter the 2 fixed scales and 2 switchers, and the more-scales network
+    // at its 2 quick scales and with 3 switchers between them.
+    let planned = 2 * (3 + 3 + 3 + 3 * 2 + 1 + 4 + 4 + 2 + 3);
     assert!(
         first.contains(&format!("{planned} runs finished now, 0 failed")),
         "{first}"
@@ -40,9 +40,10 @@ fn the_quick_paper_writes_every_table_and_figure_and_resumes() {
         "## Beyond the paper: the latency/safety frontier",
         "| table2 | 12 / 12 |",
         "RA learned switcher (50/100 ms) | 2 |",
+        "RA braking switcher (50/100 ms) | 2 |",
         "## Beyond the paper: latency jitter",
         "## Beyond the paper: more scales in one network",
-        "| scales | 16 / 16 |",
+        "| scales | 18 / 18 |",
     ] {
         assert!(page.contains(section), "no {section:?} in:\n{page}");
     }

@@ -170,12 +170,14 @@ impl PaperConfig {
     }
 
     /// The switchers of Table III and the frontier: the paper's oracle, the
-    /// map lookahead and, with a trigger, the learned one.
+    /// map lookahead, with a trigger the learned one, and the lookahead that
+    /// switches up before the braking point.
     pub fn selectors(&self) -> Vec<SelectorKind> {
         let mut s = vec![SelectorKind::Oracle, SelectorKind::Lookahead];
         if self.models.trigger.is_some() {
             s.push(SelectorKind::Learned);
         }
+        s.push(SelectorKind::Braking);
         s
     }
 

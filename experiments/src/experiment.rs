@@ -173,7 +173,11 @@ impl Experiment {
                 for e in cfg.envelopes.iter().rev() {
                     u.push(Unit::ladder(*e));
                     if let Some(ends) = cfg.ladder_envelope(*e) {
-                        for s in [SelectorKind::Oracle, SelectorKind::Lookahead] {
+                        for s in [
+                            SelectorKind::Oracle,
+                            SelectorKind::Lookahead,
+                            SelectorKind::Braking,
+                        ] {
                             u.push(Unit::ladder_switch(s, ends));
                         }
                     }
@@ -245,15 +249,17 @@ mod tests {
                 "ra-oracle-100-50",
                 "ra-lookahead-100-50",
                 "ra-learned-100-50",
+                "ra-braking-100-50",
                 "ra-oracle-150-100",
                 "ra-lookahead-150-100",
-                "ra-learned-150-100"
+                "ra-learned-150-100",
+                "ra-braking-150-100"
             ]
         );
         let all = units_of(&Experiment::ALL, &cfg);
-        // 5 at D = 0, 3 policies x 4 more delays, the expert at 4 more, 6 switchers,
-        // 2 jitters x (fixed, oracle, lookahead), a ladder and 2 switchers per envelope.
-        assert_eq!(all.len(), 5 + 12 + 4 + 6 + 6 + 6);
+        // 5 at D = 0, 3 policies x 4 more delays, the expert at 4 more, 8 switchers,
+        // 2 jitters x (fixed, oracle, lookahead), a ladder and 3 switchers per envelope.
+        assert_eq!(all.len(), 5 + 12 + 4 + 8 + 6 + 8);
         assert_eq!(
             ids(Experiment::Scales.units(&cfg)),
             [
@@ -263,15 +269,17 @@ mod tests {
                 "ra5-ladder-150-100",
                 "ra5-oracle-150-50",
                 "ra5-lookahead-150-50",
+                "ra5-braking-150-50",
                 "ra5-ladder-100-50",
                 "ra5-oracle-100-0",
-                "ra5-lookahead-100-0"
+                "ra5-lookahead-100-0",
+                "ra5-braking-100-0"
             ]
         );
         // Without a trigger the learned rows are left out.
         let mut bare = cfg.clone();
         bare.models.trigger = None;
-        assert_eq!(Experiment::Table3.units(&bare).len(), 7);
+        assert_eq!(Experiment::Table3.units(&bare).len(), 9);
         // Without a ladder network the more-scales study has no runs.
         bare.models.ladder = None;
         assert!(Experiment::Scales.units(&bare).is_empty());

@@ -1016,6 +1016,7 @@ fn table3(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String
             .selectors()
             .contains(&SelectorKind::Learned)
             .then(|| switch(SelectorKind::Learned));
+        let braking = switch(SelectorKind::Braking);
         let theirs = paper::TABLE3
             .iter()
             .find(|(env, _)| *env == (e.high_ms, e.low_ms))
@@ -1028,6 +1029,7 @@ fn table3(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String
         if let Some(l) = &learned {
             rows.push((l, None));
         }
+        rows.push((&braking, None));
         rows.push((&fixed_high, theirs.map(|v| v[2])));
         let mut stats = Vec::new();
         for (c, paper_row) in rows {
@@ -1076,6 +1078,7 @@ fn table3(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String
         if let Some(l) = &learned {
             pairs.push((&oracle, l));
         }
+        pairs.extend([(&oracle, &braking), (&lookahead, &braking)]);
         for (a, b) in pairs {
             let c = Comparison::of(&runs(a), &runs(b));
             paired_t.push(vec![
@@ -1119,7 +1122,8 @@ fn table3(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String
         "## Table III: scale switching against fixed scales under the same worst-case latency\n\n\
          The paper's oracle (0.75x by default, 1.0x within 5 m of a light's stop line, back beyond 15 m) \
          and, past the paper, the map-lookahead selector (switches up at a distance derived from speed \
-         and latency, before the light) and the learned trigger (a logistic head on the RA network's \
+         and latency, before the light), the braking lookahead (up before the braking point as well: \
+         the stopping distance at 3 m/s^2 is added, so the high scale decides the stop) and the learned trigger (a logistic head on the RA network's \
          pooled feature, fit to the frames where acting on the low-scale branch loses the most value by the labels, or where the two branches disagree most, as its card says; no map; `mrdrive policy trigger`). Fixed rows are the RA model at one scale with D = its latency.\n\n{}\n\
          Paired over the same route, density and seed:\n\n{}\n{}\n\nFiles: `table3.csv`.\n",
         t.markdown(),
@@ -1443,7 +1447,11 @@ fn scales(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String
             continue;
         };
         let (lo, hi) = Driver::Ladder.switch_scales(cfg);
-        for sel in [SelectorKind::Oracle, SelectorKind::Lookahead] {
+        for sel in [
+            SelectorKind::Oracle,
+            SelectorKind::Lookahead,
+            SelectorKind::Braking,
+        ] {
             let c = Config {
                 label: format!(
                     "{name} {} switcher {}<->{}",
@@ -1501,7 +1509,7 @@ fn scales(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String
          drives alone, its latency the injected delay: the straight line through each \
          envelope's two points (its low latency at {}, its high one at {}){}. The paired \
          columns set it against the two-scale RA at the same scale and delay, run for run: one \
-         network with more branches should cost nothing. Its oracle and map-lookahead switchers \
+         network with more branches should cost nothing. Its oracle, map-lookahead and braking-lookahead switchers \
          move between its two ends, the low end costing what the line gives it; they are paired \
          with RA's own switcher under the envelope, the same worst case with a dearer low \
          scale. The plot adds the two-scale RA's fixed scales at every injected delay.\n\n\

@@ -366,6 +366,7 @@ pub fn selector_name(s: SelectorKind) -> &'static str {
         SelectorKind::Fixed => "fixed",
         SelectorKind::Oracle => "oracle",
         SelectorKind::Lookahead => "lookahead",
+        SelectorKind::Braking => "braking",
         SelectorKind::Budget => "budget",
         SelectorKind::Learned => "learned",
     }

@@ -293,15 +293,21 @@ pub fn selector_for(
             exit_m: r.far_m as f32,
             active: false,
         }),
-        SelectorKind::Lookahead => {
-            let table = table("lookahead")?;
-            let mut l =
-                Lookahead::covering(low, high, &table).ok_or(BuildError::MissingLatency {
-                    scenario: scenario.name.clone(),
-                    selector: "lookahead",
-                    low,
-                    high,
-                })?;
+        SelectorKind::Lookahead | SelectorKind::Braking => {
+            let braking = r.selector == SelectorKind::Braking;
+            let name = if braking { "braking" } else { "lookahead" };
+            let table = table(name)?;
+            let made = if braking {
+                Lookahead::braking(low, high, &table)
+            } else {
+                Lookahead::covering(low, high, &table)
+            };
+            let mut l = made.ok_or(BuildError::MissingLatency {
+                scenario: scenario.name.clone(),
+                selector: name,
+                low,
+                high,
+            })?;
             l.enter_m = r.near_m as f32;
             l.exit_m = r.far_m as f32;
             Box::new(l)
@@ -568,6 +574,15 @@ mod tests {
             ..Lookahead::covering(0.5, 1.0, &table).unwrap()
         };
         assert_eq!(selector_for(&la, None).unwrap().name(), want.name());
+        let mut braking = la.clone();
+        braking.resolution.selector = SelectorKind::Braking;
+        let want = Lookahead {
+            enter_m: 7.0,
+            exit_m: 20.0,
+            ..Lookahead::braking(0.5, 1.0, &table).unwrap()
+        };
+        assert_eq!(selector_for(&braking, None).unwrap().name(), want.name());
+        assert!(want.name().ends_with("-brake3"), "{}", want.name());
         let mut budget = s.clone();
         budget.resolution.selector = SelectorKind::Budget;
         budget.resolution.budget_ms = Some(50.0);
@@ -585,6 +600,12 @@ mod tests {
         let e = error_chain(&selector_for(&s, None).err().unwrap());
         assert!(
             e.contains("resolution.selector = \"lookahead\"") && e.contains("timing.latency_ms"),
+            "{e}"
+        );
+        s.resolution.selector = SelectorKind::Braking;
+        let e = error_chain(&selector_for(&s, None).err().unwrap());
+        assert!(
+            e.contains("resolution.selector = \"braking\"") && e.contains("timing.latency_ms"),
             "{e}"
         );
         s.resolution.selector = SelectorKind::Fixed;

@@ -258,12 +258,13 @@ pub enum RigKind {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ResolutionSpec {
-    /// `fixed`, `oracle` (the paper's), `lookahead` (map-based), `budget`
-    /// or `learned` (the policy's own trigger, `driver.trigger`).
+    /// `fixed`, `oracle` (the paper's), `lookahead` (map-based), `braking`
+    /// (map-based, up before the braking point), `budget` or `learned` (the
+    /// policy's own trigger, `driver.trigger`).
     pub selector: SelectorKind,
     /// For `fixed`: the scale (fraction of S0).
     pub scale: f64,
-    /// For `oracle`/`lookahead`: the default (low) and near-light (high) scales.
+    /// For `oracle`/`lookahead`/`braking`: the default (low) and near-light (high) scales.
     pub low: f64,
     /// The scale near a traffic light.
     pub high: f64,
@@ -308,6 +309,9 @@ pub enum SelectorKind {
     Oracle,
     /// Map-based: switch up early enough, from the distance along the route.
     Lookahead,
+    /// Map-based like `lookahead`, and up before the braking point for the
+    /// light, so the high scale decides the stop (`Lookahead::braking`).
+    Braking,
     /// The highest scale whose latency fits `budget_ms`.
     Budget,
     /// The policy's learned trigger (`driver.trigger`): high while it fires,

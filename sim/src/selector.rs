@@ -220,6 +220,11 @@ pub struct Lookahead {
     pub exit_m: f32,
     /// Time the switch needs to take effect (seconds).
     pub cover_s: f32,
+    /// With a deceleration (m/s^2), the switch also covers the distance to
+    /// stop from the current speed: the high scale then decides whether to
+    /// brake for the line ([`Lookahead::braking`]). `None`: the paper's 5 m
+    /// plus the switch's own delay only.
+    pub brake_mps2: Option<f32>,
     /// Whether the high scale is in force.
     pub active: bool,
 }
@@ -234,20 +239,42 @@ impl Lookahead {
             enter_m: 5.0,
             exit_m: 15.0,
             cover_s: (cover_ms / 1000.0) as f32,
+            brake_mps2: None,
             active: false,
         })
     }
 
-    /// The distance ahead of the stop line at which it switches up at `speed_mps` (metres).
+    /// Like [`Lookahead::covering`], and up before the braking point: the
+    /// stopping distance at the rule book's deceleration
+    /// ([`world::rules::ahead::STOPPING_DECEL_MPS2`], 3 m/s^2) is added to the
+    /// trigger, so the stop for a red light is decided at the high scale.
+    /// The oracle and the plain lookahead switch up 5-7 m before the line,
+    /// inside the 6-7 m a car at 6 m/s needs to stop: there the low scale has
+    /// already decided.
+    pub fn braking(low: f32, high: f32, table: &LatencyTable) -> Option<Self> {
+        Some(Lookahead {
+            brake_mps2: Some(world::rules::ahead::STOPPING_DECEL_MPS2),
+            ..Lookahead::covering(low, high, table)?
+        })
+    }
+
+    /// The distance ahead of the stop line at which it switches up at
+    /// `speed_mps` (metres): `enter_m + v cover_s`, plus `v^2 / (2 a)` with a
+    /// braking deceleration `a`.
     pub fn trigger_m(&self, speed_mps: f32) -> f32 {
-        self.enter_m + speed_mps.max(0.0) * self.cover_s
+        let v = speed_mps.max(0.0);
+        let stopping = self.brake_mps2.map_or(0.0, |a| v * v / (2.0 * a));
+        self.enter_m + v * self.cover_s + stopping
     }
 }
 
 impl ResolutionSelector for Lookahead {
     fn name(&self) -> String {
+        let brake = self
+            .brake_mps2
+            .map_or(String::new(), |a| format!("-brake{a}"));
         format!(
-            "lookahead-{}/{}-{}/{}m-cover{}s",
+            "lookahead-{}/{}-{}/{}m-cover{}s{brake}",
             self.low, self.high, self.enter_m, self.exit_m, self.cover_s
         )
     }
@@ -394,6 +421,26 @@ mod tests {
         assert!((la.trigger_m(10.0) - 6.5).abs() < 1e-5);
         let trace = drive(&mut la, 10.0, 0.05);
         assert_eq!(switches(&trace), vec![(6.5, 1.0), (-15.5, 0.75)]);
+    }
+
+    #[test]
+    fn braking_lookahead_switches_before_the_stopping_distance() {
+        let table = LatencyTable::new(&[(1.0, 100.0), (0.75, 50.0)]).unwrap();
+        let mut la = Lookahead::braking(0.75, 1.0, &table).unwrap();
+        assert_eq!(la.brake_mps2, Some(3.0));
+        // 6 m/s: 5 + 6 * 0.15 + 36 / 6 = 11.9 m, against the plain lookahead's 5.9 m.
+        assert!((la.trigger_m(6.0) - 11.9).abs() < 1e-5);
+        let plain = Lookahead::covering(0.75, 1.0, &table).unwrap();
+        assert!((plain.trigger_m(6.0) - 5.9).abs() < 1e-5);
+        // Standing, both wait for the paper's 5 m.
+        assert_eq!(la.trigger_m(0.0), 5.0);
+        // 10 m/s, boundaries every 0.5 m: 5 + 1.5 + 100 / 6 = 23.17 m, so up at
+        // the boundary at 23.0 m, and the exit follows the trigger (at least
+        // 15 m): down once the line is more than 23.17 m behind.
+        let trace = drive(&mut la, 10.0, 0.05);
+        assert_eq!(switches(&trace), vec![(23.0, 1.0), (-23.5, 0.75)]);
+        assert!(la.name().ends_with("-brake3"), "{}", la.name());
+        assert!(!plain.name().contains("brake"), "{}", plain.name());
     }
 
     #[test]
