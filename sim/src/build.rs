@@ -294,15 +294,13 @@ pub fn selector_for(
             active: false,
         }),
         SelectorKind::Lookahead | SelectorKind::Braking => {
-            let braking = r.selector == SelectorKind::Braking;
-            let name = if braking { "braking" } else { "lookahead" };
-            let table = table(name)?;
-            let made = if braking {
-                Lookahead::braking(low, high, &table)
-            } else {
-                Lookahead::covering(low, high, &table)
+            type Make = fn(f32, f32, &LatencyTable) -> Option<Lookahead>;
+            let (name, make): (&'static str, Make) = match r.selector {
+                SelectorKind::Braking => ("braking", Lookahead::braking),
+                _ => ("lookahead", Lookahead::covering),
             };
-            let mut l = made.ok_or(BuildError::MissingLatency {
+            let table = table(name)?;
+            let mut l = make(low, high, &table).ok_or(BuildError::MissingLatency {
                 scenario: scenario.name.clone(),
                 selector: name,
                 low,
