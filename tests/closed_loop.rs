@@ -318,3 +318,51 @@ fn latency_jitter_spreads_the_latency_and_is_reproducible() {
     assert_eq!(a, b, "same seed, same jitter draws, same run");
     assert_ne!(max(&a), max(&other), "another seed draws other latencies");
 }
+
+#[test]
+fn render_replays_a_moment_with_the_driver_delay_and_scale_a_sweep_passes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let png = tmp.path().join("frame.png");
+    let png_s = png.to_str().unwrap();
+    let render = |extra: &[&str]| -> String {
+        let mut args = vec![
+            "render",
+            "scenarios/default.toml",
+            "--at",
+            "1",
+            "--out",
+            png_s,
+        ];
+        args.extend(extra);
+        run_ok(&args)
+    };
+    // The scenario's own driver: the expert.
+    let expert = render(&[]);
+    assert!(expert.contains("driver        expert"), "{expert}");
+    // A sweep's flags: the shipped RA at a fixed 0.75x with a delay.
+    let policy = render(&[
+        "--checkpoint",
+        "models/ra.safetensors",
+        "--drive-scale",
+        "0.75",
+        "--delay-ms",
+        "50",
+    ]);
+    assert!(
+        policy.contains("driver        policy:models/ra.safetensors")
+            && policy.contains("resolution fixed-0.75"),
+        "{policy}"
+    );
+    assert!(png.exists());
+    // The two drivers are somewhere else after a second.
+    let at = |out: &str| {
+        out.lines()
+            .next()
+            .unwrap()
+            .split(": ego at")
+            .nth(1)
+            .unwrap()
+            .to_string()
+    };
+    assert_ne!(at(&expert), at(&policy));
+}

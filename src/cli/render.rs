@@ -50,7 +50,9 @@ pub struct RenderArgs {
 }
 
 /// `mrdrive render SCENARIO --at SECONDS --scale R --out PNG`: the policy's
-/// view at a moment of a scenario, driven there by the scenario's driver.
+/// view at a moment of a scenario, driven there by the scenario's driver (or
+/// the one given, with the delay and driving scale given: the flags a sweep
+/// passes, so any run of `mrdrive paper` can be replayed to a moment).
 #[derive(Debug, Args)]
 pub struct RenderAtArgs {
     /// The scenario file (see scenarios/README.md).
@@ -59,9 +61,18 @@ pub struct RenderAtArgs {
     /// The moment to render (seconds of simulated time from the start).
     #[arg(long, default_value_t = 0.0)]
     pub at: f64,
-    /// Scale of S0 (the rig's base size) to render at.
+    /// Scale of S0 (the rig's base size) to render the picture at.
     #[arg(long, default_value_t = 1.0)]
     pub scale: f32,
+    /// Drive there at this fixed input scale (fraction of S0), over the
+    /// scenario's selector (`--scale` is the picture's).
+    #[arg(long)]
+    pub drive_scale: Option<f64>,
+    /// Injected delay D (milliseconds), over the scenario's.
+    #[arg(long)]
+    pub delay_ms: Option<f64>,
+    #[command(flatten)]
+    pub driver: super::run::DriverFlags,
     /// Where to write the PNG.
     #[arg(long, required = true)]
     pub out: Option<PathBuf>,
@@ -166,7 +177,10 @@ fn render_at(a: &RenderAtArgs) -> Result<()> {
             "--top-down {px}: give the view's side in pixels, 1 to 8192, e.g. --top-down 256"
         );
     }
-    let overrides = a.traffic.overrides(None);
+    let overrides = sim::runner::Overrides {
+        driver: a.driver.driver(),
+        ..a.traffic.overrides(a.delay_ms)
+    };
     let scenario = overrides.apply(&Scenario::from_file(path)?);
     let prepared =
         runner::prepare(&scenario).with_context(|| format!("scenario {}", path.display()))?;
@@ -174,7 +188,7 @@ fn render_at(a: &RenderAtArgs) -> Result<()> {
     let ticks = (a.at / tick_s).round() as u64;
     let drivers = super::drivers();
     let mut driver = drivers.driver(&scenario, &prepared)?;
-    let mut selector = build::selector_for(&scenario, None)?;
+    let mut selector = build::selector_for(&scenario, a.drive_scale)?;
     let mut camera = build::camera_for(&scenario, &prepared, &drivers)?;
     let mut last = Moments::last();
     let needs_camera = driver.needs().camera;
@@ -243,6 +257,11 @@ fn render_at(a: &RenderAtArgs) -> Result<()> {
         ego.position.y,
         ego.heading.to_degrees(),
         moment.actors.first().map_or(0.0, |e| e.speed_mps),
+    );
+    println!(
+        "driver        {}   resolution {}",
+        driver.name(),
+        selector.name()
     );
     match light_ahead(&prepared, &ego, &moment.lights) {
         Some((d, state)) => println!("light ahead   {d:.1} m, {state:?}"),
