@@ -249,8 +249,9 @@ impl Lookahead {
     /// ([`world::rules::ahead::STOPPING_DECEL_MPS2`], 3 m/s^2) is added to the
     /// trigger, so the stop for a red light is decided at the high scale.
     /// The oracle and the plain lookahead switch up 5-7 m before the line,
-    /// inside the 6-7 m a car at 6 m/s needs to stop: there the low scale has
-    /// already decided.
+    /// inside the 6-7 m a car at 6 m/s needs to stop, where the low scale may
+    /// already have decided (`docs/paper/discussion.md` has what the runs
+    /// showed).
     pub fn braking(low: f32, high: f32, table: &LatencyTable) -> Option<Self> {
         Some(Lookahead {
             brake_mps2: Some(world::rules::ahead::STOPPING_DECEL_MPS2),
