@@ -13,6 +13,8 @@
 //! | [`conflicts`] | which connecting lanes of a junction conflict |
 //! | [`ahead`] | what is ahead along a path: the nearest actor whose footprint reaches into a corridor (a walking pedestrian's also where it will be within 2 s), and its distance along the path |
 //!
+//! `docs/rule-book.md` lists where each consumer calls each rule.
+//!
 //! Each rule is a plain function or table built from a [`Town`] (and a
 //! [`crate::DenseRoute`]): none needs a running [`crate::traffic::Traffic`].
 //! [`RuleBook`] holds a town's tables, built once; a run shares one
