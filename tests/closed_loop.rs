@@ -354,6 +354,22 @@ fn render_replays_a_moment_with_the_driver_delay_and_scale_a_sweep_passes() {
         "{policy}"
     );
     assert!(png.exists());
+    // A driving scale out of range is refused by its own flag's name.
+    let bad = common::run(&[
+        "render",
+        "scenarios/default.toml",
+        "--at",
+        "1",
+        "--drive-scale",
+        "1.5",
+        "--out",
+        png_s,
+    ]);
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        !bad.status.success() && err.contains("--drive-scale 1.5"),
+        "{err}"
+    );
     // The two drivers are somewhere else after a second.
     let at = |out: &str| {
         out.lines()

@@ -171,6 +171,12 @@ fn render_at(a: &RenderAtArgs) -> Result<()> {
         "--scale {}: scales are fractions of S0 in (0, 8], e.g. --scale 0.75",
         a.scale
     );
+    if let Some(s) = a.drive_scale {
+        ensure!(
+            s > 0.0 && s <= 1.0,
+            "--drive-scale {s}: the driving scale is a fraction of S0 in (0, 1], e.g. --drive-scale 0.75"
+        );
+    }
     if let Some(px) = a.top_down {
         ensure!(
             (1..=8192).contains(&px),
