@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use world::rules::{RouteStops, StopLines};
-use world::{Command, Town};
+use world::{Command, LightState, Town};
 
 use crate::action::NUM_COMMANDS;
 use crate::collect::{TownCache, replan};
@@ -62,12 +62,19 @@ pub fn speed_bin(speed_mps: f32) -> usize {
 /// light, given the route's stop lines and the frame's light codes (see
 /// the module docs).
 pub fn approaching_red(stops: &RouteStops, ego_s: f32, lights: &[u8]) -> bool {
-    stops.next_after(ego_s).is_some_and(|s| {
-        s.route_s - ego_s <= RED_LIGHT_RANGE_M
-            && lights
-                .get(s.light.0 as usize)
-                .is_some_and(|&code| light_stops(light_of_code(code)))
-    })
+    light_ahead(stops, ego_s, lights).is_some_and(light_stops)
+}
+
+/// The state of the next stop line's light within [`RED_LIGHT_RANGE_M`]
+/// ahead of route distance `ego_s` (metres), if the frame has one.
+pub fn light_ahead(stops: &RouteStops, ego_s: f32, lights: &[u8]) -> Option<LightState> {
+    let s = stops.next_after(ego_s)?;
+    if s.route_s - ego_s > RED_LIGHT_RANGE_M {
+        return None;
+    }
+    lights
+        .get(s.light.0 as usize)
+        .map(|&code| light_of_code(code))
 }
 
 /// What a dataset holds.
@@ -91,6 +98,8 @@ pub struct Summary {
     pub commands: [u64; NUM_COMMANDS],
     /// Frames approaching a red light.
     pub red_light: u64,
+    /// Of those, the frames whose light is yellow.
+    pub yellow_light: u64,
     /// Frames whose route could be planned again, so that `red_light` could be decided.
     pub red_light_known: u64,
     /// Frames with a pedestrian in the ego's corridor straight ahead
@@ -183,9 +192,13 @@ impl Summary {
                 Ok((town, route)) => {
                     let stops = StopLines::new(&town).on_route(&route);
                     s.red_light_known += n;
-                    s.red_light += (0..shard.len())
-                        .filter(|&i| approaching_red(&stops, shard.route[i][1], &shard.lights[i]))
-                        .count() as u64;
+                    for i in 0..shard.len() {
+                        let state = light_ahead(&stops, shard.route[i][1], &shard.lights[i]);
+                        if state.is_some_and(light_stops) {
+                            s.red_light += 1;
+                            s.yellow_light += u64::from(state == Some(LightState::Yellow));
+                        }
+                    }
                 }
                 Err(err) => s
                     .problems
@@ -279,6 +292,11 @@ impl fmt::Display for Summary {
             "approaching a red light (stop line <= {RED_LIGHT_RANGE_M} m ahead on the route, red or yellow): {:.1} % of {} frames",
             percent(self.red_light, self.red_light_known),
             self.red_light_known
+        )?;
+        write!(
+            f,
+            ", yellow in {:.1} %",
+            percent(self.yellow_light, self.red_light_known)
         )?;
         if self.red_light_known < self.frames {
             write!(
@@ -386,7 +404,10 @@ mod tests {
         assert!(s.problems.is_empty(), "{:?}", s.problems);
         let text = s.to_string();
         assert!(text.contains("LEFT 20.0 %"), "{text}");
-        assert!(text.contains("33.3 % of 60 frames"), "{text}");
+        assert!(
+            text.contains("33.3 % of 60 frames, yellow in 0.0 %"),
+            "{text}"
+        );
         assert!(text.contains("(<= 20 m): 13.33 % (8 frames)"), "{text}");
         assert!(text.contains("ahead of the ego: 0 (0.00 per"), "{text}");
     }
@@ -415,6 +436,16 @@ mod tests {
             "green"
         );
         assert!(!approaching_red(&stops, line + 1.0, &lights(red)), "passed");
+        // The light's own state, which `data info` splits into red and yellow.
+        assert_eq!(
+            light_ahead(&stops, line - 1.0, &lights(yellow)),
+            Some(LightState::Yellow)
+        );
+        assert_eq!(
+            light_ahead(&stops, line - 10.0, &lights(green)),
+            Some(LightState::Green)
+        );
+        assert_eq!(light_ahead(&stops, line - 30.5, &lights(red)), None);
     }
 
     #[test]
