@@ -288,6 +288,18 @@ fn header(cfg: &PaperConfig, opts: &RunOptions, results: &Results) -> String {
             backends.into_iter().collect::<Vec<_>>().join(", ")
         },
     );
+    let cpus = results.cpus();
+    if !cpus.is_empty() {
+        s += &format!(
+            "CPUs (runs made on each): {}. llvmpipe compiles its shaders for the CPU it runs \
+             on, and a policy's run made on an Intel Xeon and on an AMD EPYC can differ by a few \
+             ticks (README, \"Determinism\"); the seeds are independent samples either way.\n\n",
+            cpus.into_iter()
+                .map(|(cpu, n)| format!("{cpu} ({n})"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
     s += &format!(
         "**Wall time**: {:.2} h in sweeps over {} invocation(s), {} runs, {} at a time, on this machine \
          (the bench page, `docs/bench.md`, names it).\n\n",

@@ -149,6 +149,19 @@ impl Results {
             .collect()
     }
 
+    /// How many finished runs each CPU made (its model name; "not recorded" for records
+    /// older than [`sim::record::Provenance::cpu`]).
+    pub fn cpus(&self) -> std::collections::BTreeMap<String, usize> {
+        let mut counts = std::collections::BTreeMap::new();
+        for run in self.units.values().flat_map(|u| u.runs.iter()) {
+            let cpu = run.record.result.provenance.cpu.as_deref();
+            *counts
+                .entry(cpu.unwrap_or("not recorded").to_string())
+                .or_insert(0) += 1;
+        }
+        counts
+    }
+
     /// The render backends of the finished runs that rendered (the expert's
     /// "none" left out).
     pub fn backends(&self) -> std::collections::BTreeSet<String> {
@@ -163,5 +176,33 @@ impl Results {
             .iter()
             .filter_map(|u| self.units.get(&u.id(cfg)))
             .fold((0, 0), |(d, p), u| (d + u.runs.len(), p + u.planned))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::report::tests::run;
+    use crate::{Driver, Unit};
+
+    #[test]
+    fn the_cpus_are_counted_with_the_records_that_name_none() {
+        let cfg = PaperConfig::full();
+        let cpus = [Some("AMD EPYC"), None, Some("AMD EPYC"), Some("Intel Xeon")];
+        let runs: Vec<_> = cpus
+            .iter()
+            .zip(0..)
+            .map(|(cpu, seed)| {
+                let mut x = run("a", seed, true, 0, 0, 0, 0.0);
+                x.record.result.provenance.cpu = cpu.map(String::from);
+                x
+            })
+            .collect();
+        let mut r = Results::default();
+        let unit = UnitRuns { planned: 4, runs };
+        r.units.insert(Unit::fixed(Driver::Ra, 0.0).id(&cfg), unit);
+        let counts: Vec<(String, usize)> = r.cpus().into_iter().collect();
+        let want = [("AMD EPYC", 2), ("Intel Xeon", 1), ("not recorded", 1)];
+        assert_eq!(counts, want.map(|(c, n)| (c.to_string(), n)));
     }
 }

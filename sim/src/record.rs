@@ -74,6 +74,13 @@ pub struct Provenance {
     pub build: String,
     /// The render backend and adapter, or "none" if nothing was rendered.
     pub render_backend: String,
+    /// The CPU that made the run: its model name as the OS reports it. llvmpipe
+    /// compiles its shaders for the CPU it runs on, and an Intel Xeon and an AMD
+    /// EPYC drove the same policy run (build, backend, seed) to different ticks
+    /// (README, "Determinism"). `None` in records made before the field existed (and then
+    /// left out of the JSON).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cpu: Option<String>,
     /// A policy's checkpoint file and the digest of its bytes, so that a
     /// resumed sweep never mixes the runs of two checkpoints saved under one
     /// name; `None` for the expert (and left out of the JSON).

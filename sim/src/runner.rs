@@ -172,6 +172,22 @@ pub fn build_id() -> String {
     )
 }
 
+/// The CPU's model name (the first `model name` of `/proc/cpuinfo`), or `None` where
+/// the OS does not say. Run records carry it: a software rasteriser's pixels follow the
+/// CPU (see [`Provenance::cpu`]).
+pub fn cpu_model() -> Option<String> {
+    cpu_model_in(&std::fs::read_to_string("/proc/cpuinfo").ok()?)
+}
+
+/// The first `model name` of a `/proc/cpuinfo` text, trimmed; `None` if absent or blank.
+fn cpu_model_in(cpuinfo: &str) -> Option<String> {
+    cpuinfo
+        .lines()
+        .find_map(|l| l.strip_prefix("model name")?.split_once(':'))
+        .map(|(_, name)| name.trim().to_string())
+        .filter(|name| !name.is_empty())
+}
+
 /// The timing in force at `scale`: the delay is `max(D, Lexec(scale))`, the
 /// period `max(Tc, delay)` (PROTOCOL §1). With `latency = "measured"` the
 /// loop replaces `Lexec` by the driver's real compute time at each boundary.
@@ -725,6 +741,7 @@ pub fn run(
             driver: driver.name(),
             build: build_id(),
             render_backend: camera.as_ref().map_or("none".to_string(), |c| c.backend()),
+            cpu: cpu_model(),
             checkpoint: driver.checkpoint(),
             trigger: driver.trigger(),
         },
@@ -757,4 +774,20 @@ pub fn run(
     perf.wall_s = wall.elapsed().as_secs_f64();
     perf.real_time_factor = result.sim_time_s / perf.wall_s.max(1e-9);
     Ok(RunRecord { result, perf })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::cpu_model_in;
+
+    #[test]
+    fn the_cpu_is_the_first_model_name_of_cpuinfo() {
+        let info = "processor\t: 0\nvendor_id\t: AuthenticAMD\nmodel\t\t: 17\n\
+                    model name\t: AMD EPYC 9R14\nprocessor\t: 1\nmodel name\t: other\n";
+        assert_eq!(cpu_model_in(info).as_deref(), Some("AMD EPYC 9R14"));
+        // `model` alone is not the name; a blank name or none at all says nothing.
+        assert_eq!(cpu_model_in("model\t\t: 17\n"), None);
+        assert_eq!(cpu_model_in("model name\t:   \n"), None);
+        assert_eq!(cpu_model_in(""), None);
+    }
 }
