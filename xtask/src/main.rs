@@ -8,7 +8,7 @@
 //! | `ci` | what `.ci/run` runs: formatting, then `test` with every skip turned into a failure |
 //! | `lint` | `cargo fmt --check` and `cargo clippy --all-targets -- -D warnings` (run before committing; kept out of CI because it needs a second, check-mode build of every dependency) |
 //! | `data [--quick]` | collects and labels the two datasets of the study into `data/original` and `data/retarget` (resumable; regenerates them bit for bit; `--quick`: 2 short episodes each, for a smoke run) |
-//! | `train [--quick]` | the paper's pipeline, skipping what is done: `data`, then `mrdrive train` for the Original, NRA 0.75, NRA 1.0, RA and the five-scale RA5 (resumable), then the closed-loop bar (`mrdrive sweep` of `scenarios/paper/` at Tc = 50 ms, D = 0, three densities, per model and for the expert) into `models/closed-loop.md`; `--quick`: tiny datasets, 4 steps per stage, one density, into `out/train-quick` |
+//! | `train [--quick] [--lanes 1\|2]` | the paper's pipeline, skipping what is done: `data`, then `mrdrive train` for the Original, then NRA 0.75, NRA 1.0, RA and the five-scale RA5 (resumable; two at a time on one thread each with `--lanes 2`, the default on 2 or more cores, their output in `runs/<name>.log`), then the closed-loop bar (`mrdrive sweep` of `scenarios/paper/` at Tc = 50 ms, D = 0, three densities, per model and for the expert) into `models/closed-loop.md`; `--quick`: tiny datasets, 4 steps per stage, one density, into `out/train-quick` |
 //! | `bench` | every benchmark on this machine, in one go: physics + traffic ticks/s (20 vehicles, 40 pedestrians), rig frames/s per scale (gen01, Town01), policy inference per scale (fused and burn) and training samples/s, closed-loop real-time factors (expert without and with the rig, RA with the oracle), PyTorch's reference when a Python with torch is found (`MRDRIVE_TORCH_PYTHON`, else `.venv`), peak memory per command; writes `docs/bench.md` |
 //! | `paper [--quick] [--only ID,...]` | the paper's tables and figures from the shipped checkpoints: `mrdrive paper` (resumable sweeps into `out/paper/sweeps/`, then Tables I-III, Figs. 3-5, the latency frontier, latency jitter, the more-scales study and the comparison page into `docs/paper/`); `--quick`: every table and figure at toy size into `out/paper-quick` (minutes) |
 //! | `bless` | rewrites the regression suite's golden files after a deliberate change |
@@ -390,26 +390,71 @@ fn train(root: &Path, env: &Env, args: &[String]) -> Result<(), String> {
         status_in(root, &cmd, &vars)?;
     }
     let retarget_data = format!("data/retarget{suffix}");
-    // The three retargeted models of the paper, then RA with five scales for
-    // the more-scales study (`cargo xtask paper --only scales`).
-    let stages: [(&str, &[&str]); 4] = [
-        ("nra-0.75", &[]),
-        ("nra-1.0", &[]),
-        ("ra", &[]),
+    // The three retargeted models of the paper, then RA with five scales for the
+    // more-scales study (`cargo xtask paper --only scales`): (run name, stage, options).
+    let stages: [(&str, &str, &[&str]); 4] = [
+        ("nra-0.75", "nra-0.75", &[]),
+        ("nra-1.0", "nra-1.0", &[]),
+        ("ra", "ra", &[]),
         (
+            "ra5",
             "ra",
             &["--scales", "0.5,0.625,0.75,0.875,1.0", "--name", "ra5"],
         ),
     ];
-    for (stage, extra) in stages {
-        let mut cmd = vec![bin, "train", "--stage", stage, "--data", &retarget_data];
-        cmd.extend(["--runs", &runs, "--out", &models]);
-        cmd.extend(extra);
-        if quick {
-            cmd.extend(toy);
-            cmd.extend(["--steps", "4", "--unfreeze-every", "1"]);
+    let commands: Vec<(&str, Vec<&str>)> = stages
+        .iter()
+        .map(|&(name, stage, extra)| {
+            let mut cmd = vec![bin, "train", "--stage", stage, "--data", &retarget_data];
+            cmd.extend(["--runs", &runs, "--out", &models]);
+            cmd.extend(extra);
+            if quick {
+                cmd.extend(toy);
+                cmd.extend(["--steps", "4", "--unfreeze-every", "1"]);
+            }
+            (name, cmd)
+        })
+        .collect();
+    let lanes = lanes_arg(args)?;
+    if lanes == 1 {
+        for (_, cmd) in &commands {
+            status_in(root, cmd, &vars)?;
         }
-        status_in(root, &cmd, &vars)?;
+    } else {
+        // Each stage needs only the Original (its teacher), so they run side by side in
+        // two lanes of one thread each: on 2 cores two single-threaded stages make
+        // 1.39-1.46x the samples/s of one stage on two threads (docs/training.md). The
+        // longest stages (RA5, then RA) start first, one per lane.
+        let [nra_low, nra_high, ra, ra5] = [0, 1, 2, 3].map(|i| &commands[i]);
+        let lane_plan = [vec![ra5, nra_high], vec![ra, nra_low]];
+        let mut one_thread = vars.clone();
+        one_thread.push(("RAYON_NUM_THREADS", "1"));
+        let runs_dir = root.join(&runs);
+        let results: Vec<Result<(), String>> = std::thread::scope(|scope| {
+            let handles: Vec<_> = lane_plan
+                .iter()
+                .map(|lane| {
+                    let (vars, runs_dir) = (&one_thread, &runs_dir);
+                    scope.spawn(move || {
+                        for (name, cmd) in lane {
+                            let log = runs_dir.join(format!("{name}.log"));
+                            eprintln!("xtask: training {name} (one thread; log {})", log.display());
+                            logged_status_in(root, cmd, vars, &log)?;
+                            eprintln!("xtask: {name} done");
+                        }
+                        Ok(())
+                    })
+                })
+                .collect();
+            handles
+                .into_iter()
+                .map(|h| {
+                    h.join()
+                        .unwrap_or_else(|_| Err("a training lane panicked".into()))
+                })
+                .collect()
+        });
+        results.into_iter().collect::<Result<Vec<()>, String>>()?;
     }
     let scenarios = [
         "scenarios/paper/town01_route0.toml",
@@ -703,6 +748,63 @@ fn status(cmd: &[&str], vars: &[(&str, &str)]) -> Result<(), String> {
     status_in(Path::new("."), cmd, vars)
 }
 
+/// `--lanes N` of `train`: how many retargeting stages run at once (1 or 2); by default
+/// 2 where the machine has at least two cores, else 1.
+fn lanes_arg(args: &[String]) -> Result<usize, String> {
+    let Some(i) = args.iter().position(|a| a == "--lanes") else {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        return Ok(if cores >= 2 { 2 } else { 1 });
+    };
+    match args.get(i + 1).map(String::as_str) {
+        Some("1") => Ok(1),
+        Some("2") => Ok(2),
+        other => Err(format!(
+            "--lanes takes 1 (the stages one after another, on every thread) or 2 (two at \
+             once, one thread each), not {other:?}"
+        )),
+    }
+}
+
+/// Like [`status_in`], with the command's stdout and stderr appended to `log` (created
+/// with its folder), so that two stages running at once do not mix their progress bars.
+fn logged_status_in(
+    dir: &Path,
+    cmd: &[&str],
+    vars: &[(&str, &str)],
+    log: &Path,
+) -> Result<(), String> {
+    let (program, args) = cmd.split_first().ok_or("empty command")?;
+    let open = || -> std::io::Result<std::fs::File> {
+        if let Some(parent) = log.parent() {
+            std::fs::create_dir_all(parent)?;
+        }
+        std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(log)
+    };
+    let file = open().map_err(|e| format!("cannot open the log {}: {e}", log.display()))?;
+    let err = file
+        .try_clone()
+        .map_err(|e| format!("cannot open the log {}: {e}", log.display()))?;
+    let outcome = Command::new(program)
+        .args(args)
+        .current_dir(dir)
+        .envs(vars.iter().copied())
+        .stdout(file)
+        .stderr(err)
+        .status();
+    match outcome {
+        Ok(s) if s.success() => Ok(()),
+        Ok(s) => Err(format!(
+            "`{}` failed ({s}); its output is in {}",
+            cmd.join(" "),
+            log.display()
+        )),
+        Err(e) => Err(format!("`{}` could not start: {e}", cmd.join(" "))),
+    }
+}
+
 fn status_in(dir: &Path, cmd: &[&str], vars: &[(&str, &str)]) -> Result<(), String> {
     let (program, args) = cmd.split_first().ok_or("empty command")?;
     let outcome = Command::new(program)
@@ -720,6 +822,19 @@ fn status_in(dir: &Path, cmd: &[&str], vars: &[(&str, &str)]) -> Result<(), Stri
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn lanes_are_one_or_two_and_a_wrong_count_is_refused_by_name() {
+        let args = |a: &[&str]| a.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        assert_eq!(lanes_arg(&args(&["--quick", "--lanes", "1"])), Ok(1));
+        assert_eq!(lanes_arg(&args(&["--lanes", "2", "--quick"])), Ok(2));
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        assert_eq!(lanes_arg(&args(&["--quick"])), Ok(cores.min(2)));
+        for bad in [&["--lanes", "3"][..], &["--lanes"]] {
+            let e = lanes_arg(&args(bad)).unwrap_err();
+            assert!(e.starts_with("--lanes takes 1"), "{e}");
+        }
+    }
 
     #[test]
     fn the_real_time_factor_is_read_from_a_record() {
