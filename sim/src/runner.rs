@@ -176,16 +176,33 @@ pub fn build_id() -> String {
 /// the OS does not say. Run records carry it: a software rasteriser's pixels follow the
 /// CPU (see [`Provenance::cpu`]).
 pub fn cpu_model() -> Option<String> {
-    cpu_model_in(&std::fs::read_to_string("/proc/cpuinfo").ok()?)
+    cpuinfo_field(
+        &std::fs::read_to_string("/proc/cpuinfo").ok()?,
+        "model name",
+    )
 }
 
-/// The first `model name` of a `/proc/cpuinfo` text, trimmed; `None` if absent or blank.
-fn cpu_model_in(cpuinfo: &str) -> Option<String> {
+/// The CPU's maker, short: `intel` (`GenuineIntel`), `amd` (`AuthenticAMD`), or another
+/// `vendor_id` of `/proc/cpuinfo` in lower case; `None` where the OS does not say. The
+/// regression suite keeps one golden file per maker for the runs a camera drives, since
+/// llvmpipe's pixels differ between them (README, "Determinism").
+pub fn cpu_maker() -> Option<String> {
+    let vendor = cpuinfo_field(&std::fs::read_to_string("/proc/cpuinfo").ok()?, "vendor_id")?;
+    Some(match vendor.as_str() {
+        "GenuineIntel" => "intel".to_string(),
+        "AuthenticAMD" => "amd".to_string(),
+        other => other.to_lowercase(),
+    })
+}
+
+/// The first value of `key` in a `/proc/cpuinfo` text (`key<tabs>: value`), trimmed;
+/// `None` if absent or blank.
+fn cpuinfo_field(cpuinfo: &str, key: &str) -> Option<String> {
     cpuinfo
         .lines()
-        .find_map(|l| l.strip_prefix("model name")?.split_once(':'))
-        .map(|(_, name)| name.trim().to_string())
-        .filter(|name| !name.is_empty())
+        .find_map(|l| l.strip_prefix(key)?.trim_start().strip_prefix(':'))
+        .map(|value| value.trim().to_string())
+        .filter(|value| !value.is_empty())
 }
 
 /// The timing in force at `scale`: the delay is `max(D, Lexec(scale))`, the
@@ -778,16 +795,20 @@ pub fn run(
 
 #[cfg(test)]
 mod tests {
-    use super::cpu_model_in;
+    use super::cpuinfo_field;
 
     #[test]
-    fn the_cpu_is_the_first_model_name_of_cpuinfo() {
+    fn a_cpuinfo_field_is_its_first_value() {
         let info = "processor\t: 0\nvendor_id\t: AuthenticAMD\nmodel\t\t: 17\n\
                     model name\t: AMD EPYC 9R14\nprocessor\t: 1\nmodel name\t: other\n";
-        assert_eq!(cpu_model_in(info).as_deref(), Some("AMD EPYC 9R14"));
-        // `model` alone is not the name; a blank name or none at all says nothing.
-        assert_eq!(cpu_model_in("model\t\t: 17\n"), None);
-        assert_eq!(cpu_model_in("model name\t:   \n"), None);
-        assert_eq!(cpu_model_in(""), None);
+        let field = |key| cpuinfo_field(info, key);
+        assert_eq!(field("model name").as_deref(), Some("AMD EPYC 9R14"));
+        assert_eq!(field("vendor_id").as_deref(), Some("AuthenticAMD"));
+        // `model` is its own key, not the start of `model name`.
+        let named_first = "model name\t: AMD EPYC 9R14\nmodel\t\t: 17\n";
+        assert_eq!(cpuinfo_field(named_first, "model").as_deref(), Some("17"));
+        // A blank value or none at all says nothing.
+        assert_eq!(cpuinfo_field("model name\t:   \n", "model name"), None);
+        assert_eq!(cpuinfo_field("", "vendor_id"), None);
     }
 }
