@@ -301,8 +301,9 @@ fn header(cfg: &PaperConfig, opts: &RunOptions, results: &Results) -> String {
         );
     }
     s += &format!(
-        "**Wall time**: {:.2} h in sweeps over {} invocation(s), {} runs, {} at a time, on this machine \
-         (the bench page, `docs/bench.md`, names it).\n\n",
+        "**Wall time**: {:.2} h in sweeps over {} invocation(s), {} runs, {} at a time, on the \
+         machines that made them (the CPUs above; `docs/bench.md` names the one it was measured \
+         on).\n\n",
         wall.sweep_s / 3600.0,
         wall.invocations,
         wall.runs,
