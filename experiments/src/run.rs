@@ -103,6 +103,10 @@ pub fn run_paper(
     let units = units_of(&opts.experiments, cfg);
     if !opts.report_only {
         same_backend(cfg, opts, &units)?;
+        let cpus = Results::load(cfg, &opts.out, &units_of(&Experiment::ALL, cfg))?.cpus();
+        if let Some(note) = other_cpus(&cpus, sim::runner::cpu_model().as_deref()) {
+            eprintln!("paper: {note}");
+        }
         // Logged as each run finishes, so a kill loses only the runs in flight.
         let clock = std::sync::Mutex::new(WallClock::start());
         let mut plans = Vec::new();
@@ -154,6 +158,28 @@ pub fn run_paper(
     }
     outcome.written = report(cfg, opts)?;
     Ok(outcome)
+}
+
+/// A note when runs in the folder were made on CPUs other than `here` (a policy's run
+/// is not bit-identical across CPU makers: README, "Determinism"), else `None`.
+fn other_cpus(
+    cpus: &std::collections::BTreeMap<String, usize>,
+    here: Option<&str>,
+) -> Option<String> {
+    let here = here.unwrap_or("an unnamed CPU");
+    let others: Vec<String> = cpus
+        .iter()
+        .filter(|(cpu, _)| cpu.as_str() != here)
+        .map(|(cpu, n)| format!("{cpu} ({n})"))
+        .collect();
+    (!others.is_empty()).then(|| {
+        format!(
+            "this machine's CPU is {here}; runs already here were made on {}. A policy's run \
+             made on another CPU maker can differ by a few ticks: the seeds stay independent \
+             samples, but a rerun here is not a check of a run made there.",
+            others.join(", ")
+        )
+    })
 }
 
 /// Refuses to add policy runs to a folder holding runs rendered by any
@@ -225,6 +251,24 @@ fn report(cfg: &PaperConfig, opts: &RunOptions) -> Result<Vec<PathBuf>, PaperErr
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn a_note_names_the_other_cpus_only() {
+        let cpus: std::collections::BTreeMap<String, usize> =
+            [("AMD EPYC".to_string(), 3), ("not recorded".to_string(), 5)].into();
+        let note = super::other_cpus(&cpus, Some("AMD EPYC")).unwrap();
+        assert!(
+            note.contains("not recorded (5)") && !note.contains("EPYC (3)"),
+            "{note}"
+        );
+        let only_here = [("AMD EPYC".to_string(), 3)].into();
+        assert_eq!(super::other_cpus(&only_here, Some("AMD EPYC")), None);
+        assert!(
+            super::other_cpus(&only_here, None)
+                .unwrap()
+                .contains("AMD EPYC (3)")
+        );
+    }
+
     use super::*;
 
     #[test]
