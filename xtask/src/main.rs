@@ -824,6 +824,23 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_logged_command_appends_both_streams_and_a_failure_names_the_log() {
+        let dir = std::env::temp_dir().join(format!("xtask-lanes-{}", std::process::id()));
+        let log = dir.join("runs/stage.log");
+        let ok = ["sh", "-c", "echo out; echo err >&2"];
+        logged_status_in(Path::new("."), &ok, &[], &log).unwrap();
+        let bad = ["sh", "-c", "echo again; exit 3"];
+        let e = logged_status_in(Path::new("."), &bad, &[], &log).unwrap_err();
+        assert!(
+            e.contains("failed") && e.contains(&log.display().to_string()),
+            "{e}"
+        );
+        let text = std::fs::read_to_string(&log).unwrap();
+        assert_eq!(text.lines().collect::<Vec<_>>(), ["out", "err", "again"]);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
     fn lanes_are_one_or_two_and_a_wrong_count_is_refused_by_name() {
         let args = |a: &[&str]| a.iter().map(|s| s.to_string()).collect::<Vec<_>>();
         assert_eq!(lanes_arg(&args(&["--quick", "--lanes", "1"])), Ok(1));
