@@ -6,6 +6,7 @@
 //! of it: `forward` returns the stride-32 feature map.
 
 use crate::bn_bank::{BnBank, BnBankConfig};
+use crate::conv::conv2d;
 use burn::module::Module;
 use burn::nn::PaddingConfig2d;
 use burn::nn::conv::{Conv2d, Conv2dConfig};
@@ -151,11 +152,11 @@ impl BasicBlock {
     /// `relu(bn2(conv2(relu(bn1(conv1 x)))) + shortcut(x))` with BN branch `branch`.
     pub fn forward(&self, x: Tensor<4>, branch: usize) -> Tensor<4> {
         let shortcut = match &self.downsample {
-            Some(d) => d.bn.forward(d.conv.forward(x.clone()), branch),
+            Some(d) => d.bn.forward(conv2d(&d.conv, x.clone()), branch),
             None => x.clone(),
         };
-        let y = relu(self.bn1.forward(self.conv1.forward(x), branch));
-        let y = self.bn2.forward(self.conv2.forward(y), branch);
+        let y = relu(self.bn1.forward(conv2d(&self.conv1, x), branch));
+        let y = self.bn2.forward(conv2d(&self.conv2, y), branch);
         relu(y + shortcut)
     }
 
@@ -203,7 +204,7 @@ impl Backbone {
     pub fn forward(&self, x: Tensor<4>, branch: usize) -> Tensor<4> {
         let mut x = self
             .maxpool
-            .forward(relu(self.bn1.forward(self.conv1.forward(x), branch)));
+            .forward(relu(self.bn1.forward(conv2d(&self.conv1, x), branch)));
         for block in self
             .layer1
             .iter()

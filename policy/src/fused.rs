@@ -21,6 +21,7 @@
 
 use crate::backbone::BasicBlock;
 use crate::bn_bank::BnBank;
+use crate::matmul::{Mat, matmul};
 use crate::model::{PolicyConfig, PolicyNet};
 use burn::nn::conv::Conv2d;
 use burn::nn::{Linear, PaddingConfig2d};
@@ -157,11 +158,23 @@ impl Conv {
                 let rows = tile.len() / self.cout;
                 if direct {
                     let lhs = &x.data[first * kdim..(first + rows) * kdim];
-                    matmul(lhs, &self.w, tile, rows, kdim, self.cout);
+                    matmul(
+                        tile,
+                        (rows, kdim, self.cout),
+                        Mat::rows(lhs, kdim),
+                        Mat::rows(&self.w, self.cout),
+                        false,
+                    );
                 } else {
                     COL.with_borrow_mut(|col| {
                         im2col(x, self, wo, first..first + rows, col);
-                        matmul(col, &self.w, tile, rows, kdim, self.cout);
+                        matmul(
+                            tile,
+                            (rows, kdim, self.cout),
+                            Mat::rows(col, kdim),
+                            Mat::rows(&self.w, self.cout),
+                            false,
+                        );
                     });
                 }
                 epilogue(first, tile);
@@ -200,65 +213,6 @@ fn im2col(x: &Fmap, conv: &Conv, wo: usize, rows: std::ops::Range<usize>, col: &
                     tap.copy_from_slice(&x.data[src..src + c]);
                 }
             }
-        }
-    }
-}
-
-/// The longest inner dimension handed to one `gemm` call.
-///
-/// gemm cuts a longer inner dimension into blocks whose size it derives from the CPU's
-/// cache (cpuid), and each block's sum is added to the output in turn. So the order of the
-/// sums, and with it the last bits of every logit, would change from one machine to the
-/// next (an Intel Xeon and an AMD EPYC drove the same checkpoint to different golden
-/// ticks). gemm never makes a block shorter than 512, so a call of at most 512 is one
-/// sequential pass of fused multiply-adds on every x86-64 machine with FMA. [`matmul`]
-/// cuts the inner dimension itself, into the same pieces everywhere.
-const K_BLOCK: usize = 512;
-
-/// The length of [`matmul`]'s pieces of an inner dimension `k`: `ceil(k / K_BLOCK)`
-/// near-equal pieces, none longer than [`K_BLOCK`] (at least 1, a valid step).
-fn piece_len(k: usize) -> usize {
-    k.div_ceil(k.div_ceil(K_BLOCK).max(1)).max(1)
-}
-
-/// `out [m, n] = lhs [m, k] x rhs [k, n]`, all row-major, overwriting `out`, on this thread.
-///
-/// The inner dimension is cut into pieces of [`piece_len`], each one `gemm` call that adds
-/// its product to `out`: the same arithmetic in the same order on any CPU (tested against
-/// a scalar fused multiply-add loop, bit for bit).
-fn matmul(lhs: &[f32], rhs: &[f32], out: &mut [f32], m: usize, k: usize, n: usize) {
-    assert!(lhs.len() >= m * k && rhs.len() >= k * n && out.len() >= m * n);
-    let piece = piece_len(k);
-    for k0 in (0..k).step_by(piece) {
-        let kp = piece.min(k - k0);
-        let first = k0 == 0;
-        // SAFETY: the slices hold at least m*k, k*n and m*n elements (asserted above);
-        // the piece starts at column k0 of `lhs` (row stride k) and row k0 of `rhs` (row
-        // stride n) and spans kp <= k - k0 of them, so every address read is inside the
-        // slices; `out` does not alias the inputs (it is a distinct `&mut`).
-        unsafe {
-            gemm::gemm(
-                m,
-                n,
-                kp,
-                out.as_mut_ptr(),
-                1,
-                n as isize,
-                // The first piece overwrites `out`; the others add to it (1 * out + 1 * product).
-                !first,
-                lhs.as_ptr().add(k0),
-                1,
-                k as isize,
-                rhs.as_ptr().add(k0 * n),
-                1,
-                n as isize,
-                if first { 0.0 } else { 1.0 },
-                1.0,
-                false,
-                false,
-                false,
-                gemm::Parallelism::None,
-            );
         }
     }
 }
@@ -616,46 +570,6 @@ mod tests {
         let again = pool(2).install(|| fused.forward_rgb8(&rgb, 96, 240, 1));
         assert_eq!(two, again);
         assert_eq!(one, two);
-    }
-
-    /// What [`matmul`] promises: each output is the pieces' sums added in turn, each piece
-    /// one sequential run of fused multiply-adds from zero. A scalar loop fixes that order,
-    /// so bit-for-bit equality here means no CPU-dependent blocking is left in the product
-    /// (gemm would otherwise cut k = 2304 by the cache size that cpuid reports).
-    #[test]
-    fn matmul_sums_in_one_fixed_order_whatever_the_cpu() {
-        let mut state = 0x9e37_79b9_u32;
-        let mut next = || {
-            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            (state >> 8) as f32 / (1u32 << 24) as f32 * 2.0 - 1.0
-        };
-        for (m, k, n) in [(128, 2304, 64), (37, 1200, 40), (5, 27, 16), (128, 512, 32)] {
-            let lhs: Vec<f32> = (0..m * k).map(|_| next()).collect();
-            let rhs: Vec<f32> = (0..k * n).map(|_| next()).collect();
-            let mut out = vec![f32::NAN; m * n];
-            matmul(&lhs, &rhs, &mut out, m, k, n);
-
-            let piece = piece_len(k);
-            assert!(piece <= K_BLOCK);
-            for i in 0..m {
-                for j in 0..n {
-                    let mut total = 0.0f32;
-                    for (p, k0) in (0..k).step_by(piece).enumerate() {
-                        let mut acc = 0.0f32;
-                        for kk in k0..(k0 + piece).min(k) {
-                            acc = lhs[i * k + kk].mul_add(rhs[kk * n + j], acc);
-                        }
-                        total = if p == 0 { acc } else { total + acc };
-                    }
-                    assert_eq!(
-                        out[i * n + j].to_bits(),
-                        total.to_bits(),
-                        "m {m} k {k} n {n}: out[{i}, {j}] = {} but the fixed order gives {total}",
-                        out[i * n + j]
-                    );
-                }
-            }
-        }
     }
 
     #[test]

@@ -1,6 +1,7 @@
 //! The two heads on the backbone: WoR's action head and the segmentation decoder.
 
 use crate::bn_bank::{BnBank, BnBankConfig};
+use crate::conv::{conv_transpose2d, conv2d};
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig, ConvTranspose2d, ConvTranspose2dConfig};
 use burn::nn::{Linear, LinearConfig};
@@ -158,10 +159,13 @@ pub struct SegHead {
 impl SegHead {
     /// Class logits at stride 4 from the stride-32 feature map.
     pub fn forward(&self, features: Tensor<4>, branch: usize) -> Tensor<4> {
-        let x = relu(self.bn1.forward(self.up1.forward(features), branch));
-        let x = relu(self.bn2.forward(self.up2.forward(x), branch));
-        let x = relu(self.bn3.forward(self.up3.forward(x), branch));
-        self.classifier.forward(x)
+        let x = relu(
+            self.bn1
+                .forward(conv_transpose2d(&self.up1, features), branch),
+        );
+        let x = relu(self.bn2.forward(conv_transpose2d(&self.up2, x), branch));
+        let x = relu(self.bn3.forward(conv_transpose2d(&self.up3, x), branch));
+        conv2d(&self.classifier, x)
     }
 
     /// Every BN bank of the decoder.

@@ -5,17 +5,19 @@
 //! The resolution selectors that pick the scale live in `sim::selector`.
 //!
 //! Read in this order: [`bn_bank`], [`backbone`], [`heads`], [`model`],
-//! `dataset::action` and `dataset::decode` (the 28 actions and WoR's decoding, shared with the labels), [`device`], [`checkpoint`], [`fused`], [`driver`], [`train`], [`bench`].
+//! `dataset::action` and `dataset::decode` (the 28 actions and WoR's decoding, shared with the labels), [`device`], [`checkpoint`], [`fused`], [`conv`] (the CPU convolutions training runs through), [`driver`], [`train`], [`bench`].
 
 pub mod backbone;
 pub mod bench;
 pub mod bn_bank;
 pub mod checkpoint;
+pub mod conv;
 
 pub mod device;
 pub mod driver;
 pub mod fused;
 pub mod heads;
+mod matmul;
 pub mod model;
 pub mod train;
 pub mod trigger;

@@ -1,0 +1,920 @@
+//! The backbone's convolutions on the CPU, forward and backward, as a few large
+//! matrix products: what training spends most of its time in.
+//!
+//! burn 0.22's `flex` backend re-lays every convolution's input and weights on each
+//! call, and it leaves the backward pass to burn's generic rules: the weight gradient
+//! becomes a convolution with batch and channels swapped (for `layer1`, one product
+//! per input channel of shape 32 x 46,080 x 9) and the input gradient a transposed
+//! convolution that zeroes a column buffer per sample (FACTS.md; `docs/training.md`
+//! has the profile). Here each convolution is what PyTorch's CPU path does, on
+//! burn's own NCHW tensors:
+//! - forward: per group of samples, one im2col copy `col [C*KH*KW, n*OH*OW]` and one
+//!   product `y = W [O, C*KH*KW] x col`;
+//! - weight gradient: `dW += dY [O, n*OH*OW] x col^T`, summed over the batch;
+//! - input gradient: `dcol = W^T x dY`, scattered back onto `dX` (col2im).
+//!
+//! Every product goes through [`crate::matmul`], and the batch is cut into groups and
+//! lanes whose sizes follow the shapes alone, so results are bit-identical for any
+//! thread count and on any x86-64 CPU.
+//!
+//! burn sees one custom operation, [`ConvOps::im2col_conv2d`], registered through its
+//! backend extension for `Flex` and `Autodiff<Flex>` (the latter with the backward pass
+//! below). [`conv2d`] is what the model calls: it takes this path for a tensor on the
+//! CPU and burn's own `Conv2d::forward` everywhere else (the GPU backends, grouped or
+//! dilated convolutions, a bias).
+
+use crate::matmul::{Mat, matmul};
+use burn::backend::autodiff::checkpoint::base::Checkpointer;
+use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
+use burn::backend::autodiff::grads::Gradients;
+use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
+use burn::backend::flex::FlexTensor;
+use burn::backend::tensor::FloatTensor;
+use burn::backend::{Autodiff, Backend, Dispatch, DispatchDevice, Flex, backend_extension};
+use burn::nn::PaddingConfig2d;
+use burn::nn::conv::{Conv2d, ConvTranspose2d};
+use burn::prelude::*;
+use burn::tensor::{DType, TensorData};
+use rayon::prelude::*;
+use std::cell::RefCell;
+
+/// The shapes of one convolution: input `[batch, cin, h, w]`, weights
+/// `[cout, cin, kh, kw]`, output `[batch, cout, oh, ow]`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Geometry {
+    pub batch: usize,
+    pub cin: usize,
+    pub h: usize,
+    pub w: usize,
+    pub cout: usize,
+    pub kh: usize,
+    pub kw: usize,
+    /// Rows, columns.
+    pub stride: [usize; 2],
+    /// Zeros added above and below, left and right.
+    pub pad: [usize; 2],
+    pub oh: usize,
+    pub ow: usize,
+}
+
+/// The fewest output columns (samples x output pixels) one product gets: the late
+/// layers' few pixels per sample are grouped until a product is this wide.
+const MIN_COLS: usize = 256;
+
+/// The most lanes a backward pass splits the batch into, each summing its own weight
+/// gradient (then added in lane order): enough for the cores of a laptop, few enough
+/// that the partial sums stay small.
+const LANES: usize = 8;
+
+impl Geometry {
+    /// The geometry of `x` convolved with `weight`; `None` where they do not fit
+    /// (channel counts differ, or the kernel is larger than the padded input).
+    pub fn new(
+        x: [usize; 4],
+        weight: [usize; 4],
+        stride: [usize; 2],
+        pad: [usize; 2],
+    ) -> Option<Self> {
+        let [batch, cin, h, w] = x;
+        let [cout, wcin, kh, kw] = weight;
+        let out = |len: usize, k: usize, s: usize, p: usize| {
+            (s > 0 && k > 0 && len + 2 * p >= k).then(|| (len + 2 * p - k) / s + 1)
+        };
+        let oh = out(h, kh, stride[0], pad[0])?;
+        let ow = out(w, kw, stride[1], pad[1])?;
+        (wcin == cin).then_some(Geometry {
+            batch,
+            cin,
+            h,
+            w,
+            cout,
+            kh,
+            kw,
+            stride,
+            pad,
+            oh,
+            ow,
+        })
+    }
+
+    /// The products' inner dimension, `cin * kh * kw`.
+    fn k(&self) -> usize {
+        self.cin * self.kh * self.kw
+    }
+
+    /// Output pixels per sample and channel.
+    fn p(&self) -> usize {
+        self.oh * self.ow
+    }
+
+    /// Samples per product.
+    fn group(&self) -> usize {
+        MIN_COLS
+            .div_ceil(self.p().max(1))
+            .clamp(1, self.batch.max(1))
+    }
+
+    /// Whether the input itself is the column matrix (a 1x1 kernel, stride 1, no padding).
+    fn direct(&self) -> bool {
+        self.kh == 1 && self.kw == 1 && self.stride == [1, 1] && self.pad == [0, 0]
+    }
+
+    /// The output columns `lo..hi` whose input column `ox * stride + kx - pad` lies
+    /// inside the image.
+    fn valid_cols(&self, kx: usize) -> (usize, usize) {
+        let (s, p) = (self.stride[1], self.pad[1]);
+        let lo = p.saturating_sub(kx).div_ceil(s).min(self.ow);
+        // ox * s + kx - p <= w - 1  <=>  ox <= (w - 1 + p - kx) / s
+        let hi = match (self.w + p).checked_sub(kx + 1) {
+            Some(last) => (last / s + 1).min(self.ow),
+            None => 0,
+        };
+        (lo, hi.max(lo))
+    }
+
+    /// The input row under output row `oy` and kernel row `ky`, if inside the image.
+    fn input_row(&self, oy: usize, ky: usize) -> Option<usize> {
+        (oy * self.stride[0] + ky)
+            .checked_sub(self.pad[0])
+            .filter(|&iy| iy < self.h)
+    }
+}
+
+thread_local! {
+    /// Per-thread scratch for column matrices and gathered gradients, kept between calls.
+    static SCRATCH: RefCell<(Vec<f32>, Vec<f32>)> = const { RefCell::new((Vec::new(), Vec::new())) };
+}
+
+/// `buf` grown to at least `len` elements (values left as they were).
+fn sized(buf: &mut Vec<f32>, len: usize) -> &mut [f32] {
+    if buf.len() < len {
+        buf.resize(len, 0.0);
+    }
+    &mut buf[..len]
+}
+
+/// Writes `col [K, n * P]` for samples `b0..b0 + n` of `x`: row `(c, ky, kx)`, column
+/// `(sample, oy, ox)` holds `x[b0 + sample, c, oy * sh + ky - ph, ox * sw + kx - pw]`,
+/// or 0 in the padding.
+fn im2col(x: &[f32], g: &Geometry, b0: usize, n: usize, col: &mut [f32]) {
+    let (p, hw, cols) = (g.p(), g.h * g.w, n * g.p());
+    let mut rows = col.chunks_exact_mut(cols);
+    for c in 0..g.cin {
+        for ky in 0..g.kh {
+            for kx in 0..g.kw {
+                let row = rows.next().expect("col holds K rows");
+                let (lo, hi) = g.valid_cols(kx);
+                for s in 0..n {
+                    let image = &x[((b0 + s) * g.cin + c) * hw..][..hw];
+                    for oy in 0..g.oh {
+                        let dst = &mut row[s * p + oy * g.ow..][..g.ow];
+                        let Some(iy) = g.input_row(oy, ky) else {
+                            dst.fill(0.0);
+                            continue;
+                        };
+                        let src = &image[iy * g.w..][..g.w];
+                        dst[..lo].fill(0.0);
+                        dst[hi..].fill(0.0);
+                        let first = lo * g.stride[1] + kx - g.pad[1];
+                        if g.stride[1] == 1 {
+                            dst[lo..hi].copy_from_slice(&src[first..first + hi - lo]);
+                        } else {
+                            for (o, v) in dst[lo..hi].iter_mut().enumerate() {
+                                *v = src[first + o * g.stride[1]];
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Adds `dcol [K, n * P]` back onto `dx` (the `n` samples' `[n, cin, h, w]`): the
+/// transpose of [`im2col`], in one fixed order.
+fn col2im_add(dcol: &[f32], g: &Geometry, n: usize, dx: &mut [f32]) {
+    let (p, hw, cols) = (g.p(), g.h * g.w, n * g.p());
+    let mut rows = dcol.chunks_exact(cols);
+    for c in 0..g.cin {
+        for ky in 0..g.kh {
+            for kx in 0..g.kw {
+                let row = rows.next().expect("dcol holds K rows");
+                let (lo, hi) = g.valid_cols(kx);
+                for s in 0..n {
+                    let image = &mut dx[(s * g.cin + c) * hw..][..hw];
+                    for oy in 0..g.oh {
+                        let Some(iy) = g.input_row(oy, ky) else {
+                            continue;
+                        };
+                        let src = &row[s * p + oy * g.ow..][..g.ow];
+                        let dst = &mut image[iy * g.w..][..g.w];
+                        let first = lo * g.stride[1] + kx - g.pad[1];
+                        for (o, v) in src[lo..hi].iter().enumerate() {
+                            dst[first + o * g.stride[1]] += v;
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The convolution of `x [batch, cin, h, w]` with `w [cout, cin, kh, kw]` (no bias):
+/// `[batch, cout, oh, ow]`, row-major.
+pub fn forward(x: &[f32], w: &[f32], g: &Geometry) -> Vec<f32> {
+    let (k, p, per) = (g.k(), g.p(), g.group());
+    assert_eq!(
+        x.len(),
+        g.batch * g.cin * g.h * g.w,
+        "conv forward: input size"
+    );
+    assert_eq!(w.len(), g.cout * k, "conv forward: weight size");
+    let mut out = vec![0.0; g.batch * g.cout * p];
+    if out.is_empty() {
+        return out;
+    }
+    out.par_chunks_mut(per * g.cout * p)
+        .enumerate()
+        .for_each(|(i, chunk)| {
+            let (b0, n) = (i * per, chunk.len() / (g.cout * p));
+            SCRATCH.with_borrow_mut(|(col, tmp)| {
+                let cols = n * p;
+                let col: &[f32] = if g.direct() && n == 1 {
+                    &x[b0 * k * p..][..k * p]
+                } else {
+                    let col = sized(col, k * cols);
+                    im2col(x, g, b0, n, col);
+                    col
+                };
+                let lhs = Mat::rows(w, k);
+                if n == 1 {
+                    matmul(chunk, (g.cout, k, p), lhs, Mat::rows(col, p), false);
+                    return;
+                }
+                // One product for the group, then each sample's rows to their place.
+                let tmp = sized(tmp, g.cout * cols);
+                matmul(tmp, (g.cout, k, cols), lhs, Mat::rows(col, cols), false);
+                for s in 0..n {
+                    for c in 0..g.cout {
+                        chunk[(s * g.cout + c) * p..][..p]
+                            .copy_from_slice(&tmp[c * cols + s * p..][..p]);
+                    }
+                }
+            });
+        });
+    out
+}
+
+/// This group's slice of `dy` as `[cout, n * P]`: a view when the group is one sample,
+/// else gathered into `buf`.
+fn group_rows<'a>(
+    dy: &'a [f32],
+    g: &Geometry,
+    b0: usize,
+    n: usize,
+    buf: &'a mut Vec<f32>,
+) -> &'a [f32] {
+    let (p, cols) = (g.p(), n * g.p());
+    if n == 1 {
+        return &dy[b0 * g.cout * p..][..g.cout * p];
+    }
+    let t = sized(buf, g.cout * cols);
+    for s in 0..n {
+        for c in 0..g.cout {
+            t[c * cols + s * p..][..p].copy_from_slice(&dy[((b0 + s) * g.cout + c) * p..][..p]);
+        }
+    }
+    t
+}
+
+/// The gradient of [`forward`] with respect to its input, given the output's gradient
+/// `dy [batch, cout, oh, ow]`: `[batch, cin, h, w]`. Per group of samples,
+/// `dcol = W^T x dy`, added back onto the group's own images (so groups run in
+/// parallel without sharing a value).
+pub fn input_grad(w: &[f32], dy: &[f32], g: &Geometry) -> Vec<f32> {
+    let (k, p, per) = (g.k(), g.p(), g.group());
+    let image = g.cin * g.h * g.w;
+    assert_eq!(w.len(), g.cout * k, "conv input gradient: weight size");
+    assert_eq!(
+        dy.len(),
+        g.batch * g.cout * p,
+        "conv input gradient: gradient size"
+    );
+    let mut dx = vec![0.0; g.batch * image];
+    if dx.is_empty() {
+        return dx;
+    }
+    dx.par_chunks_mut(per * image)
+        .enumerate()
+        .for_each(|(i, chunk)| {
+            let (b0, n) = (i * per, chunk.len() / image);
+            SCRATCH.with_borrow_mut(|(col, tmp)| {
+                let cols = n * p;
+                let dyg = group_rows(dy, g, b0, n, tmp);
+                let dcol = sized(col, k * cols);
+                matmul(
+                    dcol,
+                    (k, g.cout, cols),
+                    Mat::transposed(w, k),
+                    Mat::rows(dyg, cols),
+                    false,
+                );
+                col2im_add(dcol, g, n, chunk);
+            });
+        });
+    dx
+}
+
+/// The gradient of [`forward`] with respect to its weights, given the output's gradient
+/// `dy`: `[cout, cin, kh, kw]`, the sum over the batch of `dy_b x col_b^T`. The batch is
+/// cut into at most [`LANES`] lanes of whole groups, each summing its own part; the parts
+/// are then added in lane order, so the result does not depend on the thread count.
+pub fn weight_grad(x: &[f32], dy: &[f32], g: &Geometry) -> Vec<f32> {
+    let (k, p, per) = (g.k(), g.p(), g.group());
+    assert_eq!(
+        x.len(),
+        g.batch * g.cin * g.h * g.w,
+        "conv weight gradient: input size"
+    );
+    assert_eq!(
+        dy.len(),
+        g.batch * g.cout * p,
+        "conv weight gradient: gradient size"
+    );
+    let groups = g.batch.div_ceil(per);
+    let lanes = LANES.min(groups);
+    if lanes == 0 {
+        return vec![0.0; g.cout * k];
+    }
+    let parts: Vec<Vec<f32>> = (0..lanes)
+        .into_par_iter()
+        .map(|l| {
+            let first = l * groups / lanes * per;
+            let last = ((l + 1) * groups / lanes * per).min(g.batch);
+            let mut dw = vec![0.0; g.cout * k];
+            SCRATCH.with_borrow_mut(|(col, tmp)| {
+                for b0 in (first..last).step_by(per) {
+                    let n = per.min(last - b0);
+                    let cols = n * p;
+                    let dyg = group_rows(dy, g, b0, n, tmp);
+                    let cm: &[f32] = if g.direct() && n == 1 {
+                        &x[b0 * k * p..][..k * p]
+                    } else {
+                        let c = sized(col, k * cols);
+                        im2col(x, g, b0, n, c);
+                        c
+                    };
+                    let (lhs, rhs) = (Mat::rows(dyg, cols), Mat::transposed(cm, cols));
+                    matmul(&mut dw, (g.cout, cols, k), lhs, rhs, true);
+                }
+            });
+            dw
+        })
+        .collect();
+    let mut parts = parts.into_iter();
+    let mut total = parts.next().expect("one lane at least");
+    for part in parts {
+        total.iter_mut().zip(&part).for_each(|(t, v)| *t += v);
+    }
+    total
+}
+
+/// Both gradients of [`forward`], each computed only where asked for: `(dx, dw)`.
+pub fn backward(
+    x: &[f32],
+    w: &[f32],
+    dy: &[f32],
+    g: &Geometry,
+    want_dx: bool,
+    want_dw: bool,
+) -> (Option<Vec<f32>>, Option<Vec<f32>>) {
+    (
+        want_dx.then(|| input_grad(w, dy, g)),
+        want_dw.then(|| weight_grad(x, dy, g)),
+    )
+}
+
+/// Two custom operations for burn, without bias, groups or dilation.
+#[backend_extension(Autodiff, Flex)]
+pub trait ConvOps: Backend {
+    /// `x [batch, cin, h, w]` convolved with `weight [cout, cin, kh, kw]` at `stride`
+    /// (rows, columns) with `pad` zeros on each side (rows, columns).
+    fn im2col_conv2d(
+        x: FloatTensor<Self>,
+        weight: FloatTensor<Self>,
+        stride: [usize; 2],
+        pad: [usize; 2],
+    ) -> FloatTensor<Self>;
+
+    /// The transposed convolution of `x [batch, cin, h, w]` with
+    /// `weight [cin, cout, kh, kw]` (burn's and PyTorch's layout), `stride`, `pad` and
+    /// `pad_out` extra rows and columns at the end: the adjoint of
+    /// [`ConvOps::im2col_conv2d`], `[batch, cout, (h - 1) * stride - 2 * pad + kh + pad_out, ...]`.
+    fn im2col_conv_transpose2d(
+        x: FloatTensor<Self>,
+        weight: FloatTensor<Self>,
+        stride: [usize; 2],
+        pad: [usize; 2],
+        pad_out: [usize; 2],
+    ) -> FloatTensor<Self>;
+}
+
+fn dims4(t: &FlexTensor) -> [usize; 4] {
+    t.layout().shape().dims::<4>()
+}
+
+/// A contiguous f32 copy-or-view of a CPU tensor, for [`f32s`].
+fn contiguous(t: &FlexTensor) -> FlexTensor {
+    assert_eq!(
+        t.dtype(),
+        DType::F32,
+        "the CPU convolution takes f32 tensors"
+    );
+    t.to_contiguous()
+}
+
+fn f32s(t: &FlexTensor) -> &[f32] {
+    t.as_slice::<f32>().expect("a contiguous f32 tensor")
+}
+
+fn flex(values: Vec<f32>, dims: [usize; 4]) -> FlexTensor {
+    FlexTensor::from_data(TensorData::new(values, dims))
+}
+
+/// The convolution `x * w` as a [`Geometry`].
+fn conv_geometry(x: [usize; 4], w: [usize; 4], stride: [usize; 2], pad: [usize; 2]) -> Geometry {
+    Geometry::new(x, w, stride, pad).unwrap_or_else(|| {
+        panic!("conv2d: input {x:?} and weights {w:?} do not fit (stride {stride:?}, pad {pad:?})")
+    })
+}
+
+/// The convolution whose adjoint is the transposed convolution of `x [batch, cin, h, w]`
+/// with `w [cin, cout, kh, kw]`: it maps `[batch, cout, H, W]` (the transposed
+/// convolution's output) back to `[batch, cin, h, w]`.
+fn transpose_geometry(
+    x: [usize; 4],
+    w: [usize; 4],
+    stride: [usize; 2],
+    pad: [usize; 2],
+    pad_out: [usize; 2],
+) -> Geometry {
+    let [batch, cin, h, wd] = x;
+    let [_, cout, kh, kw] = w;
+    let size = |len: usize, s: usize, k: usize, p: usize, o: usize| {
+        ((len.max(1) - 1) * s + k + o).checked_sub(2 * p)
+    };
+    let g = size(h, stride[0], kh, pad[0], pad_out[0])
+        .zip(size(wd, stride[1], kw, pad[1], pad_out[1]))
+        .and_then(|(oh, ow)| Geometry::new([batch, cout, oh, ow], w, stride, pad));
+    match g {
+        Some(g) if (g.oh, g.ow) == (h, wd) && g.cout == cin => g,
+        _ => panic!(
+            "conv_transpose2d: input {x:?} and weights {w:?} do not fit (stride {stride:?}, \
+             pad {pad:?}, pad_out {pad_out:?})"
+        ),
+    }
+}
+
+impl ConvOps for Flex {
+    fn im2col_conv2d(
+        x: FlexTensor,
+        weight: FlexTensor,
+        stride: [usize; 2],
+        pad: [usize; 2],
+    ) -> FlexTensor {
+        let (x, w) = (contiguous(&x), contiguous(&weight));
+        let g = conv_geometry(dims4(&x), dims4(&w), stride, pad);
+        flex(
+            forward(f32s(&x), f32s(&w), &g),
+            [g.batch, g.cout, g.oh, g.ow],
+        )
+    }
+
+    fn im2col_conv_transpose2d(
+        x: FlexTensor,
+        weight: FlexTensor,
+        stride: [usize; 2],
+        pad: [usize; 2],
+        pad_out: [usize; 2],
+    ) -> FlexTensor {
+        let (x, w) = (contiguous(&x), contiguous(&weight));
+        let g = transpose_geometry(dims4(&x), dims4(&w), stride, pad, pad_out);
+        flex(
+            input_grad(f32s(&w), f32s(&x), &g),
+            [g.batch, g.cin, g.h, g.w],
+        )
+    }
+}
+
+/// What a backward step keeps of its forward: the contiguous input and weights, and the
+/// convolution's geometry (for a transposed convolution, that of its adjoint).
+type Saved = (FlexTensor, FlexTensor, Geometry);
+
+/// The backward step of [`ConvOps::im2col_conv2d`] on `Autodiff<Flex>`.
+#[derive(Debug)]
+struct ConvBackward;
+
+impl Backward<Flex, 2> for ConvBackward {
+    type State = Saved;
+
+    fn backward(self, ops: Ops<Self::State, 2>, grads: &mut Gradients, _: &mut Checkpointer) {
+        let [node_x, node_w] = ops.parents;
+        let dy = contiguous(&grads.consume::<Flex>(&ops.node));
+        let (x, w, g) = ops.state;
+        if let Some(node) = node_x {
+            let dx = input_grad(f32s(&w), f32s(&dy), &g);
+            grads.register::<Flex>(node.id, flex(dx, [g.batch, g.cin, g.h, g.w]));
+        }
+        if let Some(node) = node_w {
+            let dw = weight_grad(f32s(&x), f32s(&dy), &g);
+            grads.register::<Flex>(node.id, flex(dw, [g.cout, g.cin, g.kh, g.kw]));
+        }
+    }
+}
+
+/// The backward step of [`ConvOps::im2col_conv_transpose2d`] on `Autodiff<Flex>`: with
+/// `g` the adjoint convolution, `dx = conv(dy)` and `dw = weight_grad(dy, x)`.
+#[derive(Debug)]
+struct ConvTransposeBackward;
+
+impl Backward<Flex, 2> for ConvTransposeBackward {
+    type State = Saved;
+
+    fn backward(self, ops: Ops<Self::State, 2>, grads: &mut Gradients, _: &mut Checkpointer) {
+        let [node_x, node_w] = ops.parents;
+        let dy = contiguous(&grads.consume::<Flex>(&ops.node));
+        let (x, w, g) = ops.state;
+        if let Some(node) = node_x {
+            let dx = forward(f32s(&dy), f32s(&w), &g);
+            grads.register::<Flex>(node.id, flex(dx, [g.batch, g.cout, g.oh, g.ow]));
+        }
+        if let Some(node) = node_w {
+            let dw = weight_grad(f32s(&dy), f32s(&x), &g);
+            grads.register::<Flex>(node.id, flex(dw, [g.cout, g.cin, g.kh, g.kw]));
+        }
+    }
+}
+
+impl<C: CheckpointStrategy> ConvOps for Autodiff<Flex, C> {
+    fn im2col_conv2d(
+        x: FloatTensor<Self>,
+        weight: FloatTensor<Self>,
+        stride: [usize; 2],
+        pad: [usize; 2],
+    ) -> FloatTensor<Self> {
+        match ConvBackward
+            .prepare::<C>([x.node(), weight.node()])
+            .compute_bound()
+            .stateful()
+        {
+            OpsKind::Tracked(prep) => {
+                let (xp, wp) = (contiguous(x.primitive()), contiguous(weight.primitive()));
+                let g = conv_geometry(dims4(&xp), dims4(&wp), stride, pad);
+                let out = Flex::im2col_conv2d(xp.clone(), wp.clone(), stride, pad);
+                prep.finish((xp, wp, g), out)
+            }
+            OpsKind::UnTracked(prep) => prep.finish(Flex::im2col_conv2d(
+                x.into_primitive(),
+                weight.into_primitive(),
+                stride,
+                pad,
+            )),
+        }
+    }
+
+    fn im2col_conv_transpose2d(
+        x: FloatTensor<Self>,
+        weight: FloatTensor<Self>,
+        stride: [usize; 2],
+        pad: [usize; 2],
+        pad_out: [usize; 2],
+    ) -> FloatTensor<Self> {
+        match ConvTransposeBackward
+            .prepare::<C>([x.node(), weight.node()])
+            .compute_bound()
+            .stateful()
+        {
+            OpsKind::Tracked(prep) => {
+                let (xp, wp) = (contiguous(x.primitive()), contiguous(weight.primitive()));
+                let g = transpose_geometry(dims4(&xp), dims4(&wp), stride, pad, pad_out);
+                let out =
+                    Flex::im2col_conv_transpose2d(xp.clone(), wp.clone(), stride, pad, pad_out);
+                prep.finish((xp, wp, g), out)
+            }
+            OpsKind::UnTracked(prep) => prep.finish(Flex::im2col_conv_transpose2d(
+                x.into_primitive(),
+                weight.into_primitive(),
+                stride,
+                pad,
+                pad_out,
+            )),
+        }
+    }
+}
+
+/// Whether a tensor on `device` runs on burn's `flex` CPU backend (with or without
+/// autodiff).
+fn on_flex(device: &Device) -> bool {
+    matches!(
+        device.clone().inner().as_dispatch(),
+        DispatchDevice::Flex(_)
+    )
+}
+
+/// The stride and padding of `conv` if [`ConvOps`] computes it (no groups or dilation;
+/// the same padding on opposite sides).
+fn im2col_form(conv: &Conv2d) -> Option<([usize; 2], [usize; 2])> {
+    let pad = match conv.padding {
+        PaddingConfig2d::Valid => [0, 0],
+        PaddingConfig2d::Explicit(top, left, bottom, right) if top == bottom && left == right => {
+            [top, left]
+        }
+        _ => return None,
+    };
+    (conv.groups == 1 && conv.dilation == [1, 1]).then_some((conv.stride, pad))
+}
+
+/// `y + bias` with the bias broadcast over batch and pixels.
+fn add_bias(y: Tensor<4>, bias: &Option<burn::module::Param<Tensor<1>>>) -> Tensor<4> {
+    match bias {
+        Some(b) => {
+            let c = b.dims()[0];
+            y + b.val().reshape([1, c, 1, 1])
+        }
+        None => y,
+    }
+}
+
+/// `conv.forward(x)`: on the CPU through [`ConvOps`], elsewhere through burn's own
+/// convolution. The two agree to rounding (tested, values and gradients).
+pub fn conv2d(conv: &Conv2d, x: Tensor<4>) -> Tensor<4> {
+    let Some((stride, pad)) = im2col_form(conv).filter(|_| on_flex(&x.device())) else {
+        return conv.forward(x);
+    };
+    let y = Tensor::from_dispatch(<Dispatch as ConvOps>::im2col_conv2d(
+        x.into_dispatch(),
+        conv.weight.val().into_dispatch(),
+        stride,
+        pad,
+    ));
+    add_bias(y, &conv.bias)
+}
+
+/// `conv.forward(x)` for a transposed convolution: on the CPU through [`ConvOps`] (no
+/// groups or dilation), elsewhere through burn's own.
+pub fn conv_transpose2d(conv: &ConvTranspose2d, x: Tensor<4>) -> Tensor<4> {
+    if conv.groups != 1 || conv.dilation != [1, 1] || !on_flex(&x.device()) {
+        return conv.forward(x);
+    }
+    let y = Tensor::from_dispatch(<Dispatch as ConvOps>::im2col_conv_transpose2d(
+        x.into_dispatch(),
+        conv.weight.val().into_dispatch(),
+        conv.stride,
+        conv.padding,
+        conv.padding_out,
+    ));
+    add_bias(y, &conv.bias)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use burn::module::Param;
+    use burn::nn::conv::{Conv2dConfig, ConvTranspose2dConfig};
+    use burn::tensor::Distribution;
+
+    fn values<const D: usize>(t: Tensor<D>) -> Vec<f32> {
+        t.into_data()
+            .convert::<f32>()
+            .try_to_vec::<f32>()
+            .expect("f32")
+    }
+
+    fn close(what: &str, ours: &[f32], burn: &[f32], tol: f32) {
+        assert_eq!(ours.len(), burn.len(), "{what}: lengths");
+        let scale = burn.iter().fold(1.0f32, |m, v| m.max(v.abs()));
+        for (i, (a, b)) in ours.iter().zip(burn).enumerate() {
+            assert!(
+                (a - b).abs() <= tol * scale,
+                "{what}[{i}]: ours {a}, burn's {b} (scale {scale})"
+            );
+        }
+    }
+
+    /// (batch, cin, h, w, cout, kernel, stride, pad): the backbone's kinds of convolution
+    /// (7x7/2 stem, 3x3/1, 3x3/2, 1x1/2 shortcut) plus a 1x1/1 and odd sizes, at sizes
+    /// where the late layers' grouping (few pixels per sample) and several lanes occur.
+    const CASES: [[usize; 8]; 7] = [
+        [3, 3, 19, 23, 8, 7, 2, 3],
+        [5, 4, 9, 12, 6, 3, 1, 1],
+        [4, 6, 9, 7, 5, 3, 2, 1],
+        [9, 5, 4, 3, 7, 1, 2, 0],
+        [2, 5, 6, 5, 3, 1, 1, 0],
+        [11, 3, 3, 2, 4, 3, 1, 1],
+        [1, 2, 5, 5, 3, 5, 1, 0],
+    ];
+
+    /// Runs `f` on a copy of `x0` that requires a gradient, through the loss `sum(y * r)`
+    /// with a fixed `r` (so every output's gradient differs): `y`, `dx`, `dw` and `db`.
+    fn run(
+        x0: &Tensor<4>,
+        f: impl Fn(Tensor<4>) -> Tensor<4>,
+        weight: &Param<Tensor<4>>,
+        bias: &Option<Param<Tensor<1>>>,
+    ) -> [Vec<f32>; 4] {
+        let x = x0.clone().detach().require_grad();
+        let y = f(x.clone());
+        let dims = y.dims();
+        let r: Vec<f32> = (0..dims.iter().product::<usize>())
+            .map(|i| ((i * 7 + 3) % 11) as f32 / 5.0 - 1.0)
+            .collect();
+        let r = Tensor::<4>::from_data(TensorData::new(r, dims), &x0.device());
+        let grads = (y.clone() * r).sum().backward();
+        let dx = x.grad(&grads).expect("input gradient");
+        let dw = weight.val().grad(&grads).expect("weight gradient");
+        let db = bias.as_ref().map_or(vec![], |b| {
+            values(b.val().grad(&grads).expect("bias gradient"))
+        });
+        [values(y.inner()), values(dx), values(dw), db]
+    }
+
+    fn close_all(case: &str, ours: [Vec<f32>; 4], burn: [Vec<f32>; 4]) {
+        for ((name, a), b) in ["y", "dx", "dw", "db"].iter().zip(&ours).zip(&burn) {
+            close(&format!("{case} {name}"), a, b, 1e-5);
+        }
+    }
+
+    /// Values and all gradients against burn's own `Conv2d` on the autodiff CPU device,
+    /// with and without a bias.
+    #[test]
+    fn values_and_gradients_match_burns_convolution() {
+        let device = Device::flex().autodiff();
+        assert!(
+            on_flex(&device),
+            "the autodiff CPU device takes the im2col path"
+        );
+        for (case, &[b, cin, h, w, cout, k, s, p]) in CASES.iter().enumerate() {
+            let conv = Conv2dConfig::new([cin, cout], [k, k])
+                .with_stride([s, s])
+                .with_padding(PaddingConfig2d::Explicit(p, p, p, p))
+                .with_bias(case % 2 == 1)
+                .init(&device);
+            assert!(im2col_form(&conv).is_some());
+            let x0 = Tensor::<4>::random([b, cin, h, w], Distribution::Uniform(-1.0, 1.0), &device);
+            let ours = run(&x0, |x| conv2d(&conv, x), &conv.weight, &conv.bias);
+            let burn = run(&x0, |x| conv.forward(x), &conv.weight, &conv.bias);
+            close_all(&format!("conv case {case}"), ours, burn);
+        }
+    }
+
+    /// The same for the transposed convolution against burn's `ConvTranspose2d`: the
+    /// decoder's 3x3, stride 2, padding 1, output padding 1, and other shapes.
+    #[test]
+    fn values_and_gradients_match_burns_transposed_convolution() {
+        let device = Device::flex().autodiff();
+        // (batch, cin, h, w, cout, kernel, stride, pad, pad_out)
+        let cases = [
+            (3, 8, 3, 4, 4, 3, 2, 1, 1),
+            (2, 4, 5, 6, 3, 3, 2, 1, 0),
+            (4, 3, 4, 4, 5, 3, 1, 1, 0),
+            (1, 2, 3, 5, 3, 4, 2, 0, 1),
+            (13, 6, 2, 3, 4, 3, 2, 1, 1),
+        ];
+        for (case, &(b, cin, h, w, cout, k, s, p, o)) in cases.iter().enumerate() {
+            let conv = ConvTranspose2dConfig::new([cin, cout], [k, k])
+                .with_stride([s, s])
+                .with_padding([p, p])
+                .with_padding_out([o, o])
+                .with_bias(case % 2 == 0)
+                .init(&device);
+            let x0 = Tensor::<4>::random([b, cin, h, w], Distribution::Uniform(-1.0, 1.0), &device);
+            let ours = run(
+                &x0,
+                |x| conv_transpose2d(&conv, x),
+                &conv.weight,
+                &conv.bias,
+            );
+            let burn = run(&x0, |x| conv.forward(x), &conv.weight, &conv.bias);
+            close_all(&format!("transposed case {case}"), ours, burn);
+        }
+    }
+
+    /// The kernels alone against a direct loop over the convolution's definition.
+    #[test]
+    fn the_kernels_compute_the_definition() {
+        let noise = |len: usize, seed: usize| -> Vec<f32> {
+            (0..len)
+                .map(|i| (((i + seed) * 2_654_435_761) % 1000) as f32 / 500.0 - 1.0)
+                .collect()
+        };
+        for &[b, cin, h, w, cout, k, s, p] in &CASES {
+            let g = Geometry::new([b, cin, h, w], [cout, cin, k, k], [s, s], [p, p]).unwrap();
+            let (x, wt, dy) = (
+                noise(b * cin * h * w, 1),
+                noise(cout * cin * k * k, 2),
+                noise(b * cout * g.oh * g.ow, 3),
+            );
+            let y = forward(&x, &wt, &g);
+            let (dx, dw) = backward(&x, &wt, &dy, &g, true, true);
+            let (dx, dw) = (dx.unwrap(), dw.unwrap());
+            let mut y_ref = vec![0.0f64; y.len()];
+            let mut dx_ref = vec![0.0f64; x.len()];
+            let mut dw_ref = vec![0.0f64; wt.len()];
+            for n in 0..b {
+                for o in 0..cout {
+                    for oy in 0..g.oh {
+                        for ox in 0..g.ow {
+                            let yi = ((n * cout + o) * g.oh + oy) * g.ow + ox;
+                            for c in 0..cin {
+                                for ky in 0..k {
+                                    for kx in 0..k {
+                                        let iy = (oy * s + ky) as isize - p as isize;
+                                        let ix = (ox * s + kx) as isize - p as isize;
+                                        if iy < 0 || ix < 0 || iy >= h as isize || ix >= w as isize
+                                        {
+                                            continue;
+                                        }
+                                        let xi =
+                                            ((n * cin + c) * h + iy as usize) * w + ix as usize;
+                                        let wi = ((o * cin + c) * k + ky) * k + kx;
+                                        y_ref[yi] += f64::from(x[xi]) * f64::from(wt[wi]);
+                                        dx_ref[xi] += f64::from(dy[yi]) * f64::from(wt[wi]);
+                                        dw_ref[wi] += f64::from(dy[yi]) * f64::from(x[xi]);
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+            let f = |v: Vec<f64>| v.into_iter().map(|v| v as f32).collect::<Vec<f32>>();
+            close("y", &y, &f(y_ref), 1e-5);
+            close("dx", &dx, &f(dx_ref), 1e-5);
+            close("dw", &dw, &f(dw_ref), 1e-5);
+        }
+    }
+
+    /// One thread or two, the same bits: the groups and lanes follow the shapes only.
+    #[test]
+    fn results_are_bit_identical_for_any_thread_count() {
+        let pool = |n| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .unwrap()
+        };
+        let (b, cin, h, w, cout, k, s, p) = (13, 8, 6, 10, 16, 3, 1, 1);
+        let g = Geometry::new([b, cin, h, w], [cout, cin, k, k], [s, s], [p, p]).unwrap();
+        let x: Vec<f32> = (0..b * cin * h * w)
+            .map(|i| ((i * 37) % 101) as f32 / 50.0 - 1.0)
+            .collect();
+        let wt: Vec<f32> = (0..cout * cin * k * k)
+            .map(|i| ((i * 53) % 97) as f32 / 48.0 - 1.0)
+            .collect();
+        let dy: Vec<f32> = (0..b * cout * h * w)
+            .map(|i| ((i * 29) % 89) as f32 / 44.0 - 1.0)
+            .collect();
+        let bits = |threads| {
+            pool(threads).install(|| {
+                [
+                    forward(&x, &wt, &g),
+                    input_grad(&wt, &dy, &g),
+                    weight_grad(&x, &dy, &g),
+                ]
+                .map(|v| v.iter().map(|f| f.to_bits()).collect::<Vec<u32>>())
+            })
+        };
+        assert_eq!(bits(1), bits(2));
+        assert_eq!(bits(1), bits(3));
+    }
+
+    #[test]
+    fn only_the_asked_gradients_are_computed() {
+        let g = Geometry::new([2, 3, 5, 5], [4, 3, 3, 3], [1, 1], [1, 1]).unwrap();
+        let (x, w, dy) = (vec![0.5; 150], vec![0.25; 108], vec![1.0; 200]);
+        let (dx, dw) = backward(&x, &w, &dy, &g, false, true);
+        assert!(dx.is_none() && dw.is_some());
+        let (dx, dw) = backward(&x, &w, &dy, &g, true, false);
+        assert!(dx.is_some() && dw.is_none());
+    }
+
+    #[test]
+    fn shapes_that_do_not_fit_have_no_geometry() {
+        // Channel counts differ; the kernel is larger than the padded input; stride 0.
+        assert!(Geometry::new([1, 3, 8, 8], [4, 2, 3, 3], [1, 1], [0, 0]).is_none());
+        assert!(Geometry::new([1, 3, 2, 2], [4, 3, 5, 5], [1, 1], [1, 1]).is_none());
+        assert!(Geometry::new([1, 3, 8, 8], [4, 3, 3, 3], [0, 1], [0, 0]).is_none());
+        let g = Geometry::new([1, 3, 8, 8], [4, 3, 3, 3], [2, 2], [1, 1]).unwrap();
+        assert_eq!((g.oh, g.ow), (4, 4));
+    }
+
+    #[test]
+    fn grouped_or_dilated_convolutions_go_to_burn() {
+        let device = Device::flex();
+        let plain = Conv2dConfig::new([4, 4], [3, 3]).with_bias(false);
+        assert!(im2col_form(&plain.clone().init(&device)).is_some());
+        assert!(im2col_form(&plain.clone().with_groups(2).init(&device)).is_none());
+        assert!(im2col_form(&plain.clone().with_dilation([2, 2]).init(&device)).is_none());
+        assert!(im2col_form(&plain.with_bias(true).init(&device)).is_some());
+    }
+}
