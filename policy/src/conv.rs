@@ -153,36 +153,45 @@ fn sized(buf: &mut Vec<f32>, len: usize) -> &mut [f32] {
     &mut buf[..len]
 }
 
-/// Writes `col [K, n * P]` for samples `b0..b0 + n` of `x`: row `(c, ky, kx)`, column
-/// `(sample, oy, ox)` holds `x[b0 + sample, c, oy * sh + ky - ph, ox * sw + kx - pw]`,
-/// or 0 in the padding.
-fn im2col(x: &[f32], g: &Geometry, b0: usize, n: usize, col: &mut [f32]) {
-    let (p, hw, cols) = (g.p(), g.h * g.w, n * g.p());
-    let mut rows = col.chunks_exact_mut(cols);
+/// One output row of one tap, as [`walk`] hands it over.
+struct TapRow {
+    /// Row of the column matrix: `(c, ky, kx)`.
+    row: usize,
+    /// Offset of this sample's channel `c` in the images (`(s * cin + c) * h * w`).
+    image: usize,
+    /// Offset of this sample's output row `oy` in a column-matrix row (`s * P + oy * ow`).
+    at: usize,
+    /// The input row read, if inside the image.
+    iy: Option<usize>,
+    /// Output columns `lo..hi` whose input column lies inside the image.
+    lo: usize,
+    hi: usize,
+    /// The input column of output column `lo`.
+    first: usize,
+}
+
+/// Visits every tap `(c, ky, kx)`, sample `0..n` and output row of a convolution, in one
+/// fixed order: the loop shared by [`im2col`] and its transpose [`col2im_add`].
+fn walk(g: &Geometry, n: usize, mut visit: impl FnMut(TapRow)) {
+    let (p, hw) = (g.p(), g.h * g.w);
     for c in 0..g.cin {
         for ky in 0..g.kh {
             for kx in 0..g.kw {
-                let row = rows.next().expect("col holds K rows");
+                let row = (c * g.kh + ky) * g.kw + kx;
                 let (lo, hi) = g.valid_cols(kx);
+                // Read only where lo < hi, which makes it non-negative; saturated for empty rows.
+                let first = (lo * g.stride[1] + kx).saturating_sub(g.pad[1]);
                 for s in 0..n {
-                    let image = &x[((b0 + s) * g.cin + c) * hw..][..hw];
                     for oy in 0..g.oh {
-                        let dst = &mut row[s * p + oy * g.ow..][..g.ow];
-                        let Some(iy) = g.input_row(oy, ky) else {
-                            dst.fill(0.0);
-                            continue;
-                        };
-                        let src = &image[iy * g.w..][..g.w];
-                        dst[..lo].fill(0.0);
-                        dst[hi..].fill(0.0);
-                        let first = lo * g.stride[1] + kx - g.pad[1];
-                        if g.stride[1] == 1 {
-                            dst[lo..hi].copy_from_slice(&src[first..first + hi - lo]);
-                        } else {
-                            for (o, v) in dst[lo..hi].iter_mut().enumerate() {
-                                *v = src[first + o * g.stride[1]];
-                            }
-                        }
+                        visit(TapRow {
+                            row,
+                            image: (s * g.cin + c) * hw,
+                            at: s * p + oy * g.ow,
+                            iy: g.input_row(oy, ky),
+                            lo,
+                            hi,
+                            first,
+                        });
                     }
                 }
             }
@@ -190,33 +199,47 @@ fn im2col(x: &[f32], g: &Geometry, b0: usize, n: usize, col: &mut [f32]) {
     }
 }
 
+/// Writes `col [K, n * P]` for samples `b0..b0 + n` of `x`: row `(c, ky, kx)`, column
+/// `(sample, oy, ox)` holds `x[b0 + sample, c, oy * sh + ky - ph, ox * sw + kx - pw]`,
+/// or 0 in the padding.
+fn im2col(x: &[f32], g: &Geometry, b0: usize, n: usize, col: &mut [f32]) {
+    let (cols, sw) = (n * g.p(), g.stride[1]);
+    let x = &x[b0 * g.cin * g.h * g.w..];
+    walk(g, n, |t| {
+        let dst = &mut col[t.row * cols + t.at..][..g.ow];
+        let Some(iy) = t.iy else {
+            dst.fill(0.0);
+            return;
+        };
+        let src = &x[t.image + iy * g.w..][..g.w];
+        dst[..t.lo].fill(0.0);
+        dst[t.hi..].fill(0.0);
+        if t.lo == t.hi {
+            // No input column under this row (`first` may lie past the image).
+        } else if sw == 1 {
+            dst[t.lo..t.hi].copy_from_slice(&src[t.first..t.first + t.hi - t.lo]);
+        } else {
+            for (o, v) in dst[t.lo..t.hi].iter_mut().enumerate() {
+                *v = src[t.first + o * sw];
+            }
+        }
+    });
+}
+
 /// Adds `dcol [K, n * P]` back onto `dx` (the `n` samples' `[n, cin, h, w]`): the
 /// transpose of [`im2col`], in one fixed order.
 fn col2im_add(dcol: &[f32], g: &Geometry, n: usize, dx: &mut [f32]) {
-    let (p, hw, cols) = (g.p(), g.h * g.w, n * g.p());
-    let mut rows = dcol.chunks_exact(cols);
-    for c in 0..g.cin {
-        for ky in 0..g.kh {
-            for kx in 0..g.kw {
-                let row = rows.next().expect("dcol holds K rows");
-                let (lo, hi) = g.valid_cols(kx);
-                for s in 0..n {
-                    let image = &mut dx[(s * g.cin + c) * hw..][..hw];
-                    for oy in 0..g.oh {
-                        let Some(iy) = g.input_row(oy, ky) else {
-                            continue;
-                        };
-                        let src = &row[s * p + oy * g.ow..][..g.ow];
-                        let dst = &mut image[iy * g.w..][..g.w];
-                        let first = lo * g.stride[1] + kx - g.pad[1];
-                        for (o, v) in src[lo..hi].iter().enumerate() {
-                            dst[first + o * g.stride[1]] += v;
-                        }
-                    }
-                }
-            }
+    let (cols, sw) = (n * g.p(), g.stride[1]);
+    walk(g, n, |t| {
+        let Some(iy) = t.iy else {
+            return;
+        };
+        let src = &dcol[t.row * cols + t.at..][..g.ow];
+        let dst = &mut dx[t.image + iy * g.w..][..g.w];
+        for (o, v) in src[t.lo..t.hi].iter().enumerate() {
+            dst[t.first + o * sw] += v;
         }
-    }
+    });
 }
 
 /// The convolution of `x [batch, cin, h, w]` with `w [cout, cin, kh, kw]` (no bias):
@@ -510,9 +533,14 @@ impl ConvOps for Flex {
 /// convolution's geometry (for a transposed convolution, that of its adjoint).
 type Saved = (FlexTensor, FlexTensor, Geometry);
 
-/// The backward step of [`ConvOps::im2col_conv2d`] on `Autodiff<Flex>`.
+/// The backward step of both operations on `Autodiff<Flex>`. For a convolution,
+/// `dx = input_grad(w, dy)` and `dw = weight_grad(x, dy)`; a transposed convolution keeps
+/// the geometry of its adjoint convolution, so there `dx = forward(dy, w)` and
+/// `dw = weight_grad(dy, x)` (input and output swap roles).
 #[derive(Debug)]
-struct ConvBackward;
+struct ConvBackward {
+    transposed: bool,
+}
 
 impl Backward<Flex, 2> for ConvBackward {
     type State = Saved;
@@ -521,37 +549,45 @@ impl Backward<Flex, 2> for ConvBackward {
         let [node_x, node_w] = ops.parents;
         let dy = contiguous(&grads.consume::<Flex>(&ops.node));
         let (x, w, g) = ops.state;
+        let (x, w, dy) = (f32s(&x), f32s(&w), f32s(&dy));
         if let Some(node) = node_x {
-            let dx = input_grad(f32s(&w), f32s(&dy), &g);
-            grads.register::<Flex>(node.id, flex(dx, [g.batch, g.cin, g.h, g.w]));
+            let dx = if self.transposed {
+                flex(forward(dy, w, &g), [g.batch, g.cout, g.oh, g.ow])
+            } else {
+                flex(input_grad(w, dy, &g), [g.batch, g.cin, g.h, g.w])
+            };
+            grads.register::<Flex>(node.id, dx);
         }
         if let Some(node) = node_w {
-            let dw = weight_grad(f32s(&x), f32s(&dy), &g);
+            let (input, grad) = if self.transposed { (dy, x) } else { (x, dy) };
+            let dw = weight_grad(input, grad, &g);
             grads.register::<Flex>(node.id, flex(dw, [g.cout, g.cin, g.kh, g.kw]));
         }
     }
 }
 
-/// The backward step of [`ConvOps::im2col_conv_transpose2d`] on `Autodiff<Flex>`: with
-/// `g` the adjoint convolution, `dx = conv(dy)` and `dw = weight_grad(dy, x)`.
-#[derive(Debug)]
-struct ConvTransposeBackward;
-
-impl Backward<Flex, 2> for ConvTransposeBackward {
-    type State = Saved;
-
-    fn backward(self, ops: Ops<Self::State, 2>, grads: &mut Gradients, _: &mut Checkpointer) {
-        let [node_x, node_w] = ops.parents;
-        let dy = contiguous(&grads.consume::<Flex>(&ops.node));
-        let (x, w, g) = ops.state;
-        if let Some(node) = node_x {
-            let dx = forward(f32s(&dy), f32s(&w), &g);
-            grads.register::<Flex>(node.id, flex(dx, [g.batch, g.cout, g.oh, g.ow]));
+/// One operation on `Autodiff<Flex>`: `run` on the primitives, with [`ConvBackward`]
+/// registered (keeping the contiguous inputs and `geometry` of them) when a gradient is
+/// wanted.
+fn tracked<C: CheckpointStrategy>(
+    x: FloatTensor<Autodiff<Flex, C>>,
+    weight: FloatTensor<Autodiff<Flex, C>>,
+    transposed: bool,
+    geometry: impl FnOnce(&FlexTensor, &FlexTensor) -> Geometry,
+    run: impl FnOnce(FlexTensor, FlexTensor) -> FlexTensor,
+) -> FloatTensor<Autodiff<Flex, C>> {
+    match (ConvBackward { transposed })
+        .prepare::<C>([x.node(), weight.node()])
+        .compute_bound()
+        .stateful()
+    {
+        OpsKind::Tracked(prep) => {
+            let (xp, wp) = (contiguous(x.primitive()), contiguous(weight.primitive()));
+            let g = geometry(&xp, &wp);
+            let out = run(xp.clone(), wp.clone());
+            prep.finish((xp, wp, g), out)
         }
-        if let Some(node) = node_w {
-            let dw = weight_grad(f32s(&dy), f32s(&x), &g);
-            grads.register::<Flex>(node.id, flex(dw, [g.cout, g.cin, g.kh, g.kw]));
-        }
+        OpsKind::UnTracked(prep) => prep.finish(run(x.into_primitive(), weight.into_primitive())),
     }
 }
 
@@ -562,24 +598,13 @@ impl<C: CheckpointStrategy> ConvOps for Autodiff<Flex, C> {
         stride: [usize; 2],
         pad: [usize; 2],
     ) -> FloatTensor<Self> {
-        match ConvBackward
-            .prepare::<C>([x.node(), weight.node()])
-            .compute_bound()
-            .stateful()
-        {
-            OpsKind::Tracked(prep) => {
-                let (xp, wp) = (contiguous(x.primitive()), contiguous(weight.primitive()));
-                let g = conv_geometry(dims4(&xp), dims4(&wp), stride, pad);
-                let out = Flex::im2col_conv2d(xp.clone(), wp.clone(), stride, pad);
-                prep.finish((xp, wp, g), out)
-            }
-            OpsKind::UnTracked(prep) => prep.finish(Flex::im2col_conv2d(
-                x.into_primitive(),
-                weight.into_primitive(),
-                stride,
-                pad,
-            )),
-        }
+        tracked::<C>(
+            x,
+            weight,
+            false,
+            |x, w| conv_geometry(dims4(x), dims4(w), stride, pad),
+            |x, w| Flex::im2col_conv2d(x, w, stride, pad),
+        )
     }
 
     fn im2col_conv_transpose2d(
@@ -589,26 +614,13 @@ impl<C: CheckpointStrategy> ConvOps for Autodiff<Flex, C> {
         pad: [usize; 2],
         pad_out: [usize; 2],
     ) -> FloatTensor<Self> {
-        match ConvTransposeBackward
-            .prepare::<C>([x.node(), weight.node()])
-            .compute_bound()
-            .stateful()
-        {
-            OpsKind::Tracked(prep) => {
-                let (xp, wp) = (contiguous(x.primitive()), contiguous(weight.primitive()));
-                let g = transpose_geometry(dims4(&xp), dims4(&wp), stride, pad, pad_out);
-                let out =
-                    Flex::im2col_conv_transpose2d(xp.clone(), wp.clone(), stride, pad, pad_out);
-                prep.finish((xp, wp, g), out)
-            }
-            OpsKind::UnTracked(prep) => prep.finish(Flex::im2col_conv_transpose2d(
-                x.into_primitive(),
-                weight.into_primitive(),
-                stride,
-                pad,
-                pad_out,
-            )),
-        }
+        tracked::<C>(
+            x,
+            weight,
+            true,
+            |x, w| transpose_geometry(dims4(x), dims4(w), stride, pad, pad_out),
+            |x, w| Flex::im2col_conv_transpose2d(x, w, stride, pad, pad_out),
+        )
     }
 }
 
@@ -702,9 +714,10 @@ mod tests {
     }
 
     /// (batch, cin, h, w, cout, kernel, stride, pad): the backbone's kinds of convolution
-    /// (7x7/2 stem, 3x3/1, 3x3/2, 1x1/2 shortcut) plus a 1x1/1 and odd sizes, at sizes
-    /// where the late layers' grouping (few pixels per sample) and several lanes occur.
-    const CASES: [[usize; 8]; 7] = [
+    /// (7x7/2 stem, 3x3/1, 3x3/2, 1x1/2 shortcut) plus a 1x1/1, odd sizes and padding wider
+    /// than the image, at sizes where the late layers' grouping (few pixels per sample) and
+    /// several lanes occur.
+    const CASES: [[usize; 8]; 9] = [
         [3, 3, 19, 23, 8, 7, 2, 3],
         [5, 4, 9, 12, 6, 3, 1, 1],
         [4, 6, 9, 7, 5, 3, 2, 1],
@@ -712,6 +725,8 @@ mod tests {
         [2, 5, 6, 5, 3, 1, 1, 0],
         [11, 3, 3, 2, 4, 3, 1, 1],
         [1, 2, 5, 5, 3, 5, 1, 0],
+        [2, 2, 1, 1, 3, 7, 1, 3],
+        [2, 2, 2, 3, 2, 5, 2, 2],
     ];
 
     /// Runs `f` on a copy of `x0` that requires a gradient, through the loss `sum(y * r)`
