@@ -39,7 +39,7 @@ pub struct BnBank {
 impl BnBank {
     /// Normalises with branch `branch` only (panics if out of range: branches are chosen by the model).
     pub fn forward(&self, x: Tensor<4>, branch: usize) -> Tensor<4> {
-        self.branches[branch].forward(x)
+        crate::batch_norm::batch_norm(&self.branches[branch], x)
     }
 
     /// Number of branches.

@@ -442,12 +442,12 @@ pub trait ConvOps: Backend {
     ) -> FloatTensor<Self>;
 }
 
-fn dims4(t: &FlexTensor) -> [usize; 4] {
+pub(crate) fn dims4(t: &FlexTensor) -> [usize; 4] {
     t.layout().shape().dims::<4>()
 }
 
 /// A contiguous f32 copy-or-view of a CPU tensor, for [`f32s`].
-fn contiguous(t: &FlexTensor) -> FlexTensor {
+pub(crate) fn contiguous(t: &FlexTensor) -> FlexTensor {
     assert_eq!(
         t.dtype(),
         DType::F32,
@@ -456,7 +456,7 @@ fn contiguous(t: &FlexTensor) -> FlexTensor {
     t.to_contiguous()
 }
 
-fn f32s(t: &FlexTensor) -> &[f32] {
+pub(crate) fn f32s(t: &FlexTensor) -> &[f32] {
     t.as_slice::<f32>().expect("a contiguous f32 tensor")
 }
 
@@ -626,7 +626,7 @@ impl<C: CheckpointStrategy> ConvOps for Autodiff<Flex, C> {
 
 /// Whether a tensor on `device` runs on burn's `flex` CPU backend (with or without
 /// autodiff).
-fn on_flex(device: &Device) -> bool {
+pub(crate) fn on_flex(device: &Device) -> bool {
     matches!(
         device.clone().inner().as_dispatch(),
         DispatchDevice::Flex(_)
@@ -689,20 +689,23 @@ pub fn conv_transpose2d(conv: &ConvTranspose2d, x: Tensor<4>) -> Tensor<4> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+    use crate::fused::values;
     use burn::module::Param;
     use burn::nn::conv::{Conv2dConfig, ConvTranspose2dConfig};
     use burn::tensor::Distribution;
 
-    fn values<const D: usize>(t: Tensor<D>) -> Vec<f32> {
-        t.into_data()
-            .convert::<f32>()
-            .try_to_vec::<f32>()
-            .expect("f32")
+    /// A rayon pool of `n` threads.
+    pub(crate) fn pool(n: usize) -> rayon::ThreadPool {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .unwrap()
     }
 
-    fn close(what: &str, ours: &[f32], burn: &[f32], tol: f32) {
+    /// Asserts `ours` equals `burn` to `tol` times the largest magnitude in `burn`.
+    pub(crate) fn close(what: &str, ours: &[f32], burn: &[f32], tol: f32) {
         assert_eq!(ours.len(), burn.len(), "{what}: lengths");
         let scale = burn.iter().fold(1.0f32, |m, v| m.max(v.abs()));
         for (i, (a, b)) in ours.iter().zip(burn).enumerate() {
@@ -872,12 +875,6 @@ mod tests {
     /// One thread or two, the same bits: the groups and lanes follow the shapes only.
     #[test]
     fn results_are_bit_identical_for_any_thread_count() {
-        let pool = |n| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(n)
-                .build()
-                .unwrap()
-        };
         let (b, cin, h, w, cout, k, s, p) = (13, 8, 6, 10, 16, 3, 1, 1);
         let g = Geometry::new([b, cin, h, w], [cout, cin, k, k], [s, s], [p, p]).unwrap();
         let x: Vec<f32> = (0..b * cin * h * w)

@@ -94,7 +94,8 @@ pub struct FusedPolicy {
     factorised: bool,
 }
 
-fn values<const D: usize>(t: Tensor<D>) -> Vec<f32> {
+/// A tensor's values as f32, read back from the device.
+pub(crate) fn values<const D: usize>(t: Tensor<D>) -> Vec<f32> {
     t.into_data()
         .convert::<f32>()
         .try_to_vec::<f32>()

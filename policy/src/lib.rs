@@ -8,6 +8,7 @@
 //! `dataset::action` and `dataset::decode` (the 28 actions and WoR's decoding, shared with the labels), [`device`], [`checkpoint`], [`fused`], [`conv`] (the CPU convolutions training runs through), [`driver`], [`train`], [`bench`].
 
 pub mod backbone;
+pub mod batch_norm;
 pub mod bench;
 pub mod bn_bank;
 pub mod checkpoint;
