@@ -5,23 +5,25 @@
 //! call, and it leaves the backward pass to burn's generic rules: the weight gradient
 //! becomes a convolution with batch and channels swapped (for `layer1`, one product
 //! per input channel of shape 32 x 46,080 x 9) and the input gradient a transposed
-//! convolution that zeroes a column buffer per sample (FACTS.md; `docs/training.md`
-//! has the profile). Here each convolution is what PyTorch's CPU path does, on
+//! convolution that zeroes a column buffer per sample (read in burn-flex 0.22.1's
+//! source; `docs/training.md` has the profile). Here each convolution is what PyTorch's CPU path does, on
 //! burn's own NCHW tensors:
 //! - forward: per group of samples, one im2col copy `col [C*KH*KW, n*OH*OW]` and one
 //!   product `y = W [O, C*KH*KW] x col`;
 //! - weight gradient: `dW += dY [O, n*OH*OW] x col^T`, summed over the batch;
 //! - input gradient: `dcol = W^T x dY`, scattered back onto `dX` (col2im).
 //!
-//! Every product goes through [`crate::matmul`], and the batch is cut into groups and
+//! Every product goes through `crate::matmul` (fixed-order gemm), and the batch is cut into groups and
 //! lanes whose sizes follow the shapes alone, so results are bit-identical for any
 //! thread count and on any x86-64 CPU.
 //!
-//! burn sees one custom operation, [`ConvOps::im2col_conv2d`], registered through its
-//! backend extension for `Flex` and `Autodiff<Flex>` (the latter with the backward pass
-//! below). [`conv2d`] is what the model calls: it takes this path for a tensor on the
-//! CPU and burn's own `Conv2d::forward` everywhere else (the GPU backends, grouped or
-//! dilated convolutions, a bias).
+//! burn sees two custom operations, [`ConvOps::im2col_conv2d`] and
+//! [`ConvOps::im2col_conv_transpose2d`] (the decoder's upsampling: the same kernels the
+//! other way round), registered through its backend extension for `Flex` and
+//! `Autodiff<Flex>` (the latter with the backward pass below). [`conv2d`] and
+//! [`conv_transpose2d`] are what the model calls: they take this path for a tensor on
+//! the CPU, add a bias after it, and call burn's own `forward` everywhere else (the GPU
+//! backends, grouped or dilated convolutions).
 
 use crate::matmul::{Mat, matmul};
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
@@ -350,7 +352,7 @@ pub fn input_grad(w: &[f32], dy: &[f32], g: &Geometry) -> Vec<f32> {
 
 /// The gradient of [`forward`] with respect to its weights, given the output's gradient
 /// `dy`: `[cout, cin, kh, kw]`, the sum over the batch of `dy_b x col_b^T`. The batch is
-/// cut into at most [`LANES`] lanes of whole groups, each summing its own part; the parts
+/// cut into at most `LANES` (8) lanes of whole groups, each summing its own part; the parts
 /// are then added in lane order, so the result does not depend on the thread count.
 pub fn weight_grad(x: &[f32], dy: &[f32], g: &Geometry) -> Vec<f32> {
     let (k, p, per) = (g.k(), g.p(), g.group());

@@ -5,7 +5,7 @@
 //! The resolution selectors that pick the scale live in `sim::selector`.
 //!
 //! Read in this order: [`bn_bank`], [`backbone`], [`heads`], [`model`],
-//! `dataset::action` and `dataset::decode` (the 28 actions and WoR's decoding, shared with the labels), [`device`], [`checkpoint`], [`fused`], [`conv`] and [`batch_norm`] (the CPU convolutions and BatchNorms training runs through), [`driver`], [`train`], [`bench`].
+//! `dataset::action` and `dataset::decode` (the 28 actions and WoR's decoding, shared with the labels), [`device`], [`checkpoint`], [`fused`], [`conv`] and [`batch_norm`] (the CPU convolutions and BatchNorms training runs through), [`driver`], [`train`], [`bench`](mod@bench).
 
 pub mod backbone;
 pub mod batch_norm;
