@@ -14,7 +14,7 @@
 //! Sums run in 16 f32 lanes per plane, added in f64, one channel at a time in a fixed
 //! order, so the result does not depend on the thread count.
 
-use crate::conv::{contiguous, f32s, on_flex};
+use crate::conv::{contiguous, f32s, flex, on_flex};
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
 use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
 use burn::backend::autodiff::grads::Gradients;
@@ -24,7 +24,6 @@ use burn::backend::tensor::FloatTensor;
 use burn::backend::{Autodiff, Backend, Dispatch, Flex, backend_extension};
 use burn::nn::BatchNorm;
 use burn::prelude::*;
-use burn::tensor::TensorData;
 use rayon::prelude::*;
 
 /// The layout of a `[batch, channels, pixels...]` activation.
@@ -195,9 +194,10 @@ fn shape_of(t: &FlexTensor) -> Vec<usize> {
     t.layout().shape().as_slice().to_vec()
 }
 
+/// A `[channels]` CPU tensor.
 fn channel_tensor(values: Vec<f32>) -> FlexTensor {
     let n = values.len();
-    FlexTensor::from_data(TensorData::new(values, [n]))
+    flex(values, [n])
 }
 
 /// The forward on contiguous primitives: `(y, mean, var)`.
@@ -211,11 +211,7 @@ fn train_forward(
     let p = Planes::of(&dims);
     let (mean, var) = statistics(f32s(x), p);
     let y = normalize(f32s(x), p, [f32s(gamma), f32s(beta), &mean, &var], eps);
-    (
-        FlexTensor::from_data(TensorData::new(y, dims)),
-        channel_tensor(mean),
-        channel_tensor(var),
-    )
+    (flex(y, dims), channel_tensor(mean), channel_tensor(var))
 }
 
 impl NormOps for Flex {
@@ -235,7 +231,7 @@ impl NormOps for Flex {
         let (mut mean, var) = statistics(f32s(&x), Planes::of(&dims));
         let channels = mean.len();
         mean.extend(var);
-        FlexTensor::from_data(TensorData::new(mean, [2, channels]))
+        flex(mean, [2, channels])
     }
 }
 
@@ -255,7 +251,7 @@ impl Backward<Flex, 3> for NormBackward {
         let stats = [f32s(&gamma), f32s(&mean), f32s(&var)];
         let (dx, dgamma, dbeta) = backward(f32s(&x), f32s(&dy), Planes::of(&dims), stats, eps);
         if let Some(node) = node_x {
-            grads.register::<Flex>(node.id, FlexTensor::from_data(TensorData::new(dx, dims)));
+            grads.register::<Flex>(node.id, flex(dx, dims));
         }
         if let Some(node) = node_gamma {
             grads.register::<Flex>(node.id, channel_tensor(dgamma));
@@ -337,6 +333,7 @@ mod tests {
     use burn::module::{Param, RunningState};
     use burn::nn::BatchNormConfig;
     use burn::tensor::Distribution;
+    use burn::tensor::TensorData;
 
     /// A BatchNorm with gamma, beta and running statistics away from the identity; each
     /// call makes a new one (its own running-state cells: clones would share them).
@@ -397,9 +394,9 @@ mod tests {
         }
     }
 
-    /// Off the training path (no autodiff, or a frozen layer) it is burn's forward.
+    /// Off the autodiff device (inference) it is burn's forward and updates nothing.
     #[test]
-    fn inference_and_frozen_layers_use_burns_forward() {
+    fn inference_uses_burns_forward() {
         let device = Device::flex();
         let bn = perturbed(3, &device);
         let x = Tensor::<4>::random([2, 3, 4, 4], Distribution::Normal(0.0, 1.0), &device);

@@ -462,7 +462,8 @@ pub(crate) fn f32s(t: &FlexTensor) -> &[f32] {
     t.as_slice::<f32>().expect("a contiguous f32 tensor")
 }
 
-fn flex(values: Vec<f32>, dims: [usize; 4]) -> FlexTensor {
+/// A CPU tensor of `values` in the shape `dims`.
+pub(crate) fn flex(values: Vec<f32>, dims: impl Into<burn::tensor::Shape>) -> FlexTensor {
     FlexTensor::from_data(TensorData::new(values, dims))
 }
 
