@@ -405,25 +405,28 @@ fn shapes(cfg: &PaperConfig, results: &Results) -> String {
         verdict(ok).into(),
     ]);
 
-    // 3. A cliff near 150 ms: high success up to 100 ms, low from 150 ms on (Fig. 5).
+    // 3. A cliff near 150 ms (Fig. 5), as PROTOCOL §7 words the paper's: success high up
+    //    to 100 ms, collisions jumping at 150 ms, and at 200 ms few successes and many
+    //    collisions.
     let mut evidence = Vec::new();
     let mut ok = Some(true);
+    let planned = |d: f64| cfg.delays_ms.contains(&d);
     for ra in [false, true] {
         for scale in [cfg.low, cfg.high] {
-            let at = |d: f64| model_at(cfg, ra, scale, d).stats(cfg, results, None);
+            let model = |d: f64| model_at(cfg, ra, scale, d);
             let below: Vec<Stats> = cfg
                 .delays_ms
                 .iter()
                 .filter(|&&d| d <= 100.0)
-                .map(|&d| at(d))
+                .map(|&d| model(d).stats(cfg, results, None))
                 .collect();
-            let above: Vec<Stats> = cfg
-                .delays_ms
-                .iter()
-                .filter(|&&d| d >= 150.0)
-                .map(|&d| at(d))
-                .collect();
-            if above.is_empty() || below.iter().chain(&above).any(|s| s.n == 0) {
+            if !(planned(100.0) && planned(150.0) && planned(200.0)) {
+                ok = None;
+                continue;
+            }
+            let jump = Comparison::of(&runs(&model(100.0)), &runs(&model(150.0))).collided;
+            let last = model(200.0).stats(cfg, results, None);
+            if below.iter().any(|s| s.n == 0) || jump.n == 0 || last.n == 0 {
                 ok = None;
                 continue;
             }
@@ -431,19 +434,26 @@ fn shapes(cfg: &PaperConfig, results: &Results) -> String {
                 .iter()
                 .map(Stats::success_pct)
                 .fold(f64::MAX, f64::min);
-            let high_ok = above
-                .iter()
-                .map(Stats::success_pct)
-                .fold(f64::MIN, f64::max);
-            ok = ok.map(|o| o && low_ok >= 75.0 && high_ok < 50.0);
+            let jumps = jump.significant() && jump.mean_diff > 0.0;
+            let falls = last.success_pct() <= 25.0 && last.collision_pct() >= 75.0;
+            ok = ok.map(|o| o && low_ok >= 75.0 && jumps && falls);
             evidence.push(format!(
-                "{}: success >= {low_ok:.0} % up to 100 ms, <= {high_ok:.0} % from 150 ms",
-                model_at(cfg, ra, scale, 0.0).label
+                "{}: success >= {low_ok:.0} % up to 100 ms; runs with a collision {} [{}, {}] \
+                 per run from 100 to 150 ms ({} pairs); at 200 ms success {:.0} %, collided {:.0} %",
+                model(0.0).label,
+                signed(jump.mean_diff),
+                signed(jump.ci.0),
+                signed(jump.ci.1),
+                jump.n,
+                last.success_pct(),
+                last.collision_pct()
             ));
         }
     }
     t.push(vec![
-        "a cliff near 150 ms: success high up to 100 ms, low from 150 ms (Fig. 5)".into(),
+        "a cliff near 150 ms: success high up to 100 ms, collisions jump at 150 ms, success \
+         collapses at 200 ms (Fig. 5)"
+            .into(),
         evidence.join("; "),
         verdict(ok).into(),
     ]);
@@ -502,7 +512,10 @@ fn shapes(cfg: &PaperConfig, results: &Results) -> String {
         "## The paper's shapes, checked\n\n\
          Each claim of the paper tested on our runs by the rule written here: a difference \
          counts when its paired 95 % interval excludes 0; the cliff asks for at least 75 % \
-         success up to 100 ms and under 50 % from 150 ms; the switcher must do at least as well \
+         success at every delay up to 100 ms, more runs with a collision at 150 ms than at \
+         100 ms (paired), and at 200 ms at most 25 % success and at least 75 % of runs with a \
+         collision (the paper: 91.65-100 % up to 100 ms, collisions jumping at 150 ms, 0-8.35 % \
+         and 83-100 % at 200 ms); the switcher must do at least as well \
          as both fixed scales on success, collisions and red lights, and better on one. Why a \
          shape does not hold is in [`discussion.md`](discussion.md).\n\n{}\n",
         t.markdown()
@@ -1557,15 +1570,24 @@ mod tests {
     /// Results where every compared policy succeeds in `ok(D)` of 4 runs
     /// at each delay (the others collide), at both of its scales.
     fn results(cfg: &PaperConfig, ok: impl Fn(f64) -> usize) -> Results {
+        results_with(cfg, |d| (ok(d), 4 - ok(d)))
+    }
+
+    /// Results where every compared policy succeeds in the first `ok` of 4 runs and
+    /// collides in the last `collided` (`(ok, collided)` at each delay), at both of its
+    /// scales: a run can collide and still finish its route.
+    fn results_with(cfg: &PaperConfig, counts: impl Fn(f64) -> (usize, usize)) -> Results {
         let mut r = Results::default();
         for driver in [Driver::NraLow, Driver::NraHigh, Driver::Ra] {
             for &d in &cfg.delays_ms {
                 let unit = Unit::fixed(driver, d);
                 let mut runs = Vec::new();
                 for scale in driver.scales(cfg) {
+                    let (ok, collided) = counts(d);
                     for seed in 0..4 {
-                        let good = (seed as usize) < ok(d);
-                        let mut x = run("a", seed, good, u32::from(!good), 0, 0, 0.0);
+                        let good = (seed as usize) < ok;
+                        let hit = seed as usize >= 4 - collided;
+                        let mut x = run("a", seed, good, u32::from(hit), 0, 0, 0.0);
                         x.spec.scale = scale;
                         runs.push(x);
                     }
@@ -1609,8 +1631,23 @@ mod tests {
             verdict_of(&page, "the switcher beats"),
             "not enough runs yet"
         );
-        // Success holds at 150 ms: no cliff there.
+        // Success and safety hold at 150 ms: no cliff there.
         let page = shapes(&cfg, &results(&cfg, |d| if d <= 150.0 { 4 } else { 1 }));
+        assert_eq!(verdict_of(&page, cliff), "does not agree");
+        // The paper's own words: at 150 ms every run collides but most still finish,
+        // and at 200 ms none does. That is the cliff, though success is high at 150 ms.
+        let shape = |d: f64| match d {
+            d if d <= 100.0 => (4, 0),
+            d if d <= 150.0 => (3, 4),
+            _ => (0, 4),
+        };
+        let page = shapes(&cfg, &results_with(&cfg, shape));
+        assert_eq!(verdict_of(&page, cliff), "agrees");
+        // Collisions jump at 150 ms, but success never falls: no cliff.
+        let page = shapes(
+            &cfg,
+            &results_with(&cfg, |d| (4, if d <= 100.0 { 0 } else { 4 })),
+        );
         assert_eq!(verdict_of(&page, cliff), "does not agree");
         // A delay without runs leaves it open.
         let mut r = results(&cfg, |_| 4);
