@@ -171,17 +171,19 @@ pub fn backward(
     (dx, to32(dgamma), to32(dbeta))
 }
 
-/// Two custom operations for burn: training-mode BatchNorm, and the batch statistics
-/// it normalises with (for the running averages).
+/// Two custom operations for burn: the batch statistics, and training-mode BatchNorm
+/// with them (computed once, for the normalisation and the running averages alike).
 #[backend_extension(Autodiff, Flex)]
 pub trait NormOps: Backend {
     /// `x [batch, channels, ...]` normalised with its own per-channel mean and biased
-    /// variance, scaled by `gamma` and shifted by `beta`; its gradient treats the
-    /// statistics as functions of `x`, as training-mode BatchNorm does.
+    /// variance, `stats` as [`NormOps::batch_statistics`] returns them for this `x`,
+    /// scaled by `gamma` and shifted by `beta`; its gradient treats the statistics as
+    /// functions of `x`, as training-mode BatchNorm does (`stats` itself gets none).
     fn batch_norm_train(
         x: FloatTensor<Self>,
         gamma: FloatTensor<Self>,
         beta: FloatTensor<Self>,
+        stats: FloatTensor<Self>,
         eps: f64,
     ) -> FloatTensor<Self>;
 
@@ -200,18 +202,29 @@ fn channel_tensor(values: Vec<f32>) -> FlexTensor {
     flex(values, [n])
 }
 
-/// The forward on contiguous primitives: `(y, mean, var)`.
+/// The mean's and the variance's rows of a contiguous `[2, channels]` statistics tensor.
+fn mean_var(stats: &FlexTensor) -> (&[f32], &[f32]) {
+    let v = f32s(stats);
+    v.split_at(v.len() / 2)
+}
+
+/// The forward on contiguous primitives.
 fn train_forward(
     x: &FlexTensor,
     gamma: &FlexTensor,
     beta: &FlexTensor,
+    stats: &FlexTensor,
     eps: f64,
-) -> (FlexTensor, FlexTensor, FlexTensor) {
+) -> FlexTensor {
     let dims = shape_of(x);
-    let p = Planes::of(&dims);
-    let (mean, var) = statistics(f32s(x), p);
-    let y = normalize(f32s(x), p, [f32s(gamma), f32s(beta), &mean, &var], eps);
-    (flex(y, dims), channel_tensor(mean), channel_tensor(var))
+    let (mean, var) = mean_var(stats);
+    let y = normalize(
+        f32s(x),
+        Planes::of(&dims),
+        [f32s(gamma), f32s(beta), mean, var],
+        eps,
+    );
+    flex(y, dims)
 }
 
 impl NormOps for Flex {
@@ -219,10 +232,11 @@ impl NormOps for Flex {
         x: FlexTensor,
         gamma: FlexTensor,
         beta: FlexTensor,
+        stats: FlexTensor,
         eps: f64,
     ) -> FlexTensor {
-        let [x, gamma, beta] = [x, gamma, beta].map(|t| contiguous(&t));
-        train_forward(&x, &gamma, &beta, eps).0
+        let [x, gamma, beta, stats] = [x, gamma, beta, stats].map(|t| contiguous(&t));
+        train_forward(&x, &gamma, &beta, &stats, eps)
     }
 
     fn batch_statistics(x: FlexTensor) -> FlexTensor {
@@ -240,16 +254,22 @@ impl NormOps for Flex {
 struct NormBackward;
 
 impl Backward<Flex, 3> for NormBackward {
-    /// The forward's contiguous input and gamma, the batch mean and variance, epsilon.
-    type State = (FlexTensor, FlexTensor, FlexTensor, FlexTensor, f64);
+    /// The forward's contiguous input, gamma and `[2, channels]` statistics, epsilon.
+    type State = (FlexTensor, FlexTensor, FlexTensor, f64);
 
     fn backward(self, ops: Ops<Self::State, 3>, grads: &mut Gradients, _: &mut Checkpointer) {
         let [node_x, node_gamma, node_beta] = ops.parents;
         let dy = contiguous(&grads.consume::<Flex>(&ops.node));
-        let (x, gamma, mean, var, eps) = ops.state;
+        let (x, gamma, stats, eps) = ops.state;
         let dims = shape_of(&x);
-        let stats = [f32s(&gamma), f32s(&mean), f32s(&var)];
-        let (dx, dgamma, dbeta) = backward(f32s(&x), f32s(&dy), Planes::of(&dims), stats, eps);
+        let (mean, var) = mean_var(&stats);
+        let (dx, dgamma, dbeta) = backward(
+            f32s(&x),
+            f32s(&dy),
+            Planes::of(&dims),
+            [f32s(&gamma), mean, var],
+            eps,
+        );
         if let Some(node) = node_x {
             grads.register::<Flex>(node.id, flex(dx, dims));
         }
@@ -267,6 +287,7 @@ impl<C: CheckpointStrategy> NormOps for Autodiff<Flex, C> {
         x: FloatTensor<Self>,
         gamma: FloatTensor<Self>,
         beta: FloatTensor<Self>,
+        stats: FloatTensor<Self>,
         eps: f64,
     ) -> FloatTensor<Self> {
         match NormBackward
@@ -275,15 +296,21 @@ impl<C: CheckpointStrategy> NormOps for Autodiff<Flex, C> {
             .stateful()
         {
             OpsKind::Tracked(prep) => {
-                let [x, gamma, beta] =
-                    [x.primitive(), gamma.primitive(), beta.primitive()].map(contiguous);
-                let (y, mean, var) = train_forward(&x, &gamma, &beta, eps);
-                prep.finish((x, gamma, mean, var, eps), y)
+                let [x, gamma, beta, stats] = [
+                    x.primitive(),
+                    gamma.primitive(),
+                    beta.primitive(),
+                    stats.primitive(),
+                ]
+                .map(contiguous);
+                let y = train_forward(&x, &gamma, &beta, &stats, eps);
+                prep.finish((x, gamma, stats, eps), y)
             }
             OpsKind::UnTracked(prep) => prep.finish(Flex::batch_norm_train(
                 x.into_primitive(),
                 gamma.into_primitive(),
                 beta.into_primitive(),
+                stats.into_primitive(),
                 eps,
             )),
         }
@@ -309,6 +336,7 @@ pub fn batch_norm(bn: &BatchNorm, x: Tensor<4>) -> Tensor<4> {
         x.into_dispatch(),
         bn.gamma.val().into_dispatch(),
         bn.beta.val().into_dispatch(),
+        stats.clone().into_dispatch(),
         bn.epsilon,
     ));
 
