@@ -145,12 +145,18 @@ pub fn save(net: &PolicyNet, card: &ModelCard, weights: &Path) -> Result<(), Che
     let mut store = SafetensorsStore::from_file(weights)
         .overwrite(true)
         .metadata("mrdrive_format", FORMAT);
+    let written = |problem: String| CheckpointError::Weights {
+        path: weights.to_path_buf(),
+        problem,
+        fix: "check the folder exists and is writable".into(),
+    };
     net.save_into(&mut store)
-        .map_err(|e| CheckpointError::Weights {
-            path: weights.to_path_buf(),
-            problem: format!("could not write: {e}"),
-            fix: "check the folder exists and is writable".into(),
-        })?;
+        .map_err(|e| written(format!("could not write: {e}")))?;
+    // burn writes the metadata from a hash map, in a different order on every run.
+    let mut bytes =
+        std::fs::read(weights).map_err(|e| written(format!("could not read back: {e}")))?;
+    sort_metadata(&mut bytes).map_err(written)?;
+    std::fs::write(weights, bytes).map_err(|e| written(format!("could not write: {e}")))?;
     let manifest = Manifest {
         format: FORMAT.into(),
         config: net.config.clone(),
@@ -163,6 +169,37 @@ pub fn save(net: &PolicyNet, card: &ModelCard, weights: &Path) -> Result<(), Che
         source,
         fix: "check the folder exists and is writable",
     })
+}
+
+/// Rewrites a safetensors file's header (`bytes` is the whole file) with its
+/// `__metadata__` entries in key order, the header's length and the tensors unchanged,
+/// so the same weights always give the same bytes (and the same SHA-256 in run records).
+fn sort_metadata(bytes: &mut [u8]) -> Result<(), String> {
+    let len = bytes
+        .get(..8)
+        .map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")) as usize)
+        .ok_or("no safetensors header")?;
+    let header = bytes
+        .get_mut(8..8 + len)
+        .ok_or("a header past the file's end")?;
+    let mut json: serde_json::Value =
+        serde_json::from_slice(header).map_err(|e| format!("an unreadable header: {e}"))?;
+    let Some(meta) = json.get_mut("__metadata__") else {
+        return Ok(());
+    };
+    let sorted: std::collections::BTreeMap<String, serde_json::Value> =
+        serde_json::from_value(meta.take()).map_err(|e| format!("metadata: {e}"))?;
+    *meta = serde_json::Value::Object(sorted.into_iter().collect());
+    let text = serde_json::to_vec(&json).expect("a header serialises");
+    if text.len() > len {
+        return Err(format!(
+            "the sorted header grew from {len} to {} bytes",
+            text.len()
+        ));
+    }
+    header[..text.len()].copy_from_slice(&text);
+    header[text.len()..].fill(b' ');
+    Ok(())
 }
 
 /// Reads the JSON beside `weights`: the config (validated) and the card.
@@ -435,11 +472,41 @@ mod tests {
         save(&net, &ModelCard::random_init(5), &path).unwrap();
         // Saving again overwrites.
         save(&net, &ModelCard::random_init(5), &path).unwrap();
+        // The same weights, the same bytes (burn's metadata map has no fixed order).
+        let again = dir.path().join("again.safetensors");
+        save(&net, &ModelCard::random_init(5), &again).unwrap();
+        assert!(std::fs::read(&path).unwrap() == std::fs::read(&again).unwrap());
         let (back, card) = load(&path, &device).unwrap();
         assert_eq!(card, ModelCard::random_init(5));
         assert!(!card.trained);
         assert_eq!(back.config, net.config);
         assert_eq!(logits(&net, &device), logits(&back, &device));
+    }
+
+    #[test]
+    fn the_metadata_is_written_in_key_order_and_nothing_else_moves() {
+        let header = br#"{"__metadata__":{"z":"1","a":"2","m":"3"},"t":{"dtype":"F32","shape":[1],"data_offsets":[0,4]}}    "#;
+        let mut file = (header.len() as u64).to_le_bytes().to_vec();
+        file.extend_from_slice(header);
+        file.extend_from_slice(&1.5f32.to_le_bytes());
+        let before = file.clone();
+        sort_metadata(&mut file).unwrap();
+        assert_eq!(file.len(), before.len());
+        assert_eq!(file[..8], before[..8], "the header's length");
+        assert_eq!(
+            file[file.len() - 4..],
+            before[before.len() - 4..],
+            "the tensor"
+        );
+        let text = std::str::from_utf8(&file[8..8 + header.len()]).unwrap();
+        assert!(
+            text.starts_with(r#"{"__metadata__":{"a":"2","m":"3","z":"1"},"t":"#),
+            "{text}"
+        );
+        // Sorting again changes nothing.
+        let sorted = file.clone();
+        sort_metadata(&mut file).unwrap();
+        assert_eq!(file, sorted);
     }
 
     #[test]
