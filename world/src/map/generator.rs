@@ -28,6 +28,14 @@ pub const SIDEWALK_HEIGHT_M: f64 = 0.15;
 pub const JUNCTION_HALF_M: f64 = 10.0;
 /// Speed limit on generated streets (km/h).
 pub const SPEED_LIMIT_KMH: f64 = 30.0;
+/// A traffic light signal's `zOffset` (metres): its pole's foot below the
+/// ground it stands on, as in CARLA's towns (Town01's and Town02's 60 lights
+/// carry -0.55 to -0.70 m). Our poles stand on the 0.15 m sidewalk, so with
+/// the lamp housing `DEFAULT_LIGHT_HEAD_HEIGHT_M` = 3.0 m above the foot our
+/// lamps hang 2.55 m above the road, CARLA's 2.30-2.45 m; with `zOffset="0"`
+/// (3.15 m) a waiting car saw its lamp in the top rows of the picture, and a
+/// policy trained on Town01 stood through every green.
+pub const SIGNAL_Z_OFFSET_M: f64 = -0.6;
 
 /// Parameters of a grid town.
 #[derive(Debug, Clone, PartialEq)]
@@ -233,7 +241,7 @@ pub fn generate_grid_town(p: &GridTownParams) -> Result<String, GeneratorError> 
             next_ctrl += 1;
             let _ = writeln!(
                 signal_xml.entry(st.id).or_default(),
-                "            <signal s=\"{s:.3}\" t=\"{t:.3}\" id=\"{sid}\" name=\"TrafficLight\" dynamic=\"yes\" orientation=\"{orient}\" zOffset=\"0\" country=\"OpenDRIVE\" type=\"1000001\" subtype=\"-1\" value=\"-1\" text=\"\" hOffset=\"{hoff:.6}\" pitch=\"0\" roll=\"0\" height=\"3.0\" width=\"0.5\"/>"
+                "            <signal s=\"{s:.3}\" t=\"{t:.3}\" id=\"{sid}\" name=\"TrafficLight\" dynamic=\"yes\" orientation=\"{orient}\" zOffset=\"{SIGNAL_Z_OFFSET_M:.3}\" country=\"OpenDRIVE\" type=\"1000001\" subtype=\"-1\" value=\"-1\" text=\"\" hOffset=\"{hoff:.6}\" pitch=\"0\" roll=\"0\" height=\"3.0\" width=\"0.5\"/>"
             );
             let _ = writeln!(
                 controllers,
@@ -483,6 +491,15 @@ mod tests {
                 .iter()
                 .all(|l| l.stop_lines.len() == 1 && l.junction.is_some())
         );
+        // Every lamp hangs 2.55 m above the road: the sidewalk, the signal's
+        // zOffset and the head; CARLA's Town01 and Town02 lamps hang at
+        // 2.30-2.45 m (zOffset -0.70 to -0.55 m under the same head).
+        for l in &town.lights {
+            let lamp = l.position.z + l.head_height_m;
+            let want = SIDEWALK_HEIGHT_M + SIGNAL_Z_OFFSET_M + 3.0;
+            assert!((f64::from(lamp) - want).abs() < 1e-4, "lamp at {lamp} m");
+            assert!((2.5..2.6).contains(&lamp), "lamp at {lamp} m");
+        }
         assert!(!town.buildings.is_empty());
         // Street sidewalks (2 per street, 12 streets) plus one piece per
         // junction arm joining it to the next street's (24 arms).
