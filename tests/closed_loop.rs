@@ -336,8 +336,15 @@ fn render_replays_a_moment_with_the_driver_delay_and_scale_a_sweep_passes() {
         args.extend(extra);
         run_ok(&args)
     };
-    // The scenario's own driver: the expert.
-    let expert = render(&[]);
+    // The scenario's own driver: the RA for our towns with the oracle selector.
+    let own = render(&[]);
+    assert!(
+        own.contains("driver        policy:scenarios/../models/ra-towns.safetensors")
+            && own.contains("resolution oracle-0.75/1"),
+        "{own}"
+    );
+    // A flag away: the expert.
+    let expert = render(&["--expert"]);
     assert!(expert.contains("driver        expert"), "{expert}");
     // A sweep's flags: the shipped RA at a fixed 0.75x with a delay.
     let policy = render(&[

@@ -12,7 +12,8 @@
 //! record the render backend of each run ("none" for the expert, which draws
 //! nothing). A policy's golden file is kept per CPU maker
 //! (`<name>.intel.txt`, `<name>.amd.txt`; see [`golden_file`]): bless it on a
-//! machine of each maker. Where this maker has none, the test skips and says so.
+//! machine of each maker. Where this maker has none, the test checks nothing and
+//! says so (`UNCHECKED`, which CI reports but cannot fix).
 //!
 //! Scenarios on CARLA's maps need `../shared/carla/` (or
 //! `$MRDRIVE_SHARED_DIR/carla/`); without it they skip through
@@ -113,12 +114,12 @@ fn check(name: &str, lines: &[String], camera: bool) -> Result<(), String> {
         return Ok(());
     }
     if camera && !path.exists() {
-        world::testdata::skip(
+        // Only a machine of this maker can bless it, so it is reported, not failed.
+        world::testdata::unchecked(
             name,
-            world::testdata::Needs::Renderer,
             &format!(
                 "no golden file {} for runs rendered on this CPU maker (llvmpipe's pixels \
-                 follow the CPU); `cargo xtask bless` here writes one",
+                 follow the CPU); `cargo xtask bless` on such a machine writes one",
                 path.display()
             ),
         );
@@ -216,6 +217,11 @@ fn town02_route1_segment() {
 #[test]
 fn gen01_route0_ra_oracle() {
     regression_at("gen01_route0_ra_oracle", false, "0,100", "0:0,5:10", 4);
+}
+
+#[test]
+fn gen01_route0_default() {
+    regression_at("gen01_route0_default", false, "0", "0:0,5:10", 2);
 }
 
 #[test]

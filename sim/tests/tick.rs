@@ -19,6 +19,8 @@ fn ego_after(tick_s: f64, seconds: f64) -> (Vec2, f64) {
     scenario.timing.tick_s = tick_s;
     scenario.traffic.vehicles = 0;
     scenario.traffic.pedestrians = 0;
+    // The expert with no latency: only the tick differs between two runs.
+    scenario.timing.latency_ms.clear();
     let prepared = runner::prepare(&scenario).unwrap();
     let mut driver = Expert::new(ExpertParams::default());
     let mut selector = Fixed { scale: 1.0 };

@@ -14,6 +14,11 @@
 //!   test` empties before the run and counts after it: a clone without
 //!   `../shared` ends with "N tests skipped" and each reason, not with "ok"
 //!   everywhere.
+//!
+//! A check that needs a reference only another kind of machine can make (a
+//! policy run's golden file for another CPU maker) calls [`unchecked`]
+//! instead: the line reads `UNCHECKED: test: why`, goes to the same log, and
+//! never fails a run, since no setting of this machine could supply it.
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -89,13 +94,24 @@ impl TestEnv {
                 needs.require_var()
             );
         }
-        let line = format!("SKIPPED: {test}: {why}\n");
+        self.log_line(&format!("SKIPPED: {test}: {why}\n"));
+    }
+
+    /// Reports that `test` left a check undone because `why`, which this
+    /// machine cannot change (see the module's doc): printed past the
+    /// harness's capture and appended to the skip log as `UNCHECKED: ...`,
+    /// whatever is required.
+    pub fn unchecked(&self, test: &str, why: &str) {
+        self.log_line(&format!("UNCHECKED: {test}: {why}\n"));
+    }
+
+    fn log_line(&self, line: &str) {
         // Straight to the handle: the test harness captures `eprintln!`.
         let _ = std::io::stderr().write_all(line.as_bytes());
         if let Some(dir) = self.skip_log.parent() {
             let _ = std::fs::create_dir_all(dir);
         }
-        // One short append per skip: lines from parallel tests do not interleave.
+        // One short append per line: lines from parallel tests do not interleave.
         if let Ok(mut f) = std::fs::OpenOptions::new()
             .create(true)
             .append(true)
@@ -125,6 +141,12 @@ impl TestEnv {
 /// [`TestEnv::skip`] with this process's settings.
 pub fn skip(test: &str, needs: Needs, why: &str) {
     TestEnv::from_env().skip(test, needs, why);
+}
+
+/// Reports a check this machine cannot make ([`TestEnv::unchecked`] with this
+/// process's settings).
+pub fn unchecked(test: &str, why: &str) {
+    TestEnv::from_env().unchecked(test, why);
 }
 
 /// The shared data folder of this process ([`TestEnv::shared_dir`]).
@@ -194,6 +216,15 @@ mod tests {
         let result = std::panic::catch_unwind(|| e.shared_subdir("t", "carla", "Town01.xodr"));
         assert!(result.is_err(), "a required folder must not skip");
         assert!(!e.skip_log.exists(), "nothing was skipped");
+    }
+
+    #[test]
+    fn an_unchecked_line_is_logged_even_where_everything_is_required() {
+        let tmp = tempfile::tempdir().unwrap();
+        let e = env(tmp.path(), Needs::ALL.to_vec());
+        e.unchecked("t", "no golden file for this CPU maker");
+        let text = std::fs::read_to_string(&e.skip_log).unwrap();
+        assert_eq!(text, "UNCHECKED: t: no golden file for this CPU maker\n");
     }
 
     #[test]
