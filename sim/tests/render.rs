@@ -266,12 +266,12 @@ fn bad_scale_is_an_error_not_a_panic() {
 /// For each stop line of `town`, with the car's front bumper `gap_m` before
 /// the line and every light red: the line's light (its OpenDRIVE id) and the
 /// picture row of its lamp's centre (pixels from the top of the 1.0x rig
-/// image), or `None` when no camera of the rig shows that lamp.
-fn red_lamp_rows(town: &Town, gap_m: f32) -> Vec<(String, Option<f32>)> {
+/// image), or `None` when no camera of the rig shows that lamp. `r` renders
+/// `town` with the CPU rig.
+fn red_lamp_rows(r: &mut Renderer, town: &Town, gap_m: f32) -> Vec<(String, Option<f32>)> {
     let rig = RigConfig::cpu_default();
     let size = rig.size_at(1.0).unwrap();
     let length_m = 4.79;
-    let mut r = Renderer::new(town, rig, 1).expect("a device");
     let red = vec![LightState::Red; town.lights.len()];
     let mut rows = Vec::new();
     for line in world::rules::stop_lines::StopLines::new(town).all() {
@@ -309,8 +309,9 @@ const GAPS_M: [f32; 5] = [0.0, 1.0, 1.8, 3.5, 6.0];
 /// Every stop line's red lamp is in the picture from every gap in `GAPS_M`, at
 /// least `LAMP_ROW_MIN_PX` below its top.
 fn assert_lamps_in_view(name: &str, town: &Town, min_lines: usize) {
+    let mut r = Renderer::new(town, RigConfig::cpu_default(), 1).expect("a device");
     for gap_m in GAPS_M {
-        let rows = red_lamp_rows(town, gap_m);
+        let rows = red_lamp_rows(&mut r, town, gap_m);
         assert!(rows.len() >= min_lines, "{name}: {} stop lines", rows.len());
         for (light, row) in rows {
             let row = row.unwrap_or_else(|| {

@@ -198,9 +198,7 @@ fn test(root: &Path, env: &Env, args: &[String], strict: bool) -> Result<(), Str
     let mut cmd: Vec<&str> = vec!["cargo", "test", "--workspace", "--release"];
     cmd.extend(args.iter().map(String::as_str));
     let outcome = status_in(root, &cmd, &vars);
-    let (unchecked, skipped): (Vec<String>, Vec<String>) = read_skips(&log)?
-        .into_iter()
-        .partition(|l| l.starts_with(UNCHECKED));
+    let (unchecked, skipped) = split_unchecked(read_skips(&log)?);
     if !unchecked.is_empty() {
         eprintln!("{}", unchecked_report(&unchecked));
     }
@@ -232,17 +230,28 @@ fn read_skips(log: &Path) -> Result<Vec<String>, String> {
 /// (`world::testdata::unchecked`): reported, never a CI failure.
 const UNCHECKED: &str = "UNCHECKED: ";
 
+/// The skip log's lines as (unchecked, skipped): only the skipped fail a strict run.
+fn split_unchecked(lines: Vec<String>) -> (Vec<String>, Vec<String>) {
+    lines.into_iter().partition(|l| l.starts_with(UNCHECKED))
+}
+
+/// `head`, then each line without its `prefix`, one per indented line.
+fn listed(head: String, lines: &[String], prefix: &str) -> String {
+    let mut text = head;
+    for line in lines {
+        text += "\n  ";
+        text += line.strip_prefix(prefix).unwrap_or(line);
+    }
+    text
+}
+
 /// The lines of a test run about checks this machine could not make.
 fn unchecked_report(lines: &[String]) -> String {
-    let mut text = format!(
+    let head = format!(
         "xtask: {} check(s) UNCHECKED on this machine (they need another kind of machine; see why below):",
         lines.len()
     );
-    for line in lines {
-        text += "\n  ";
-        text += line.strip_prefix(UNCHECKED).unwrap_or(line);
-    }
-    text
+    listed(head, lines, UNCHECKED)
 }
 
 /// The closing lines of a test run: how many tests skipped and why.
@@ -250,15 +259,11 @@ fn skip_report(skipped: &[String]) -> String {
     if skipped.is_empty() {
         return "xtask: no test skipped".into();
     }
-    let mut text = format!(
+    let head = format!(
         "xtask: {} test(s) SKIPPED (they passed without running; see why below):",
         skipped.len()
     );
-    for line in skipped {
-        text += "\n  ";
-        text += line.strip_prefix("SKIPPED: ").unwrap_or(line);
-    }
-    text
+    listed(head, skipped, "SKIPPED: ")
 }
 
 fn ci(root: &Path) -> Result<(), String> {
@@ -370,11 +375,10 @@ fn train(root: &Path, env: &Env, args: &[String]) -> Result<(), String> {
     let bin = root.join("target/release/mrdrive");
     let bin = bin.to_str().ok_or("the target path is not UTF-8")?;
     let into = into_arg(args)?;
-    let (suffix, base) = match (quick, into.as_deref()) {
-        (_, Some(dir)) => (if quick { "-quick" } else { "" }, dir),
-        (true, None) => ("-quick", "out/train-quick"),
-        (false, None) => ("", "."),
-    };
+    let suffix = if quick { "-quick" } else { "" };
+    let base = into
+        .as_deref()
+        .unwrap_or(if quick { "out/train-quick" } else { "." });
     let models = format!("{base}/models");
     let runs = format!("{base}/runs");
     // The Original in two phases (docs/training.md): WoR's recipe, then the same network

@@ -496,7 +496,9 @@ mod tests {
         // 2.30-2.45 m (zOffset -0.70 to -0.55 m under the same head).
         for l in &town.lights {
             let lamp = l.position.z + l.head_height_m;
-            let want = SIDEWALK_HEIGHT_M + SIGNAL_Z_OFFSET_M + 3.0;
+            let want = SIDEWALK_HEIGHT_M
+                + SIGNAL_Z_OFFSET_M
+                + f64::from(crate::map::opendrive::DEFAULT_LIGHT_HEAD_HEIGHT_M);
             assert!((f64::from(lamp) - want).abs() < 1e-4, "lamp at {lamp} m");
             assert!((2.5..2.6).contains(&lamp), "lamp at {lamp} m");
         }
