@@ -908,6 +908,14 @@ mod tests {
     }
 
     #[test]
+    fn an_unchecked_line_is_not_a_skip() {
+        let lines = ["SKIPPED: a: no Python", "UNCHECKED: b: no golden file", "c"];
+        let (unchecked, skipped) = split_unchecked(lines.map(String::from).to_vec());
+        assert_eq!(unchecked, ["UNCHECKED: b: no golden file"]);
+        assert_eq!(skipped, ["SKIPPED: a: no Python", "c"]);
+    }
+
+    #[test]
     fn the_skip_report_counts_each_skip_and_says_why() {
         let tmp = std::env::temp_dir().join(format!("xtask-skips-{}", std::process::id()));
         std::fs::write(
