@@ -159,6 +159,20 @@ fn another_configuration_is_refused_by_name_and_a_retarget_trains_from_the_teach
     let (net, card) = checkpoint::load(&out.checkpoint, &device).unwrap();
     assert_eq!(net.config.scales, vec![0.75, 1.0]);
     assert!(card.trained && card.training.is_some());
+    // The Original trained on (its final checkpoint rewritten) is no longer the teacher
+    // the finished RA run was made from: the run is refused, not skipped.
+    let longer = StageSpec {
+        steps: 8,
+        ..spec.clone()
+    };
+    run_stage(&longer, run.path(), &device, |_| {}).unwrap();
+    let e = run_stage(&ra, ra_dir.path(), &device, |_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("inputs.json") && e.contains("another teacher") && e.contains("delete"),
+        "{e}"
+    );
     // A teacher of another size is refused by name.
     let bad = StageSpec {
         preset: "cpu".into(),

@@ -279,6 +279,8 @@ fn io_err(path: &Path, e: impl std::fmt::Display, fix: &str) -> StageError {
 }
 
 const SPEC_FILE: &str = "spec.json";
+/// The SHA-256 of the checkpoints a run started from, by field (`teacher`, `init`).
+const INPUTS_FILE: &str = "inputs.json";
 const STATE_DIR: &str = "state";
 const PROGRESS_FILE: &str = "progress.json";
 /// The loss log of a run folder.
@@ -310,6 +312,7 @@ pub fn run_stage(
         .map_err(|e| io_err(run_dir, e, "check the parent folder exists and is writable"))?;
     let spec_path = run_dir.join(SPEC_FILE);
     check_or_write_spec(spec, &spec_path, run_dir)?;
+    check_or_write_inputs(spec, run_dir)?;
     let state_dir = run_dir.join(STATE_DIR);
     let progress = read_progress(&state_dir)?;
     // Done when the final checkpoint is that of the saved state's step (an extended run's
@@ -640,6 +643,57 @@ fn check_or_write_spec(spec: &StageSpec, path: &Path, run_dir: &Path) -> Result<
         }
         Err(e) => Err(io_err(path, e, "check the file is readable")),
     }
+}
+
+/// Refuses a run folder whose teacher or initial checkpoint has changed since the run
+/// started (the spec names them by path only), so a retrained Original is not silently
+/// the teacher of a half-done or finished stage. A folder without the record (made
+/// before it existed) takes today's checkpoints as its own.
+fn check_or_write_inputs(spec: &StageSpec, run_dir: &Path) -> Result<(), StageError> {
+    let mut now = std::collections::BTreeMap::new();
+    for (field, file) in [("teacher", &spec.teacher), ("init", &spec.init)] {
+        if let Some(file) = file {
+            let bytes = std::fs::read(file)
+                .map_err(|e| io_err(file, e, &format!("check the {field} checkpoint exists")))?;
+            now.insert(field, (file, sim::record::sha256_hex(&bytes)));
+        }
+    }
+    let path = run_dir.join(INPUTS_FILE);
+    let saved: std::collections::BTreeMap<String, String> = match std::fs::read_to_string(&path) {
+        Ok(text) => serde_json::from_str(&text).map_err(|e| {
+            io_err(
+                &path,
+                format!("malformed: {e}"),
+                &format!("delete {} to start the stage again", run_dir.display()),
+            )
+        })?,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Default::default(),
+        Err(e) => return Err(io_err(&path, e, "check the file is readable")),
+    };
+    for (&field, (file, sha)) in &now {
+        if let Some(then) = saved.get(field).filter(|then| *then != sha) {
+            return Err(StageError::File {
+                path,
+                problem: format!(
+                    "the run started from another {field} than {} is now (SHA-256 {then}, now {sha})",
+                    file.display()
+                ),
+                fix: format!(
+                    "delete {} to train the stage again from the new {field}, or put the old checkpoint back",
+                    run_dir.display()
+                ),
+            });
+        }
+    }
+    if now.keys().all(|field| saved.contains_key(*field)) {
+        return Ok(());
+    }
+    let record: std::collections::BTreeMap<&str, &str> = now
+        .iter()
+        .map(|(field, (_, sha))| (*field, sha.as_str()))
+        .collect();
+    let json = serde_json::to_string_pretty(&record).expect("a map of strings serialises");
+    std::fs::write(&path, json).map_err(|e| io_err(&path, e, "check the folder is writable"))
 }
 
 fn read_progress(state_dir: &Path) -> Result<Option<Progress>, StageError> {
