@@ -8,7 +8,7 @@
 //! | `ci` | what `.ci/run` runs: formatting, then `test` with every skip turned into a failure |
 //! | `lint` | `cargo fmt --check` and `cargo clippy --all-targets -- -D warnings` (run before committing; kept out of CI because it needs a second, check-mode build of every dependency) |
 //! | `data [--quick]` | collects and labels the two datasets of the study into `data/original` and `data/retarget` (resumable; regenerates them bit for bit; `--quick`: 2 short episodes each, for a smoke run) |
-//! | `train [--quick] [--lanes 1\|2] [--into DIR]` | the paper's pipeline, skipping what is done: `data`, then `mrdrive train` for the Original, then NRA 0.75, NRA 1.0, RA and the five-scale RA5 (resumable; two at a time on one thread each with `--lanes 2`, the default on 2 or more cores, their output in `runs/<name>.log`), then the closed-loop bar (`mrdrive sweep` of `scenarios/paper/` at Tc = 50 ms, D = 0, three densities, per model and for the expert) into `models/closed-loop.md`; `--quick`: tiny datasets, 4 steps per stage, one density, into `out/train-quick`; `--into DIR`: models, runs and sweeps under DIR instead of the checkout (the shipped `models/` stay as they are) |
+//! | `train [--quick] [--lanes 1\|2] [--into DIR]` | the paper's pipeline, skipping what is done: `data`, then `mrdrive train` for the Original (three phases, `ORIGINAL_PHASES`), then NRA 0.75, NRA 1.0 and RA (resumable; two at a time on one thread each with `--lanes 2`, the default on 2 or more cores, their output in `runs/<name>.log`), then the closed-loop bar (`mrdrive sweep` of `scenarios/paper/` at Tc = 50 ms, D = 0, three densities, per model and for the expert) into `models/closed-loop.md`, then the five-scale RA5 for the more-scales study; `--quick`: tiny datasets, 4 steps per stage, one density, into `out/train-quick`; `--into DIR`: models, runs and sweeps under DIR instead of the checkout (the shipped `models/` stay as they are) |
 //! | `bench` | every benchmark on this machine, in one go: physics + traffic ticks/s (20 vehicles, 40 pedestrians), rig frames/s per scale (gen01, Town01), policy inference per scale (fused and burn) and training samples/s, closed-loop real-time factors (expert without and with the rig, RA with the oracle), PyTorch's reference when a Python with torch is found (`MRDRIVE_TORCH_PYTHON`, else `.venv`), peak memory per command; writes `docs/bench.md` |
 //! | `paper [--quick] [--only ID,...]` | the paper's tables and figures from the shipped checkpoints: `mrdrive paper` (resumable sweeps into `out/paper/sweeps/`, then Tables I-III, Figs. 3-5, the latency frontier, latency jitter, the more-scales study and the comparison page into `docs/paper/`); `--quick`: every table and figure at toy size into `out/paper-quick` (minutes) |
 //! | `bless` | rewrites the regression suite's golden files after a deliberate change (a policy's per CPU maker: this machine's) |
@@ -368,6 +368,35 @@ const BAR: &[(&str, Option<&str>, &str)] = &[
     ("ra@1.0", Some("ra"), "1.0"),
 ];
 
+/// The Original's phases: (name, steps of 32, options). Each starts from the one before.
+/// Phase NAME trains in `runs/NAME/original/` and publishes `runs/NAME/original.*`; the
+/// last trains in `runs/original/` and publishes `models/original.*`. Why these:
+/// docs/training.md, "The Original from scratch".
+const ORIGINAL_PHASES: &[(&str, &str, &[&str])] = &[
+    // WoR's recipe: every sample once per epoch.
+    ("wor", "2300", &[]),
+    // Commands drawn evenly, a quarter of the standing frames.
+    (
+        "balanced",
+        "2000",
+        &["--standing-keep", "0.25", "--balanced", "true"],
+    ),
+    // Frames with a walker in the corridor ahead drawn 8 times an epoch: without this
+    // phase the Original hit a walker in 3 of the 6 Town01 runs of the bar, with it in none.
+    (
+        "original",
+        "800",
+        &[
+            "--standing-keep",
+            "0.25",
+            "--balanced",
+            "true",
+            "--pedestrian-repeat",
+            "8",
+        ],
+    ),
+];
+
 fn train(root: &Path, env: &Env, args: &[String]) -> Result<(), String> {
     let quick = args.iter().any(|a| a == "--quick");
     data(root, env, if quick { args } else { &[] })?;
@@ -381,79 +410,81 @@ fn train(root: &Path, env: &Env, args: &[String]) -> Result<(), String> {
         .unwrap_or(if quick { "out/train-quick" } else { "." });
     let models = format!("{base}/models");
     let runs = format!("{base}/runs");
-    // The Original in two phases (docs/training.md): WoR's recipe, then the same network
-    // on command-balanced draws with a quarter of the standing frames.
+    // The Original in phases (docs/training.md), each continuing the one before it;
+    // the last is published to `models/`, the others stay in their run folders.
     let original_data = format!("data/original{suffix}");
-    let wor_runs = format!("{runs}/wor");
-    let wor_model = format!("{wor_runs}/original.safetensors");
-    let (wor_steps, more_steps) = if quick { ("4", "4") } else { ("2300", "2000") };
     let toy = ["--batch", "4", "--recalibrate-batches", "2"];
-    let original = [
-        bin,
-        "train",
-        "--stage",
-        "original",
-        "--data",
-        &original_data,
-    ];
-    let mut phase1 = original.to_vec();
-    phase1.extend([
-        "--runs", &wor_runs, "--out", &wor_runs, "--steps", wor_steps,
-    ]);
-    let mut phase2 = original.to_vec();
-    phase2.extend(["--runs", &runs, "--out", &models, "--steps", more_steps]);
-    phase2.extend([
-        "--init",
-        &wor_model,
-        "--standing-keep",
-        "0.25",
-        "--balanced",
-        "true",
-    ]);
-    for mut cmd in [phase1, phase2] {
+    let mut init: Option<String> = None;
+    for (i, &(phase, steps, options)) in ORIGINAL_PHASES.iter().enumerate() {
+        let last = i + 1 == ORIGINAL_PHASES.len();
+        let phase_runs = format!("{runs}/{phase}");
+        let (run_root, out) = if last {
+            (runs.clone(), models.clone())
+        } else {
+            (phase_runs.clone(), phase_runs.clone())
+        };
+        let steps = if quick { "4" } else { steps };
+        let mut cmd = vec![
+            bin,
+            "train",
+            "--stage",
+            "original",
+            "--data",
+            &original_data,
+        ];
+        cmd.extend(["--runs", &run_root, "--out", &out, "--steps", steps]);
+        if let Some(init) = &init {
+            cmd.extend(["--init", init.as_str()]);
+        }
+        cmd.extend(options);
         if quick {
             cmd.extend(toy);
         }
         status_in(root, &cmd, &vars)?;
+        init = Some(format!("{out}/original.safetensors"));
     }
     let retarget_data = format!("data/retarget{suffix}");
-    // The three retargeted models of the paper, then RA with five scales for the
-    // more-scales study (`cargo xtask paper --only scales`): (run name, stage, options).
-    let stages: [(&str, &str, &[&str]); 4] = [
-        ("nra-0.75", "nra-0.75", &[]),
-        ("nra-1.0", "nra-1.0", &[]),
-        ("ra", "ra", &[]),
-        (
-            "ra5",
-            "ra",
-            &["--scales", "0.5,0.625,0.75,0.875,1.0", "--name", "ra5"],
-        ),
+    // The three retargeted models of the paper (run name, stage, options); RA with five
+    // scales for the more-scales study (`cargo xtask paper --only scales`) trains after
+    // the bar, which does not need it.
+    let retarget = |name: &'static str, stage: &'static str, extra: &[&'static str]| {
+        let mut cmd = vec![
+            bin,
+            "train",
+            "--stage",
+            stage,
+            "--data",
+            retarget_data.as_str(),
+        ];
+        cmd.extend(["--runs", runs.as_str(), "--out", models.as_str()]);
+        cmd.extend(extra);
+        if quick {
+            cmd.extend(toy);
+            cmd.extend(["--steps", "4", "--unfreeze-every", "1"]);
+        }
+        (name, cmd)
+    };
+    let [nra_low, nra_high, ra] = [
+        retarget("nra-0.75", "nra-0.75", &[]),
+        retarget("nra-1.0", "nra-1.0", &[]),
+        retarget("ra", "ra", &[]),
     ];
-    let commands: Vec<(&str, Vec<&str>)> = stages
-        .iter()
-        .map(|&(name, stage, extra)| {
-            let mut cmd = vec![bin, "train", "--stage", stage, "--data", &retarget_data];
-            cmd.extend(["--runs", &runs, "--out", &models]);
-            cmd.extend(extra);
-            if quick {
-                cmd.extend(toy);
-                cmd.extend(["--steps", "4", "--unfreeze-every", "1"]);
-            }
-            (name, cmd)
-        })
-        .collect();
+    let ra5 = retarget(
+        "ra5",
+        "ra",
+        &["--scales", "0.5,0.625,0.75,0.875,1.0", "--name", "ra5"],
+    );
     let lanes = lanes_arg(args)?;
     if lanes == 1 {
-        for (_, cmd) in &commands {
+        for (_, cmd) in [&nra_low, &nra_high, &ra] {
             status_in(root, cmd, &vars)?;
         }
     } else {
         // Each stage needs only the Original (its teacher), so they run side by side in
         // two lanes of one thread each: on 2 cores two single-threaded stages make
-        // 1.39-1.46x the samples/s of one stage on two threads (docs/training.md). The
-        // longest stages (RA5, then RA) start first, one per lane.
-        let [nra_low, nra_high, ra, ra5] = [0, 1, 2, 3].map(|i| &commands[i]);
-        let lane_plan = [vec![ra5, nra_high], vec![ra, nra_low]];
+        // 1.39-1.46x the samples/s of one stage on two threads (docs/training.md). RA
+        // (both scales per step) takes about as long as the two NRA stages together.
+        let lane_plan = [vec![&ra], vec![&nra_high, &nra_low]];
         let mut one_thread = vars.clone();
         one_thread.push(("RAYON_NUM_THREADS", "1"));
         let runs_dir = root.join(&runs);
@@ -515,7 +546,8 @@ fn train(root: &Path, env: &Env, args: &[String]) -> Result<(), String> {
         &vars,
     )?;
     eprintln!("xtask: the closed-loop table is in {table}");
-    Ok(())
+    eprintln!("xtask: training ra5 (both threads)");
+    status_in(root, &ra5.1, &vars)
 }
 
 /// Runs `cmd` in `dir` under `/usr/bin/time` when it exists; returns its output (stdout
