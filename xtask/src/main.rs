@@ -417,11 +417,11 @@ fn train(root: &Path, env: &Env, args: &[String]) -> Result<(), String> {
     let mut init: Option<String> = None;
     for (i, &(phase, steps, options)) in ORIGINAL_PHASES.iter().enumerate() {
         let last = i + 1 == ORIGINAL_PHASES.len();
-        let phase_runs = format!("{runs}/{phase}");
         let (run_root, out) = if last {
             (runs.clone(), models.clone())
         } else {
-            (phase_runs.clone(), phase_runs.clone())
+            let own = format!("{runs}/{phase}");
+            (own.clone(), own)
         };
         let steps = if quick { "4" } else { steps };
         let mut cmd = vec![

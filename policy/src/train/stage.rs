@@ -616,32 +616,48 @@ fn check_teacher(
     Ok(())
 }
 
-fn check_or_write_spec(spec: &StageSpec, path: &Path, run_dir: &Path) -> Result<(), StageError> {
+/// The JSON file `path` of a run folder, or `None` when there is none; a malformed file
+/// is an error whose fix is `fix`.
+fn read_json<T: serde::de::DeserializeOwned>(
+    path: &Path,
+    fix: &str,
+) -> Result<Option<T>, StageError> {
     match std::fs::read_to_string(path) {
-        Ok(text) => {
-            let saved: StageSpec = serde_json::from_str(&text).map_err(|e| {
-                io_err(
-                    path,
-                    format!("malformed: {e}"),
-                    &format!("delete {} to start the stage again", run_dir.display()),
-                )
-            })?;
-            let diff = spec.differences(&saved);
-            if diff.is_empty() {
-                Ok(())
-            } else {
-                Err(StageError::Mismatch {
-                    path: path.to_path_buf(),
-                    fields: diff.join(", "),
-                    dir: run_dir.to_path_buf(),
-                })
-            }
-        }
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            let json = serde_json::to_string_pretty(spec).expect("a spec serialises");
-            std::fs::write(path, json).map_err(|e| io_err(path, e, "check the folder is writable"))
-        }
+        Ok(text) => serde_json::from_str(&text)
+            .map(Some)
+            .map_err(|e| io_err(path, format!("malformed: {e}"), fix)),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
         Err(e) => Err(io_err(path, e, "check the file is readable")),
+    }
+}
+
+/// Writes `value` as pretty JSON to `path` of a run folder; `fix` is the error's.
+fn write_json(path: &Path, value: &impl Serialize, fix: &str) -> Result<(), StageError> {
+    let json = serde_json::to_string_pretty(value).expect("run-folder records serialise");
+    std::fs::write(path, json).map_err(|e| io_err(path, e, fix))
+}
+
+/// The fix for a record of a run folder that cannot be written.
+const WRITABLE: &str = "check the folder is writable";
+
+/// The fix for a malformed record of a run folder.
+fn start_again(run_dir: &Path) -> String {
+    format!("delete {} to start the stage again", run_dir.display())
+}
+
+fn check_or_write_spec(spec: &StageSpec, path: &Path, run_dir: &Path) -> Result<(), StageError> {
+    let Some(saved) = read_json::<StageSpec>(path, &start_again(run_dir))? else {
+        return write_json(path, spec, WRITABLE);
+    };
+    let diff = spec.differences(&saved);
+    if diff.is_empty() {
+        Ok(())
+    } else {
+        Err(StageError::Mismatch {
+            path: path.to_path_buf(),
+            fields: diff.join(", "),
+            dir: run_dir.to_path_buf(),
+        })
     }
 }
 
@@ -650,28 +666,16 @@ fn check_or_write_spec(spec: &StageSpec, path: &Path, run_dir: &Path) -> Result<
 /// the teacher of a half-done or finished stage. A folder without the record (made
 /// before it existed) takes today's checkpoints as its own.
 fn check_or_write_inputs(spec: &StageSpec, run_dir: &Path) -> Result<(), StageError> {
+    let path = run_dir.join(INPUTS_FILE);
+    let saved: std::collections::BTreeMap<String, String> =
+        read_json(&path, &start_again(run_dir))?.unwrap_or_default();
     let mut now = std::collections::BTreeMap::new();
     for (field, file) in [("teacher", &spec.teacher), ("init", &spec.init)] {
-        if let Some(file) = file {
-            let bytes = std::fs::read(file)
-                .map_err(|e| io_err(file, e, &format!("check the {field} checkpoint exists")))?;
-            now.insert(field, (file, sim::record::sha256_hex(&bytes)));
-        }
-    }
-    let path = run_dir.join(INPUTS_FILE);
-    let saved: std::collections::BTreeMap<String, String> = match std::fs::read_to_string(&path) {
-        Ok(text) => serde_json::from_str(&text).map_err(|e| {
-            io_err(
-                &path,
-                format!("malformed: {e}"),
-                &format!("delete {} to start the stage again", run_dir.display()),
-            )
-        })?,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Default::default(),
-        Err(e) => return Err(io_err(&path, e, "check the file is readable")),
-    };
-    for (&field, (file, sha)) in &now {
-        if let Some(then) = saved.get(field).filter(|then| *then != sha) {
+        let Some(file) = file else { continue };
+        let bytes = std::fs::read(file)
+            .map_err(|e| io_err(file, e, &format!("check the {field} checkpoint exists")))?;
+        let sha = sim::record::sha256_hex(&bytes);
+        if let Some(then) = saved.get(field).filter(|then| **then != sha) {
             return Err(StageError::File {
                 path,
                 problem: format!(
@@ -684,31 +688,19 @@ fn check_or_write_inputs(spec: &StageSpec, run_dir: &Path) -> Result<(), StageEr
                 ),
             });
         }
+        now.insert(field.to_string(), sha);
     }
-    if now.keys().all(|field| saved.contains_key(*field)) {
+    if now.keys().all(|field| saved.contains_key(field)) {
         return Ok(());
     }
-    let record: std::collections::BTreeMap<&str, &str> = now
-        .iter()
-        .map(|(field, (_, sha))| (*field, sha.as_str()))
-        .collect();
-    let json = serde_json::to_string_pretty(&record).expect("a map of strings serialises");
-    std::fs::write(&path, json).map_err(|e| io_err(&path, e, "check the folder is writable"))
+    write_json(&path, &now, WRITABLE)
 }
 
 fn read_progress(state_dir: &Path) -> Result<Option<Progress>, StageError> {
-    let path = state_dir.join(PROGRESS_FILE);
-    match std::fs::read_to_string(&path) {
-        Ok(text) => serde_json::from_str(&text).map(Some).map_err(|e| {
-            io_err(
-                &path,
-                format!("malformed: {e}"),
-                "delete the state folder to start the stage again",
-            )
-        }),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
-        Err(e) => Err(io_err(&path, e, "check the file is readable")),
-    }
+    read_json(
+        &state_dir.join(PROGRESS_FILE),
+        "delete the state folder to start the stage again",
+    )
 }
 
 /// Writes the state into `state.tmp/`, then swaps it in: a kill at any moment leaves
@@ -724,9 +716,7 @@ fn save_state(
     let _ = std::fs::remove_dir_all(&tmp);
     std::fs::create_dir_all(&tmp).map_err(|e| io_err(&tmp, e, fix))?;
     trainer.save_state(&tmp)?;
-    let json = serde_json::to_string_pretty(&progress).expect("progress serialises");
-    let p = tmp.join(PROGRESS_FILE);
-    std::fs::write(&p, json).map_err(|e| io_err(&p, e, fix))?;
+    write_json(&tmp.join(PROGRESS_FILE), &progress, fix)?;
     let _ = std::fs::remove_dir_all(&old);
     if state_dir.exists() {
         std::fs::rename(state_dir, &old).map_err(|e| io_err(state_dir, e, fix))?;
