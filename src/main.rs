@@ -83,6 +83,8 @@ enum Command {
 /// Runs the command; a failure prints one readable message (the error and
 /// its causes, no backtrace: these are the user's errors to fix) and exits 1.
 fn main() -> std::process::ExitCode {
+    // SAFETY: the first statement of main; no other thread exists yet.
+    unsafe { sim::render::gpu::init_process() };
     match run() {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {

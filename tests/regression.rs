@@ -10,10 +10,9 @@
 //! readable line diff. After a deliberate change, `cargo xtask bless`
 //! rewrites the golden files (it sets `MRDRIVE_BLESS=1`). The golden lines
 //! record the render backend of each run ("none" for the expert, which draws
-//! nothing). A policy's golden file is kept per CPU maker
-//! (`<name>.intel.txt`, `<name>.amd.txt`; see [`golden_file`]): bless it on a
-//! machine of each maker. Where this maker has none, the test checks nothing and
-//! says so (`UNCHECKED`, which CI reports but cannot fix).
+//! nothing). One golden file holds on every x86-64 CPU with AVX2 and FMA:
+//! the frames and the policy's arithmetic do not depend on the CPU
+//! (`tests/cross_cpu.rs`; README, "Determinism").
 //!
 //! Scenarios on CARLA's maps need `../shared/carla/` (or
 //! `$MRDRIVE_SHARED_DIR/carla/`); without it they skip through
@@ -90,39 +89,13 @@ fn run_scenario(scenario: &Path, out: &Path, delays: &str, densities: &str) -> V
     lines
 }
 
-/// The golden file of `name`: `tests/golden/<name>.txt`, or for runs a camera drives
-/// `<name>.<maker>.txt`, one per CPU maker (`intel`, `amd`): llvmpipe compiles its
-/// shaders for the CPU, and a policy acting on its pixels drove the same run to other
-/// ticks on an Intel Xeon and an AMD EPYC (README, "Determinism").
-fn golden_file(name: &str, camera: bool) -> PathBuf {
-    let dir = root().join("tests/golden");
-    if !camera {
-        return dir.join(format!("{name}.txt"));
-    }
-    let maker = sim::runner::cpu_maker().unwrap_or_else(|| "unknown-cpu".into());
-    dir.join(format!("{name}.{maker}.txt"))
-}
-
-/// Compares against (or, when blessing, writes) the golden file; a camera-driven test
-/// without a golden file for this CPU maker skips.
-fn check(name: &str, lines: &[String], camera: bool) -> Result<(), String> {
-    let path = golden_file(name, camera);
+/// Compares against (or, when blessing, writes) the golden file `tests/golden/<name>.txt`.
+fn check(name: &str, lines: &[String]) -> Result<(), String> {
+    let path = root().join("tests/golden").join(format!("{name}.txt"));
     let got = lines.join("\n") + "\n";
     if std::env::var("MRDRIVE_BLESS").as_deref() == Ok("1") {
         std::fs::write(&path, &got).unwrap();
         eprintln!("blessed {}", path.display());
-        return Ok(());
-    }
-    if camera && !path.exists() {
-        // Only a machine of this maker can bless it, so it is reported, not failed.
-        world::testdata::unchecked(
-            name,
-            &format!(
-                "no golden file {} for runs rendered on this CPU maker (llvmpipe's pixels \
-                 follow the CPU); `cargo xtask bless` on such a machine writes one",
-                path.display()
-            ),
-        );
         return Ok(());
     }
     let want = std::fs::read_to_string(&path).map_err(|e| {
@@ -180,9 +153,7 @@ fn regression_at(name: &str, needs_carla: bool, delays: &str, densities: &str, r
     };
     let lines = run_scenario(&scenario, &tmp.path().join("sweep"), delays, densities);
     assert_eq!(lines.len(), runs, "delays {delays} x densities {densities}");
-    // The expert draws nothing; a policy's runs record their render backend.
-    let camera = lines.iter().any(|l| !l.ends_with("backend=none"));
-    if let Err(diff) = check(name, &lines, camera) {
+    if let Err(diff) = check(name, &lines) {
         panic!("{diff}");
     }
 }

@@ -403,6 +403,7 @@ pub(crate) mod tests {
                         driver: "expert".into(),
                         build: "test".into(),
                         render_backend: "none".into(),
+                        render_fingerprint: None,
                         cpu: None,
                         checkpoint: None,
                         trigger: None,

@@ -16,6 +16,7 @@ pub mod conv;
 
 pub mod device;
 pub mod driver;
+pub mod fingerprint;
 pub mod fused;
 pub mod heads;
 mod matmul;

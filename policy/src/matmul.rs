@@ -93,39 +93,108 @@ pub(crate) fn matmul(
         }
         return;
     }
+    // Both operands contiguous along k (a row-major lhs and a transposed rhs, as in a
+    // convolution's weight gradient) is the one layout gemm does not sum in one
+    // sequential pass: it takes dot products in the CPU's vector width, so AVX-512 and
+    // AVX2 round differently (tested below). Such a piece goes over with its smaller
+    // operand copied to k-major order.
+    let dot_products = lhs.col_stride == 1 && rhs.row_stride == 1 && k > 1;
     let piece = piece_len(k);
-    for k0 in (0..k).step_by(piece) {
-        let kp = piece.min(k - k0);
-        let overwrite = k0 == 0 && !accumulate;
-        // SAFETY: `holds` checked above that the m x k and k x n views stay inside their
-        // slices and `out` holds m * n; the piece starts at column k0 of `lhs` and row k0
-        // of `rhs` and spans kp <= k - k0 of them, so every address read is inside the
-        // slices; `out` does not alias the inputs (it is a distinct `&mut`).
-        unsafe {
-            gemm::gemm(
-                m,
-                n,
-                kp,
-                out.as_mut_ptr(),
-                1,
-                n as isize,
-                // The first piece overwrites `out` unless accumulating; the others add to
-                // it (1 * out + 1 * product).
-                !overwrite,
-                lhs.data.as_ptr().add(k0 * lhs.col_stride),
-                lhs.col_stride as isize,
-                lhs.row_stride as isize,
-                rhs.data.as_ptr().add(k0 * rhs.row_stride),
-                rhs.col_stride as isize,
-                rhs.row_stride as isize,
-                if overwrite { 0.0 } else { 1.0 },
-                1.0,
-                false,
-                false,
-                false,
-                gemm::Parallelism::None,
-            );
+    KMAJOR.with_borrow_mut(|copy| {
+        for k0 in (0..k).step_by(piece) {
+            let kp = piece.min(k - k0);
+            let lhs_at = &lhs.data[k0 * lhs.col_stride..];
+            let rhs_at = &rhs.data[k0 * rhs.row_stride..];
+            let (l, r) = match dot_products {
+                false => (
+                    Mat {
+                        data: lhs_at,
+                        ..lhs
+                    },
+                    Mat {
+                        data: rhs_at,
+                        ..rhs
+                    },
+                ),
+                true if m <= n => {
+                    copy.clear();
+                    copy.extend(
+                        (0..kp)
+                            .flat_map(|kk| (0..m).map(move |i| (i, kk)))
+                            .map(|(i, kk)| lhs_at[i * lhs.row_stride + kk]),
+                    );
+                    (
+                        Mat::transposed(copy, m),
+                        Mat {
+                            data: rhs_at,
+                            ..rhs
+                        },
+                    )
+                }
+                true => {
+                    copy.clear();
+                    copy.extend(
+                        (0..kp)
+                            .flat_map(|kk| (0..n).map(move |j| (kk, j)))
+                            .map(|(kk, j)| rhs_at[kk + j * rhs.col_stride]),
+                    );
+                    (
+                        Mat {
+                            data: lhs_at,
+                            ..lhs
+                        },
+                        Mat::rows(copy, n),
+                    )
+                }
+            };
+            product_piece(out, (m, kp, n), l, r, k0 == 0 && !accumulate);
         }
+    });
+}
+
+thread_local! {
+    /// One operand piece in k-major order, for the layout gemm would not sum in order.
+    static KMAJOR: std::cell::RefCell<Vec<f32>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// One gemm call: `out (+)= lhs [m, kp] x rhs [kp, n]` (`overwrite`: `=`), in one
+/// sequential pass of fused multiply-adds per output (kp <= [`K_BLOCK`], a layout that
+/// is not two k-contiguous operands).
+fn product_piece(
+    out: &mut [f32],
+    (m, kp, n): (usize, usize, usize),
+    lhs: Mat,
+    rhs: Mat,
+    overwrite: bool,
+) {
+    debug_assert!(kp <= K_BLOCK && lhs.holds(m, kp) && rhs.holds(kp, n));
+    // SAFETY: the caller's views hold m x kp and kp x n (checked by `matmul` for the
+    // whole product, and each piece starts inside it and spans at most what is left),
+    // and `out` holds m * n; `out` does not alias the inputs (it is a distinct `&mut`).
+    unsafe {
+        gemm::gemm(
+            m,
+            n,
+            kp,
+            out.as_mut_ptr(),
+            1,
+            n as isize,
+            // The first piece overwrites `out` unless accumulating; the others add to
+            // it (1 * out + 1 * product).
+            !overwrite,
+            lhs.data.as_ptr(),
+            lhs.col_stride as isize,
+            lhs.row_stride as isize,
+            rhs.data.as_ptr(),
+            rhs.col_stride as isize,
+            rhs.row_stride as isize,
+            if overwrite { 0.0 } else { 1.0 },
+            1.0,
+            false,
+            false,
+            false,
+            gemm::Parallelism::None,
+        );
     }
 }
 
@@ -150,9 +219,16 @@ mod tests {
     /// for plain and transposed operands, overwriting and accumulating.
     #[test]
     fn matmul_sums_in_one_fixed_order_whatever_the_cpu() {
-        for (case, (m, k, n)) in [(128, 2304, 64), (37, 1200, 40), (5, 27, 16), (128, 512, 32)]
-            .into_iter()
-            .enumerate()
+        for (case, (m, k, n)) in [
+            (128, 2304, 64),
+            (37, 1200, 40),
+            (5, 27, 16),
+            (128, 512, 32),
+            (6, 1440, 32),
+            (6, 480, 32),
+        ]
+        .into_iter()
+        .enumerate()
         {
             let lhs = noise(m * k, 0x9e37_79b9 + case as u32);
             let rhs = noise(k * n, 0x85eb_ca6b + case as u32);
@@ -160,12 +236,20 @@ mod tests {
             // lhs stored [m, k] or [k, m]; rhs stored [k, n] or [n, k].
             let lhs_t: Vec<f32> = (0..k * m).map(|i| lhs[(i % m) * k + i / m]).collect();
             let rhs_t: Vec<f32> = (0..n * k).map(|i| rhs[(i % k) * n + i / k]).collect();
-            for transposed in [false, true] {
+            for (lhs_transposed, rhs_transposed) in
+                [(false, false), (false, true), (true, false), (true, true)]
+            {
+                let transposed = (lhs_transposed, rhs_transposed);
                 for accumulate in [false, true] {
-                    let (l, r) = if transposed {
-                        (Mat::transposed(&lhs_t, m), Mat::transposed(&rhs_t, k))
+                    let l = if lhs_transposed {
+                        Mat::transposed(&lhs_t, m)
                     } else {
-                        (Mat::rows(&lhs, k), Mat::rows(&rhs, n))
+                        Mat::rows(&lhs, k)
+                    };
+                    let r = if rhs_transposed {
+                        Mat::transposed(&rhs_t, k)
+                    } else {
+                        Mat::rows(&rhs, n)
                     };
                     let mut out = if accumulate {
                         start.clone()
@@ -193,7 +277,7 @@ mod tests {
                             assert_eq!(
                                 out[i * n + j].to_bits(),
                                 total.to_bits(),
-                                "m {m} k {k} n {n} transposed {transposed} accumulate \
+                                "m {m} k {k} n {n} transposed {transposed:?} accumulate \
                                  {accumulate}: out[{i}, {j}] = {} but the fixed order gives \
                                  {total}",
                                 out[i * n + j]

@@ -516,11 +516,14 @@ pub fn run_scenario_with(
     })?;
     progress(record.result.completion_pct);
     if let (Some(rec), Some((p, _))) = (recorder, &record_path) {
-        rec.finish(&record.result)
-            .map_err(|source| BuildError::Record {
-                path: p.clone(),
-                source,
-            })?;
+        // The log holds what the run was, not which machine made it: without the CPU's
+        // name its bytes are the same on every machine (README, "Determinism").
+        let mut result = record.result.clone();
+        result.provenance.cpu = None;
+        rec.finish(&result).map_err(|source| BuildError::Record {
+            path: p.clone(),
+            source,
+        })?;
     }
     Ok(ScenarioRun { record, warnings })
 }

@@ -74,13 +74,18 @@ pub struct Provenance {
     pub build: String,
     /// The render backend and adapter, or "none" if nothing was rendered.
     pub render_backend: String,
-    /// The CPU that made the run: its model name as the OS reports it. llvmpipe
-    /// compiles its shaders for the CPU it runs on, and an Intel Xeon and an AMD
-    /// EPYC drove the same policy run (build, backend, seed) to different ticks
-    /// (README, "Determinism"). `None` in records made before the field existed (and then
-    /// left out of the JSON).
+    /// The CPU that made the run: its model name as the OS reports it. `None` where the
+    /// OS does not say, and in records made before the field existed (then left out of
+    /// the JSON).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cpu: Option<String>,
+    /// For a run that rendered, what this machine's renderer draws: the first 16 hex
+    /// digits of `mrdrive render fingerprint`'s digest (fixed frames, rendered once per
+    /// process). Records with different fingerprints were drawn differently and are
+    /// never merged into one sweep. `None` for runs that drew nothing and in records
+    /// from before the field existed (then left out of the JSON).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub render_fingerprint: Option<String>,
     /// A policy's checkpoint file and the digest of its bytes, so that a
     /// resumed sweep never mixes the runs of two checkpoints saved under one
     /// name; `None` for the expert (and left out of the JSON).

@@ -173,26 +173,12 @@ pub fn build_id() -> String {
 }
 
 /// The CPU's model name (the first `model name` of `/proc/cpuinfo`), or `None` where
-/// the OS does not say. Run records carry it: a software rasteriser's pixels follow the
-/// CPU (see [`Provenance::cpu`]).
+/// the OS does not say. Run records carry it ([`Provenance::cpu`]).
 pub fn cpu_model() -> Option<String> {
     cpuinfo_field(
         &std::fs::read_to_string("/proc/cpuinfo").ok()?,
         "model name",
     )
-}
-
-/// The CPU's maker, short: `intel` (`GenuineIntel`), `amd` (`AuthenticAMD`), or another
-/// `vendor_id` of `/proc/cpuinfo` in lower case; `None` where the OS does not say. The
-/// regression suite keeps one golden file per maker for the runs a camera drives, since
-/// llvmpipe's pixels differ between them (README, "Determinism").
-pub fn cpu_maker() -> Option<String> {
-    let vendor = cpuinfo_field(&std::fs::read_to_string("/proc/cpuinfo").ok()?, "vendor_id")?;
-    Some(match vendor.as_str() {
-        "GenuineIntel" => "intel".to_string(),
-        "AuthenticAMD" => "amd".to_string(),
-        other => other.to_lowercase(),
-    })
 }
 
 /// The first value of `key` in a `/proc/cpuinfo` text (`key<tabs>: value`), trimmed;
@@ -758,6 +744,9 @@ pub fn run(
             driver: driver.name(),
             build: build_id(),
             render_backend: camera.as_ref().map_or("none".to_string(), |c| c.backend()),
+            render_fingerprint: camera
+                .as_ref()
+                .and_then(|_| crate::render::fingerprint::this_process()),
             cpu: cpu_model(),
             checkpoint: driver.checkpoint(),
             trigger: driver.trigger(),

@@ -19,6 +19,13 @@ pub struct PolicyArgs {
 enum PolicyCommand {
     /// Print the parameter overhead of the BN banks.
     Overhead,
+    /// Hash fused inference and a few training steps on fixed inputs: two machines
+    /// whose digests agree compute them bit for bit alike.
+    Fingerprint {
+        /// The same network widths on a small picture (120 x 48): for an emulated CPU.
+        #[arg(long)]
+        quick: bool,
+    },
     /// Write a randomly initialised checkpoint (its card says it is untrained).
     Init {
         /// Output weights path (NAME.safetensors; NAME.json is written beside it).
@@ -123,6 +130,10 @@ enum PolicyCommand {
 /// Runs `mrdrive policy ...`.
 pub fn run_policy(args: PolicyArgs) -> Result<()> {
     match args.command {
+        PolicyCommand::Fingerprint { quick } => {
+            print!("{}", policy::fingerprint::fingerprint(quick).report());
+            Ok(())
+        }
         PolicyCommand::Overhead => {
             println!(
                 "BN-bank parameter overhead (learnable gamma/beta of the extra branches; whole network: backbone + action head + decoder)"

@@ -1,4 +1,5 @@
-//! Camera commands: `render SCENARIO --at`, `render-demo`, `render lamp-size`, `bench render`.
+//! Camera commands: `render SCENARIO --at`, `render-demo`, `render lamp-size`,
+//! `render fingerprint`, `bench render`.
 
 use std::path::PathBuf;
 
@@ -98,6 +99,13 @@ pub enum RenderCmd {
         #[arg(long, value_delimiter = ',', default_values_t = [10.0, 20.0, 30.0])]
         distances: Vec<f32>,
     },
+    /// Render fixed frames (no file needed) and print their SHA-256: two machines
+    /// whose digests agree draw them bit for bit alike.
+    Fingerprint {
+        /// Also write each frame as a PNG into this folder.
+        #[arg(long)]
+        png: Option<PathBuf>,
+    },
 }
 
 /// Subcommands of `mrdrive bench`.
@@ -148,6 +156,17 @@ pub fn render(a: &RenderArgs) -> Result<()> {
     match &a.cmd {
         Some(RenderCmd::LampSize { scales, distances }) => {
             print!("{}", measure::lamp_size_report(scales, distances)?);
+            Ok(())
+        }
+        Some(RenderCmd::Fingerprint { png }) => {
+            if let Some(dir) = png {
+                std::fs::create_dir_all(dir)
+                    .with_context(|| format!("creating {}", dir.display()))?;
+            }
+            print!(
+                "{}",
+                sim::render::fingerprint::fingerprint(png.as_deref())?.report()
+            );
             Ok(())
         }
         None => render_at(&a.at),

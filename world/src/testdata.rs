@@ -2,23 +2,19 @@
 //!
 //! CARLA's maps and routes and Foxglove's schemas live in a `shared` folder
 //! beside the checkout (`<workspace>/../shared`, or `MRDRIVE_SHARED_DIR`).
-//! Some tests also need a Python with cross-checking packages or a renderer.
+//! Some tests also need a Python with cross-checking packages, a renderer, or
+//! an emulated CPU.
 //! A test that cannot run calls [`skip`], which
 //!
 //! - panics instead when the variable that requires that thing is `1`
 //!   (`MRDRIVE_REQUIRE_SHARED`, `MRDRIVE_REQUIRE_PYTHON`,
-//!   `MRDRIVE_REQUIRE_GPU_API`; `cargo xtask ci` sets all three), so CI
-//!   cannot skip silently;
+//!   `MRDRIVE_REQUIRE_GPU_API`, `MRDRIVE_REQUIRE_EMULATOR`; `cargo xtask ci`
+//!   sets them all), so CI cannot skip silently;
 //! - otherwise writes `SKIPPED: test: why` straight to stderr (past the test
 //!   harness's capture) and appends it to the skip log, which `cargo xtask
 //!   test` empties before the run and counts after it: a clone without
 //!   `../shared` ends with "N tests skipped" and each reason, not with "ok"
 //!   everywhere.
-//!
-//! A check that needs a reference only another kind of machine can make (a
-//! policy run's golden file for another CPU maker) calls [`unchecked`]
-//! instead: the line reads `UNCHECKED: test: why`, goes to the same log, and
-//! never fails a run, since no setting of this machine could supply it.
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -52,11 +48,19 @@ pub enum Needs {
     Python,
     /// A graphics adapter for the renderer (a GPU, or Mesa's lavapipe).
     Renderer,
+    /// An emulated x86-64 CPU (`qemu-x86_64`, Debian's `qemu-user`) for the
+    /// cross-CPU test (`tests/cross_cpu.rs`).
+    Emulator,
 }
 
 impl Needs {
     /// Every kind of need.
-    pub const ALL: [Needs; 3] = [Needs::Shared, Needs::Python, Needs::Renderer];
+    pub const ALL: [Needs; 4] = [
+        Needs::Shared,
+        Needs::Python,
+        Needs::Renderer,
+        Needs::Emulator,
+    ];
 
     /// The variable that, set to `1`, turns a skip for this into a failure.
     pub fn require_var(self) -> &'static str {
@@ -64,6 +68,7 @@ impl Needs {
             Needs::Shared => "MRDRIVE_REQUIRE_SHARED",
             Needs::Python => "MRDRIVE_REQUIRE_PYTHON",
             Needs::Renderer => "MRDRIVE_REQUIRE_GPU_API",
+            Needs::Emulator => "MRDRIVE_REQUIRE_EMULATOR",
         }
     }
 }
@@ -95,14 +100,6 @@ impl TestEnv {
             );
         }
         self.log_line(&format!("SKIPPED: {test}: {why}\n"));
-    }
-
-    /// Reports that `test` left a check undone because `why`, which this
-    /// machine cannot change (see the module's doc): printed past the
-    /// harness's capture and appended to the skip log as `UNCHECKED: ...`,
-    /// whatever is required.
-    pub fn unchecked(&self, test: &str, why: &str) {
-        self.log_line(&format!("UNCHECKED: {test}: {why}\n"));
     }
 
     fn log_line(&self, line: &str) {
@@ -141,12 +138,6 @@ impl TestEnv {
 /// [`TestEnv::skip`] with this process's settings.
 pub fn skip(test: &str, needs: Needs, why: &str) {
     TestEnv::from_env().skip(test, needs, why);
-}
-
-/// Reports a check this machine cannot make ([`TestEnv::unchecked`] with this
-/// process's settings).
-pub fn unchecked(test: &str, why: &str) {
-    TestEnv::from_env().unchecked(test, why);
 }
 
 /// The shared data folder of this process ([`TestEnv::shared_dir`]).
@@ -216,15 +207,6 @@ mod tests {
         let result = std::panic::catch_unwind(|| e.shared_subdir("t", "carla", "Town01.xodr"));
         assert!(result.is_err(), "a required folder must not skip");
         assert!(!e.skip_log.exists(), "nothing was skipped");
-    }
-
-    #[test]
-    fn an_unchecked_line_is_logged_even_where_everything_is_required() {
-        let tmp = tempfile::tempdir().unwrap();
-        let e = env(tmp.path(), Needs::ALL.to_vec());
-        e.unchecked("t", "no golden file for this CPU maker");
-        let text = std::fs::read_to_string(&e.skip_log).unwrap();
-        assert_eq!(text, "UNCHECKED: t: no golden file for this CPU maker\n");
     }
 
     #[test]

@@ -11,7 +11,7 @@
 //! | `train [--quick] [--lanes 1\|2] [--into DIR]` | the paper's pipeline, skipping what is done: `data`, then `mrdrive train` for the Original (three phases, `ORIGINAL_PHASES`), then NRA 0.75, NRA 1.0 and RA (resumable; two at a time on one thread each with `--lanes 2`, the default on 2 or more cores, their output in `runs/<name>.log`), then the closed-loop bar (`mrdrive sweep` of `scenarios/paper/` at Tc = 50 ms, D = 0, three densities, per model and for the expert) into `models/closed-loop.md`, then the five-scale RA5 for the more-scales study; `--quick`: tiny datasets, 4 steps per stage, one density, into `out/train-quick`; `--into DIR`: models, runs and sweeps under DIR instead of the checkout (the shipped `models/` stay as they are) |
 //! | `bench` | every benchmark on this machine, in one go: physics + traffic ticks/s (20 vehicles, 40 pedestrians), rig frames/s per scale (gen01, Town01), policy inference per scale (fused and burn) and training samples/s, closed-loop real-time factors (expert without and with the rig, RA with the oracle), PyTorch's reference when a Python with torch is found (`MRDRIVE_TORCH_PYTHON`, else `.venv`), peak memory per command; writes `docs/bench.md` |
 //! | `paper [--quick] [--only ID,...]` | the paper's tables and figures from the shipped checkpoints: `mrdrive paper` (resumable sweeps into `out/paper/sweeps/`, then Tables I-III, Figs. 3-5, the latency frontier, latency jitter, the more-scales study and the comparison page into `docs/paper/`); `--quick`: every table and figure at toy size into `out/paper-quick` (minutes) |
-//! | `bless` | rewrites the regression suite's golden files after a deliberate change (a policy's per CPU maker: this machine's) |
+//! | `bless` | rewrites the golden files after a deliberate change: the regression suite's counts and the cross-CPU fingerprints |
 //! | `gpu-test [FEATURES]` | the policy crate's tests built with burn's GPU backends (default `wgpu`; `wgpu,cuda` for both), in `target/gpu` so the main build is kept; lavapipe is enough for `wgpu`, CUDA needs an NVIDIA GPU |
 //!
 //! The set-up never asks: it installs a missing Debian package when it runs as
@@ -28,10 +28,16 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
 
 /// Debian packages the project uses at run time, with why.
-const DEBIAN_PACKAGES: &[(&str, &str)] = &[(
-    "mesa-vulkan-drivers",
-    "software Vulkan (lavapipe) for the offscreen camera on machines without a GPU",
-)];
+const DEBIAN_PACKAGES: &[(&str, &str)] = &[
+    (
+        "mesa-vulkan-drivers",
+        "software Vulkan (lavapipe) for the offscreen camera on machines without a GPU",
+    ),
+    (
+        "qemu-user",
+        "an emulated x86-64 CPU for the test that frames and policy arithmetic are the same on every CPU",
+    ),
+];
 
 /// Python packages the cross-checking tests use (readers written by others).
 const PYTHON_PACKAGES: &[&str] = &[
@@ -194,14 +200,12 @@ fn test(root: &Path, env: &Env, args: &[String], strict: bool) -> Result<(), Str
         vars.push(("MRDRIVE_REQUIRE_SHARED", "1"));
         vars.push(("MRDRIVE_REQUIRE_PYTHON", "1"));
         vars.push(("MRDRIVE_REQUIRE_GPU_API", "1"));
+        vars.push(("MRDRIVE_REQUIRE_EMULATOR", "1"));
     }
     let mut cmd: Vec<&str> = vec!["cargo", "test", "--workspace", "--release"];
     cmd.extend(args.iter().map(String::as_str));
     let outcome = status_in(root, &cmd, &vars);
-    let (unchecked, skipped) = split_unchecked(read_skips(&log)?);
-    if !unchecked.is_empty() {
-        eprintln!("{}", unchecked_report(&unchecked));
-    }
+    let skipped = read_skips(&log)?;
     eprintln!("{}", skip_report(&skipped));
     outcome?;
     if strict && !skipped.is_empty() {
@@ -226,15 +230,6 @@ fn read_skips(log: &Path) -> Result<Vec<String>, String> {
     }
 }
 
-/// How a skip-log line begins for a check that only another kind of machine can make
-/// (`world::testdata::unchecked`): reported, never a CI failure.
-const UNCHECKED: &str = "UNCHECKED: ";
-
-/// The skip log's lines as (unchecked, skipped): only the skipped fail a strict run.
-fn split_unchecked(lines: Vec<String>) -> (Vec<String>, Vec<String>) {
-    lines.into_iter().partition(|l| l.starts_with(UNCHECKED))
-}
-
 /// `head`, then each line without its `prefix`, one per indented line.
 fn listed(head: String, lines: &[String], prefix: &str) -> String {
     let mut text = head;
@@ -243,15 +238,6 @@ fn listed(head: String, lines: &[String], prefix: &str) -> String {
         text += line.strip_prefix(prefix).unwrap_or(line);
     }
     text
-}
-
-/// The lines of a test run about checks this machine could not make.
-fn unchecked_report(lines: &[String]) -> String {
-    let head = format!(
-        "xtask: {} check(s) UNCHECKED on this machine (they need another kind of machine; see why below):",
-        lines.len()
-    );
-    listed(head, lines, UNCHECKED)
 }
 
 /// The closing lines of a test run: how many tests skipped and why.
@@ -791,11 +777,27 @@ fn bench(root: &Path, env: &Env) -> Result<(), String> {
     Ok(())
 }
 
+/// Rewrites the golden files: the regression suite's counts and the cross-CPU
+/// fingerprints (`tests/golden/`).
 fn bless(root: &Path) -> Result<(), String> {
+    let bless = [("MRDRIVE_BLESS", "1")];
     status_in(
         root,
         &["cargo", "test", "--release", "--test", "regression"],
-        &[("MRDRIVE_BLESS", "1")],
+        &bless,
+    )?;
+    // Only the fingerprint tests that compare with a golden file.
+    status_in(
+        root,
+        &[
+            "cargo",
+            "test",
+            "--release",
+            "--test",
+            "cross_cpu",
+            "golden",
+        ],
+        &bless,
     )
 }
 
@@ -940,14 +942,6 @@ mod tests {
     }
 
     #[test]
-    fn an_unchecked_line_is_not_a_skip() {
-        let lines = ["SKIPPED: a: no Python", "UNCHECKED: b: no golden file", "c"];
-        let (unchecked, skipped) = split_unchecked(lines.map(String::from).to_vec());
-        assert_eq!(unchecked, ["UNCHECKED: b: no golden file"]);
-        assert_eq!(skipped, ["SKIPPED: a: no Python", "c"]);
-    }
-
-    #[test]
     fn the_skip_report_counts_each_skip_and_says_why() {
         let tmp = std::env::temp_dir().join(format!("xtask-skips-{}", std::process::id()));
         std::fs::write(
@@ -966,12 +960,6 @@ mod tests {
         );
         assert!(report.contains("\n  b: no Python"), "{report}");
         assert_eq!(skip_report(&[]), "xtask: no test skipped");
-        let unchecked = unchecked_report(&["UNCHECKED: c: no golden file".into()]);
-        assert!(
-            unchecked.contains("1 check(s) UNCHECKED")
-                && unchecked.ends_with("\n  c: no golden file"),
-            "{unchecked}"
-        );
         assert!(
             read_skips(Path::new("/nonexistent/skips.txt"))
                 .unwrap()

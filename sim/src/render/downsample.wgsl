@@ -1,6 +1,7 @@
-// Supersampling resolve: k x k subsamples -> one output pixel.
-// Colour: box filter in linear light (the sRGB texture decodes on load, the
-// sRGB target encodes on store). Class: a lit lamp in any subsample wins (the
+// Supersampling resolve: k x k subsamples -> one output pixel (k = 1 copies).
+// Colour: box filter in linear light (a float texture), then sRGB's 8-bit
+// code by counting the encode steps at or below the value (`render::srgb`):
+// comparisons only, the same bits on every CPU. Class: a lit lamp in any subsample wins (the
 // most frequent lamp colour, ties to the lower id); otherwise the most
 // frequent class, ties to the higher id (objects over the surface under them).
 
@@ -14,6 +15,27 @@ struct Params {
 @group(0) @binding(1) var hi_class: texture_2d<u32>;
 @group(0) @binding(2) var<uniform> params: Params;
 
+// sRGB's tables (`render::srgb`): the decode table (unused here), then the
+// linear values at which the 8-bit code steps up. Entry i is at [i / 4][i % 4].
+struct Srgb {
+    decode: array<vec4<f32>, 64>,
+    steps: array<vec4<f32>, 64>,
+};
+
+@group(0) @binding(3) var<uniform> srgb: Srgb;
+
+// The 8-bit sRGB code of a linear value: how many steps lie at or below it.
+fn linear_to_srgb8(x: f32) -> u32 {
+    var lo = 0u;
+    for (var half = 128u; half > 0u; half = half >> 1u) {
+        let i = lo + half - 1u;
+        if (x >= srgb.steps[i >> 2u][i & 3u]) {
+            lo += half;
+        }
+    }
+    return lo;
+}
+
 @vertex
 fn vs_full(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
     let x = f32((i << 1u) & 2u);
@@ -22,7 +44,7 @@ fn vs_full(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
 }
 
 struct FsOut {
-    @location(0) color: vec4<f32>,
+    @location(0) color: vec4<u32>,
     @location(1) class_id: u32,
 };
 
@@ -82,7 +104,13 @@ fn fs_down(@builtin(position) pos: vec4<f32>) -> FsOut {
         }
     }
     var out: FsOut;
-    out.color = vec4<f32>(sum / f32(n), 1.0);
+    let mean = sum / f32(n);
+    out.color = vec4<u32>(
+        linear_to_srgb8(mean.r),
+        linear_to_srgb8(mean.g),
+        linear_to_srgb8(mean.b),
+        255u,
+    );
     out.class_id = select(acc.x, acc.z, acc.w > 0u);
     return out;
 }

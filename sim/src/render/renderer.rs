@@ -1,14 +1,20 @@
-//! The renderer: one wgpu scene pass writing colour (sRGB), class id (R8Uint,
-//! flat) and depth for all views of a frame, an anti-aliasing resolve, and a
-//! readback that strips the 256-byte row padding into reused images.
+//! The renderer: one wgpu scene pass writing linear colour (16-bit float),
+//! class id (R8Uint, flat) and depth for all views of a frame, a resolve pass
+//! that anti-aliases and encodes sRGB, and a readback that strips the 256-byte
+//! row padding into reused images.
 //!
 //! Anti-aliasing is supersampling: integer class targets cannot be
 //! MSAA-resolved, so the scene is drawn at k x the output size (per axis) and
 //! a second pass filters each k x k block down: colour by a box filter in
 //! linear light (a distant lamp becomes a tinted pixel), class by a rule that
 //! keeps small objects (a lit lamp in any subsample wins; otherwise the most
-//! frequent class, ties to the higher id). With k = 1 the scene pass writes
-//! the output directly.
+//! frequent class, ties to the higher id). With k = 1 the resolve copies.
+//!
+//! The same frame is the same bytes on every x86-64 CPU with AVX2 and FMA
+//! (tested against an emulated CPU: `tests/render_fingerprint.rs`): no sRGB
+//! texture format (llvmpipe encodes those with the CPU's approximate
+//! `rsqrtps`) and no `pow`; sRGB goes through exact tables ([`super::srgb`]),
+//! and the shaders use only operations IEEE 754 rounds exactly.
 //!
 //! Lit lamps are drawn last and add their light to what lies behind them. A
 //! lamp smaller than [`MIN_LAMP_PX`] supersampled pixels is drawn at that
@@ -28,6 +34,7 @@ use super::gpu::{Gpu, GpuError};
 use super::image::ClassImage;
 use super::rig::{RigConfig, View};
 use super::scene::{Dynamic, Instance, StaticScene, UNIT_MESHES, UnitMesh, Vertex};
+use super::srgb;
 use crate::driver::RgbImage;
 use world::EgoPose;
 
@@ -47,7 +54,11 @@ pub const MIN_LAMP_PX: f32 = 1.6;
 const MAX_DRAW_VERTICES: u32 = 768;
 /// Most views one frame may hold (three rig cameras, or one top-down).
 const MAX_VIEWS: usize = 4;
-const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+/// The scene pass's colour: linear light. Half floats blend everywhere (lamps
+/// add their light) and hold far more than the 8 bits the output keeps.
+const LINEAR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
+/// The output colour: 8-bit sRGB codes, written as integers by the resolve pass.
+const OUTPUT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Uint;
 const CLASS_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Uint;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// The clear colour: the sky, linear (sRGB 150, 190, 230).
@@ -105,8 +116,9 @@ struct ViewUniform {
 /// Render targets and readback for one output size.
 struct Targets {
     size: (u32, u32),
-    /// The supersampled targets (colour, class) and the resolve bind group; `None` when k = 1.
-    hi: Option<(wgpu::TextureView, wgpu::TextureView, wgpu::BindGroup)>,
+    /// The scene pass's targets (linear colour, class; k x the output size) and the
+    /// resolve pass's bind group that reads them.
+    hi: (wgpu::TextureView, wgpu::TextureView, wgpu::BindGroup),
     depth: wgpu::TextureView,
     color: wgpu::Texture,
     color_view: wgpu::TextureView,
@@ -131,6 +143,7 @@ pub struct Renderer {
     down_pipeline: wgpu::RenderPipeline,
     down_layout: wgpu::BindGroupLayout,
     down_params: wgpu::Buffer,
+    srgb_tables: wgpu::Buffer,
     cam_buffer: wgpu::Buffer,
     cam_bind: wgpu::BindGroup,
     cam_stride: u64,
@@ -171,30 +184,53 @@ impl Renderer {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        let srgb_bytes = srgb::uniform_bytes();
+        let srgb_tables = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("sRGB tables"),
+            size: srgb_bytes.len() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        gpu.queue.write_buffer(&srgb_tables, 0, &srgb_bytes);
+        let uniform_entry = |binding, visibility, dynamic, size: u64| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: dynamic,
+                min_binding_size: NonZeroU64::new(size),
+            },
+            count: None,
+        };
         let cam_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("camera layout"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: true,
-                    min_binding_size: NonZeroU64::new(std::mem::size_of::<ViewUniform>() as u64),
-                },
-                count: None,
-            }],
+            entries: &[
+                uniform_entry(
+                    0,
+                    wgpu::ShaderStages::VERTEX_FRAGMENT,
+                    true,
+                    std::mem::size_of::<ViewUniform>() as u64,
+                ),
+                uniform_entry(1, wgpu::ShaderStages::VERTEX, false, srgb_tables.size()),
+            ],
         });
         let cam_bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("camera bind group"),
             layout: &cam_layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                    buffer: &cam_buffer,
-                    offset: 0,
-                    size: NonZeroU64::new(std::mem::size_of::<ViewUniform>() as u64),
-                }),
-            }],
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &cam_buffer,
+                        offset: 0,
+                        size: NonZeroU64::new(std::mem::size_of::<ViewUniform>() as u64),
+                    }),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: srgb_tables.as_entire_binding(),
+                },
+            ],
         });
         let scene_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("scene.wgsl"),
@@ -209,7 +245,7 @@ impl Renderer {
         let instance_attrs =
             wgpu::vertex_attr_array![2 => Float32x3, 3 => Float32, 4 => Float32x3, 5 => Uint32];
         let targets = [
-            Some(wgpu::ColorTargetState::from(COLOR_FORMAT)),
+            Some(wgpu::ColorTargetState::from(LINEAR_FORMAT)),
             Some(wgpu::ColorTargetState::from(CLASS_FORMAT)),
         ];
         let scene_pipe = |label, targets: &[Option<wgpu::ColorTargetState>], depth_write| {
@@ -265,7 +301,7 @@ impl Renderer {
         };
         let lamp_targets = [
             Some(wgpu::ColorTargetState {
-                format: COLOR_FORMAT,
+                format: LINEAR_FORMAT,
                 blend: Some(wgpu::BlendState {
                     color: additive,
                     alpha: additive,
@@ -294,16 +330,8 @@ impl Renderer {
             entries: &[
                 tex_entry(0, wgpu::TextureSampleType::Float { filterable: false }),
                 tex_entry(1, wgpu::TextureSampleType::Uint),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 2,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
+                uniform_entry(2, wgpu::ShaderStages::FRAGMENT, false, 16),
+                uniform_entry(3, wgpu::ShaderStages::FRAGMENT, false, srgb_tables.size()),
             ],
         });
         let down_pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -327,7 +355,10 @@ impl Renderer {
                 module: &down_module,
                 entry_point: Some("fs_down"),
                 compilation_options: Default::default(),
-                targets: &targets,
+                targets: &[
+                    Some(wgpu::ColorTargetState::from(OUTPUT_FORMAT)),
+                    Some(wgpu::ColorTargetState::from(CLASS_FORMAT)),
+                ],
             }),
             multiview_mask: None,
             cache: None,
@@ -365,6 +396,7 @@ impl Renderer {
             down_pipeline,
             down_layout,
             down_params,
+            srgb_tables,
             cam_buffer,
             cam_bind,
             cam_stride,
@@ -487,10 +519,7 @@ impl Renderer {
             label: Some("frame"),
         });
         {
-            let (color_att, class_att) = match &t.hi {
-                Some((c, l, _)) => (c, l),
-                None => (&t.color_view, &t.class_view),
-            };
+            let (color_att, class_att, _) = &t.hi;
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("scene pass"),
                 color_attachments: &[
@@ -564,7 +593,7 @@ impl Renderer {
                 }
             }
         }
-        if let Some((_, _, bind)) = &t.hi {
+        {
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("resolve pass"),
                 color_attachments: &[
@@ -593,7 +622,7 @@ impl Renderer {
                 multiview_mask: None,
             });
             pass.set_pipeline(&self.down_pipeline);
-            pass.set_bind_group(0, bind, &[]);
+            pass.set_bind_group(0, &t.hi.2, &[]);
             pass.draw(0..3, 0..1);
         }
         let (w, h) = t.size;
@@ -732,13 +761,19 @@ impl Renderer {
         };
         use wgpu::TextureUsages as U;
         let out_usage = U::RENDER_ATTACHMENT | U::COPY_SRC;
-        let color = tex("colour", w, h, COLOR_FORMAT, out_usage);
+        let color = tex("colour", w, h, OUTPUT_FORMAT, out_usage);
         let class = tex("class", w, h, CLASS_FORMAT, out_usage);
         let depth = tex("depth", w * k, h * k, DEPTH_FORMAT, U::RENDER_ATTACHMENT);
-        let hi = (k > 1).then(|| {
+        let hi = {
             let usage = U::RENDER_ATTACHMENT | U::TEXTURE_BINDING;
-            let c = tex("colour (supersampled)", w * k, h * k, COLOR_FORMAT, usage)
-                .create_view(&Default::default());
+            let c = tex(
+                "linear colour (supersampled)",
+                w * k,
+                h * k,
+                LINEAR_FORMAT,
+                usage,
+            )
+            .create_view(&Default::default());
             let l = tex("class (supersampled)", w * k, h * k, CLASS_FORMAT, usage)
                 .create_view(&Default::default());
             let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -757,10 +792,14 @@ impl Renderer {
                         binding: 2,
                         resource: self.down_params.as_entire_binding(),
                     },
+                    wgpu::BindGroupEntry {
+                        binding: 3,
+                        resource: self.srgb_tables.as_entire_binding(),
+                    },
                 ],
             });
             (c, l, bind)
-        });
+        };
         let pad = |bytes: u32| {
             bytes.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT
         };

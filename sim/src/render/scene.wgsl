@@ -1,4 +1,5 @@
-// The scene pass: colour (sRGB target, linear maths) + class id (flat) + depth.
+// The scene pass: linear colour (a float target; the resolve pass encodes sRGB)
+// + class id (flat) + depth.
 
 struct Camera {
     view_proj: mat4x4<f32>,
@@ -10,6 +11,19 @@ struct Camera {
 };
 
 @group(0) @binding(0) var<uniform> cam: Camera;
+
+// sRGB's tables (`render::srgb`): the linear value of each 8-bit code, then the
+// encode steps (unused here). Entry i is at [i / 4][i % 4].
+struct Srgb {
+    decode: array<vec4<f32>, 64>,
+    steps: array<vec4<f32>, 64>,
+};
+
+@group(0) @binding(1) var<uniform> srgb: Srgb;
+
+fn srgb_to_linear(code: u32) -> f32 {
+    return srgb.decode[code >> 2u][code & 3u];
+}
 
 struct VsIn {
     @location(0) pos: vec3<f32>,
@@ -26,6 +40,8 @@ struct VsOut {
     @location(1) @interpolate(flat) color: u32,
     // Radiance factor of emissive surfaces (1, or less for an enlarged lamp).
     @location(2) @interpolate(flat) energy: f32,
+    // The material's linear colour, decoded from its sRGB code by table.
+    @location(3) @interpolate(flat) rgb: vec3<f32>,
 };
 
 @vertex
@@ -52,6 +68,11 @@ fn vs_main(v: VsIn) -> VsOut {
     out.world = world;
     out.color = color;
     out.energy = 1.0 / (grow * grow);
+    out.rgb = vec3<f32>(
+        srgb_to_linear(color & 0xffu),
+        srgb_to_linear((color >> 8u) & 0xffu),
+        srgb_to_linear((color >> 16u) & 0xffu),
+    );
     return out;
 }
 
@@ -68,12 +89,6 @@ const FOG_START_M: f32 = 60.0;
 const FOG_END_M: f32 = 200.0;
 const FOG_MAX: f32 = 0.7;
 
-fn srgb_to_linear(c: vec3<f32>) -> vec3<f32> {
-    let lo = c / 12.92;
-    let hi = pow((c + 0.055) / 1.055, vec3<f32>(2.4));
-    return select(hi, lo, c <= vec3<f32>(0.04045));
-}
-
 @fragment
 fn fs_main(in: VsOut) -> FsOut {
     // Flat normal from the triangle's plane (screen-space derivatives are
@@ -88,11 +103,7 @@ fn fs_main(in: VsOut) -> FsOut {
     if (dot(n, to_eye) < 0.0) {
         n = -n;
     }
-    let rgb = srgb_to_linear(vec3<f32>(
-        f32(in.color & 0xffu),
-        f32((in.color >> 8u) & 0xffu),
-        f32((in.color >> 16u) & 0xffu),
-    ) / 255.0);
+    let rgb = in.rgb;
     let emissive = (in.color >> 31u) != 0u;
     var lit = rgb * (AMBIENT + (1.0 - AMBIENT) * max(dot(n, SUN), 0.0));
     if (emissive) {

@@ -74,6 +74,23 @@ pub enum SweepError {
         /// What the file is now ("has SHA-256 ...", "cannot be read: ...").
         now: String,
     },
+    /// Records drawn by renderers whose fixed frames differ (another Mesa, or a CPU
+    /// without FMA), which would mix two cameras in one table.
+    #[error(
+        "{root}: its records were rendered with fingerprint {here}, but {other} with {there} \
+         (`mrdrive render fingerprint` prints a machine's); fix: run every shard of a sweep on \
+         machines whose fingerprints agree, or keep the sweeps apart"
+    )]
+    RenderFingerprintsDiffer {
+        /// The folder of the first record with the other fingerprint.
+        root: PathBuf,
+        /// Its fingerprint.
+        here: String,
+        /// Where the first fingerprint was seen.
+        other: PathBuf,
+        /// That fingerprint.
+        there: String,
+    },
     /// A merge without shards.
     #[error("no shard folders to merge; fix: give at least one")]
     NoShards,

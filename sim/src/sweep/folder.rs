@@ -142,6 +142,32 @@ pub fn one_digest_per_checkpoint<'a>(
     Ok(())
 }
 
+/// Checks that records, from one folder or several, name one render fingerprint
+/// (records that rendered nothing, or predate fingerprints, name none and pass).
+pub fn one_render_fingerprint<'a>(
+    records: impl IntoIterator<Item = (&'a Path, &'a RunRecord)>,
+) -> Result<(), SweepError> {
+    let mut first: Option<(&Path, &str)> = None;
+    for (from, rec) in records {
+        let Some(fp) = rec.result.provenance.render_fingerprint.as_deref() else {
+            continue;
+        };
+        match first {
+            Some((other, there)) if there != fp => {
+                return Err(SweepError::RenderFingerprintsDiffer {
+                    root: from.to_path_buf(),
+                    here: fp.to_string(),
+                    other: other.to_path_buf(),
+                    there: there.to_string(),
+                });
+            }
+            Some(_) => {}
+            None => first = Some((from, fp)),
+        }
+    }
+    Ok(())
+}
+
 /// Reads every record of a sweep folder that its plan names.
 pub fn read_records(dir: &SweepDir) -> Result<Vec<RunRecord>, SweepError> {
     let plan = dir.read_plan()?;

@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::folder::one_digest_per_checkpoint;
+use super::folder::{one_digest_per_checkpoint, one_render_fingerprint};
 use super::{RunSpec, SweepDir, SweepError, SweepPlan};
 use crate::record;
 
@@ -31,7 +31,7 @@ pub fn merge(shards: &[PathBuf], out: &Path) -> Result<Vec<String>, SweepError> 
     let plan = plan.ok_or(SweepError::NoShards)?;
     out_dir.prepare_plan(&plan)?;
     // Every record first, so that shards made by two checkpoints saved under
-    // one name are refused before anything is copied.
+    // one name, or drawn by two renderers, are refused before anything is copied.
     let mut records = Vec::new();
     for root in shards.iter().chain([&out_dir.root]) {
         let dir = SweepDir { root: root.clone() };
@@ -43,6 +43,7 @@ pub fn merge(shards: &[PathBuf], out: &Path) -> Result<Vec<String>, SweepError> 
         }
     }
     one_digest_per_checkpoint(records.iter().map(|(root, _, r)| (root.as_path(), r)))?;
+    one_render_fingerprint(records.iter().map(|(root, _, r)| (root.as_path(), r)))?;
     for spec in &plan.runs {
         let to = out_dir.record_path(spec);
         if to.exists() {
@@ -146,6 +147,51 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("models/ra.trigger.json"), "{e}");
+    }
+
+    #[test]
+    fn shards_drawn_by_two_renderers_are_not_merged() {
+        let tmp = tempfile::tempdir().unwrap();
+        let p = plan();
+        let drawn = |fp: Option<&str>| {
+            let fp = fp.map(str::to_string);
+            move |_: usize, s: &RunSpec| {
+                let mut r = fake_record(s);
+                r.result.provenance.render_fingerprint = fp.clone();
+                r
+            }
+        };
+        // Shard 1's machine draws other frames: refused, nothing copied.
+        let shards = two_shards(tmp.path(), &p, 0, |i, s| {
+            drawn(Some(["6fec8e5d4a36d0e3", "88d7356ca1bf7ee3"][i]))(i, s)
+        });
+        let out = tmp.path().join("merged");
+        let e = merge(&shards, &out).unwrap_err().to_string();
+        assert!(
+            e.contains("88d7356ca1bf7ee3")
+                && e.contains("6fec8e5d4a36d0e3")
+                && e.contains("shard1"),
+            "{e}"
+        );
+        assert!(read_records(&SweepDir { root: out }).unwrap().is_empty());
+        // The same fingerprint everywhere, or runs that drew nothing: merged.
+        let same = two_shards(
+            &tmp.path().join("s"),
+            &p,
+            0,
+            drawn(Some("6fec8e5d4a36d0e3")),
+        );
+        assert!(
+            merge(&same, &tmp.path().join("s-merged"))
+                .unwrap()
+                .is_empty()
+        );
+        let none = two_shards(&tmp.path().join("n"), &p, 0, drawn(None));
+        assert!(
+            merge(&none, &tmp.path().join("n-merged"))
+                .unwrap()
+                .is_empty()
+        );
     }
 
     #[test]

@@ -65,6 +65,7 @@ pub(crate) mod fixtures {
                     driver: "expert".into(),
                     build: "test".into(),
                     render_backend: "none".into(),
+                    render_fingerprint: None,
                     cpu: None,
                     checkpoint: None,
                     trigger: None,
