@@ -180,5 +180,34 @@ class EnvTest(unittest.TestCase):
             Path(out).write_text(json.dumps({"steps": k, "record": record}))
 
 
+def have_mcap() -> bool:
+    try:
+        import mcap.reader  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+class SpeedBenchTest(unittest.TestCase):
+    @unittest.skipUnless(have_mcap(), "the mcap package is missing (cargo xtask setup installs it)")
+    def test_the_speed_bench_drives_one_episode_on_both_sides(self):
+        """bench/env_speed.py compares `mrdrive run --expert` with the environment replaying
+        that expert's controls: the two must be one episode, tick for tick."""
+        import importlib.util
+
+        spec = importlib.util.spec_from_file_location("env_speed", ROOT / "bench" / "env_speed.py")
+        bench = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(bench)
+        scenario = str(DEFAULT.resolve())
+        controls, reference, frames = bench.expert_controls(scenario, 0.75, 1)
+        self.assertGreater(len(controls), 100)
+        self.assertLessEqual(abs(frames - len(controls)), 1, "the camera rows compare equal work at 0.75x")
+        *_, result, steps = bench.env_replay(scenario, 0.75, 1, controls, camera=False)
+        self.assertEqual(steps, len(controls))
+        self.assertEqual(bench.same_episode(reference, result), {})
+        _, rust = bench.rust_rtf(scenario, 0.75, 1, camera=False)
+        self.assertEqual(bench.same_episode(reference, rust), {})
+
+
 if __name__ == "__main__":
     unittest.main()
