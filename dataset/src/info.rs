@@ -20,7 +20,7 @@ use crate::action::NUM_COMMANDS;
 use crate::collect::{TownCache, replan};
 use crate::format::{
     DataError, Episode, FORMAT, Index, MappedShard, PEDESTRIAN_AHEAD_M, file_metadata,
-    light_of_code, pedestrian_ahead,
+    light_of_code, pedestrian_ahead, stopped_vehicle_ahead,
 };
 use crate::labels::LABEL_VERSION;
 use crate::labels::maps::light_stops;
@@ -105,6 +105,9 @@ pub struct Summary {
     /// Frames with a pedestrian in the ego's corridor straight ahead
     /// ([`crate::format::pedestrian_ahead`], the rule the loader's `pedestrian_repeat` uses).
     pub pedestrian_ahead: u64,
+    /// Frames with a stopped vehicle in the ego's corridor straight ahead
+    /// ([`crate::format::stopped_vehicle_ahead`]): queues at lights, cars waiting.
+    pub stopped_vehicle_ahead: u64,
     /// Walkers sent across the road ahead of the ego (`Episode::walkers_sent`, summed).
     pub walkers_sent: u64,
     /// Frames per speed bin ([`SPEED_EDGES_MPS`]).
@@ -172,6 +175,9 @@ impl Summary {
                 s.speeds[speed_bin(ego.speed)] += 1;
                 if pedestrian_ahead(ego, actors).is_some() {
                     s.pedestrian_ahead += 1;
+                }
+                if stopped_vehicle_ahead(ego, actors).is_some() {
+                    s.stopped_vehicle_ahead += 1;
                 }
             }
             *s.towns.entry(e.town.clone()).or_default() += n;
@@ -314,6 +320,12 @@ impl fmt::Display for Summary {
         )?;
         writeln!(
             f,
+            "a stopped vehicle in the corridor straight ahead (<= {PEDESTRIAN_AHEAD_M} m): {:.2} % ({} frames)",
+            percent(self.stopped_vehicle_ahead, self.frames),
+            self.stopped_vehicle_ahead
+        )?;
+        writeln!(
+            f,
             "walkers sent across the road ahead of the ego: {} ({:.2} per simulated minute)",
             self.walkers_sent,
             self.walkers_sent as f64 / (self.driven_s / 60.0).max(1e-9)
@@ -392,6 +404,8 @@ mod tests {
         // The pedestrian stands in the ego's lane 8 m ahead when i mod 7 = 3: i = 3, 10,
         // 17, 24 of each episode's 30 frames.
         assert_eq!(s.pedestrian_ahead, 8);
+        // The fixture's car 15 m ahead stands when i mod 6 = 2: i = 2, 8, 14, 20, 26.
+        assert_eq!(s.stopped_vehicle_ahead, 10);
         assert_eq!(s.towns.get("fixture-grid-3x3"), Some(&60));
         assert_eq!(s.routes.get("random"), Some(&60));
         assert_eq!(s.random_routes, 1);

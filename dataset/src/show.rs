@@ -208,8 +208,7 @@ pub fn show(
         ),
     );
     let top = TITLE_PX + MARGIN_PX / 2;
-    let rgb = shard.rgb(i, view);
-    let classes = shard.classes(i, view);
+    let (rgb, classes) = shard.view_images(i, view)?;
     for y in 0..h {
         for x in 0..w {
             let p = (y * w + x) as usize;

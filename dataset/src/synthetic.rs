@@ -105,6 +105,12 @@ pub fn ego(i: usize) -> EgoRow {
     }
 }
 
+/// The speed of the car 15 m ahead in frame `i` (metres per second): stopped when
+/// `i mod 6 = 2`, else 3 m/s.
+pub fn vehicle_speed(i: usize) -> f32 {
+    if i % 6 == 2 { 0.0 } else { 3.0 }
+}
+
 /// The pedestrian's `y` in frame `i` (metres): in the ego's lane, crossing,
 /// when `i mod 7 = 3`, else on the sidewalk.
 pub fn pedestrian_y(i: usize) -> f32 {
@@ -204,7 +210,7 @@ pub fn shard(spec: &SyntheticSpec, e: usize, route: &DenseRoute) -> Shard {
                 yaw: 0.0,
                 length: 4.5,
                 width: 1.9,
-                speed: 3.0,
+                speed: vehicle_speed(i),
             },
             ActorRow {
                 kind: ActorRow::PEDESTRIAN,

@@ -2,7 +2,7 @@
 //! the way `docs/dataset.md` shows (`read_dataset.py`): every tensor's shape,
 //! dtype and a sample of its values must be what the writer put there.
 //!
-//! Needs a Python with `safetensors` and `numpy`: `MRDRIVE_PYTHON` names it,
+//! Needs a Python with `safetensors`, `numpy` and `zstandard`: `MRDRIVE_PYTHON` names it,
 //! else `<workspace>/.venv/bin/python`, else `python3`. Without one the test
 //! skips through `world::testdata::skip` (counted by `cargo xtask test`),
 //! unless `MRDRIVE_REQUIRE_PYTHON=1`.
@@ -25,11 +25,11 @@ fn f32s(v: &Value) -> Vec<f32> {
 
 #[test]
 fn numpy_reads_a_shard_and_its_labels_as_written() {
-    let Some(py) = world::testdata::python_with("safetensors.numpy, numpy") else {
+    let Some(py) = world::testdata::python_with("safetensors.numpy, numpy, zstandard") else {
         world::testdata::skip(
             "numpy_reads_a_shard_and_its_labels_as_written",
             world::testdata::Needs::Python,
-            "no Python with `safetensors` and `numpy` (set MRDRIVE_PYTHON or create .venv)",
+            "no Python with `safetensors`, `numpy` and `zstandard` (set MRDRIVE_PYTHON or create .venv)",
         );
         return;
     };
@@ -64,7 +64,10 @@ fn numpy_reads_a_shard_and_its_labels_as_written() {
         serde_json::json!([n, views, 6, 4, NUM_ACTIONS])
     );
     let dtypes = &got["dtypes"];
+    assert_eq!(shapes["offsets"], serde_json::json!([n + 1]));
     for (name, dtype) in [
+        ("images", "uint8"),
+        ("offsets", "uint64"),
         ("rgb", "uint8"),
         ("classes", "uint8"),
         ("ego", "float32"),

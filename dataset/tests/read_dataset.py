@@ -6,15 +6,32 @@ import json
 import sys
 
 import numpy as np
+import zstandard
 from safetensors import safe_open
 from safetensors.numpy import load_file
+
+
+def decode_images(shard, views, h, w):
+    """Each frame's images are zstd-compressed on their own: RGB then classes."""
+    blob, offsets = shard["images"], shard["offsets"]
+    n = len(offsets) - 1
+    rgb = np.empty((n, views, h, w, 3), np.uint8)
+    classes = np.empty((n, views, h, w), np.uint8)
+    d = zstandard.ZstdDecompressor()
+    for i in range(n):
+        raw = np.frombuffer(d.decompress(blob[offsets[i]:offsets[i + 1]].tobytes()), np.uint8)
+        rgb[i] = raw[: views * h * w * 3].reshape(views, h, w, 3)
+        classes[i] = raw[views * h * w * 3:].reshape(views, h, w)
+    return rgb, classes
+
 
 root = sys.argv[1]
 index = json.load(open(f"{root}/dataset.json"))
 ep = index["episodes"][1]
 shard = load_file(f"{root}/{ep['shard']}")
 labels = load_file(f"{root}/{ep['labels']}")
-rgb, classes = shard["rgb"], shard["classes"]
+(w, h), views = index["s0"], len(index["view_yaws_deg"])
+rgb, classes = decode_images(shard, views, h, w)
 x, y, yaw, speed = shard["ego"].T
 q, valid = labels["q"], labels["valid"].astype(bool)
 
@@ -36,8 +53,8 @@ out = {
     "s0": index["s0"],
     "views": index["view_yaws_deg"],
     "episodes": len(index["episodes"]),
-    "shapes": {k: list(v.shape) for k, v in {**shard, **labels}.items()},
-    "dtypes": {k: str(v.dtype) for k, v in {**shard, **labels}.items()},
+    "shapes": {k: list(v.shape) for k, v in {**shard, "rgb": rgb, "classes": classes, **labels}.items()},
+    "dtypes": {k: str(v.dtype) for k, v in {**shard, "rgb": rgb, "classes": classes, **labels}.items()},
     "rgb_2_1_3_5": rgb[2, 1, 3, 5].tolist(),
     "classes_2_1_0_5": int(classes[2, 1, 0, 5]),
     "ego_3": shard["ego"][3].tolist(),

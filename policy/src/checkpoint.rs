@@ -57,26 +57,9 @@ pub struct TrainingRecord {
     /// The checkpoint it started from, if not a fresh initialisation or a teacher.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub init: Option<String>,
-    /// Whether commands were drawn evenly.
-    #[serde(default)]
-    pub balanced: bool,
-    /// The share of standing frames kept.
-    #[serde(default = "one")]
-    pub standing_keep: f64,
-    /// Copies of each starting frame (standing, target goes) per epoch.
-    #[serde(default = "one_copy")]
-    pub start_repeat: usize,
-    /// Copies of each frame with a pedestrian ahead per epoch.
-    #[serde(default = "one_copy")]
-    pub pedestrian_repeat: usize,
-}
-
-fn one() -> f64 {
-    1.0
-}
-
-fn one_copy() -> usize {
-    1
+    /// Which samples an epoch drew and how often (absent fields: WoR's, each once).
+    #[serde(flatten)]
+    pub sampling: crate::train::loader::Sampling,
 }
 
 impl ModelCard {

@@ -432,13 +432,13 @@ pub fn frame_samples(
                 .ok()
         });
         let frames: Vec<usize> = (0..shard.len()).step_by(every.max(1)).collect();
-        let samples: Vec<FrameSample> = frames
+        let samples: Result<Vec<FrameSample>, dataset::format::DataError> = frames
             .par_iter()
             .map(|&i| {
                 let src = RgbImage {
                     width: s0w,
                     height: s0h,
-                    data: shard.rgb(i, 0).to_vec(),
+                    data: shard.view_images(i, 0)?.0,
                 };
                 let st = &shard.state;
                 let command = usize::from(st.command[i]);
@@ -464,16 +464,19 @@ pub fn frame_samples(
                     let q = command_logits(&q, command, speed);
                     expected_value(&ph, &q) - expected_value(&pl, &q)
                 });
-                FrameSample {
+                Ok(FrameSample {
                     low: fl,
                     high: fh,
                     tv: total_variation(&pl, &ph),
                     regret,
                     held_out,
-                }
+                })
             })
             .collect();
-        out.extend(samples);
+        match samples {
+            Ok(samples) => out.extend(samples),
+            Err(e) => skipped.push(e.to_string()),
+        }
     }
     if !out.iter().any(|s| !s.held_out) {
         return Err(TriggerError::NoData {

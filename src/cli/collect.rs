@@ -20,8 +20,34 @@ pub enum PresetArg {
 #[derive(Args)]
 pub struct CollectArgs {
     /// Which dataset.
-    #[arg(long, value_enum)]
-    pub preset: PresetArg,
+    #[arg(
+        long,
+        value_enum,
+        required_unless_present = "scenario",
+        conflicts_with = "scenario"
+    )]
+    pub preset: Option<PresetArg>,
+    /// Instead of a preset: drive this scenario's route, one episode per seed and density
+    /// (`--seeds`, `--densities`), to look at the data and labels of one situation. Never
+    /// a training set: an evaluation route is allowed here.
+    #[arg(long)]
+    pub scenario: Option<PathBuf>,
+    /// With `--scenario`: traffic seeds, comma-separated.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "0",
+        requires = "scenario"
+    )]
+    pub seeds: Vec<u64>,
+    /// With `--scenario`: traffic densities VEHICLES:PEDESTRIANS, comma-separated.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "0:0",
+        requires = "scenario"
+    )]
+    pub densities: Vec<String>,
     /// The dataset directory (made if missing; a finished episode is kept and skipped).
     #[arg(long)]
     pub out: PathBuf,
@@ -64,17 +90,37 @@ pub struct LabelArgs {
 
 /// Runs `collect`.
 pub fn collect(a: CollectArgs) -> anyhow::Result<()> {
-    let preset = match a.preset {
-        PresetArg::Original => Preset::Original,
-        PresetArg::Retarget => Preset::Retarget,
+    let (mut plan, name) = match (&a.preset, &a.scenario) {
+        (_, Some(file)) => {
+            let scenario = sim::scenario::Scenario::from_file(file)?;
+            let densities = a
+                .densities
+                .iter()
+                .map(|d| super::sweep::parse_density(d))
+                .collect::<anyhow::Result<Vec<_>>>()?;
+            (
+                collect::scenario_plan(&scenario, &a.seeds, &densities),
+                "scenario",
+            )
+        }
+        (Some(p), None) => {
+            let preset = match p {
+                PresetArg::Original => Preset::Original,
+                PresetArg::Retarget => Preset::Retarget,
+            };
+            anyhow::ensure!(
+                a.carla.join("Town01.xodr").is_file(),
+                "--carla {}: no Town01.xodr there; point --carla at the folder with CARLA's Town01.xodr and routes_town01.xml",
+                a.carla.display()
+            );
+            let repo = std::env::current_dir()?;
+            (
+                collect::plan(preset, a.episodes, &a.carla, &repo),
+                preset.name(),
+            )
+        }
+        (None, None) => anyhow::bail!("give --preset or --scenario"),
     };
-    anyhow::ensure!(
-        a.carla.join("Town01.xodr").is_file(),
-        "--carla {}: no Town01.xodr there; point --carla at the folder with CARLA's Town01.xodr and routes_town01.xml",
-        a.carla.display()
-    );
-    let repo = std::env::current_dir()?;
-    let mut plan = collect::plan(preset, a.episodes, &a.carla, &repo);
     collect::crowd(&mut plan, a.pedestrians_scale)
         .map_err(|e| anyhow::anyhow!("--pedestrians-scale: {e}"))?;
     anyhow::ensure!(
@@ -82,10 +128,12 @@ pub fn collect(a: CollectArgs) -> anyhow::Result<()> {
         "--crossings-per-min {}: give a rate from 0 to 60 per minute",
         a.crossings_per_min
     );
-    for spec in &mut plan {
-        spec.crossings_per_min = a.crossings_per_min;
+    if a.scenario.is_none() {
+        for spec in &mut plan {
+            spec.crossings_per_min = a.crossings_per_min;
+        }
     }
-    let mut cfg = CollectConfig::cpu_default(preset.name());
+    let mut cfg = CollectConfig::cpu_default(name);
     cfg.max_s = a.max_s;
     cfg.noise.mean_gap_s = a.noise_gap_s;
     let started = std::time::Instant::now();

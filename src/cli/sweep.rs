@@ -71,7 +71,7 @@ pub struct SweepRunArgs {
     pub driver: super::run::DriverFlags,
 }
 
-fn parse_density(text: &str) -> anyhow::Result<(u32, u32)> {
+pub(crate) fn parse_density(text: &str) -> anyhow::Result<(u32, u32)> {
     let (v, p) = text
         .split_once(':')
         .with_context(|| format!("--densities {text}: write VEHICLES:PEDESTRIANS, e.g. 20:40"))?;

@@ -66,6 +66,10 @@ pub struct TrainArgs {
     /// straight ahead, per epoch [default: the recipe's, 1].
     #[arg(long)]
     pedestrian_repeat: Option<usize>,
+    /// Copies of each kept frame with a stopped vehicle in the ego's corridor within 20 m
+    /// straight ahead (a queue at a light), per epoch [default: the recipe's, 1].
+    #[arg(long)]
+    stopped_vehicle_repeat: Option<usize>,
     /// Draw commands evenly [default: the recipe's: no for the Original, yes for retargeting].
     #[arg(long)]
     balanced: Option<bool>,
@@ -156,13 +160,13 @@ fn spec_of(args: &TrainArgs, stage: &str) -> Result<StageSpec> {
         if !(0.0..=1.0).contains(&v) {
             bail!("--standing-keep {v}: a share in [0, 1]");
         }
-        spec.standing_keep = v;
+        spec.sampling.standing_keep = v;
     }
     if let Some(v) = args.start_repeat {
         if v == 0 {
             bail!("--start-repeat 0: at least 1 (1 draws each starting frame once per epoch)");
         }
-        spec.start_repeat = v;
+        spec.sampling.start_repeat = v;
     }
     if let Some(v) = args.pedestrian_repeat {
         if v == 0 {
@@ -170,10 +174,18 @@ fn spec_of(args: &TrainArgs, stage: &str) -> Result<StageSpec> {
                 "--pedestrian-repeat 0: at least 1 (1 draws each frame with a pedestrian ahead once per epoch)"
             );
         }
-        spec.pedestrian_repeat = v;
+        spec.sampling.pedestrian_repeat = v;
+    }
+    if let Some(v) = args.stopped_vehicle_repeat {
+        if v == 0 {
+            bail!(
+                "--stopped-vehicle-repeat 0: at least 1 (1 draws each frame with a stopped vehicle ahead once per epoch)"
+            );
+        }
+        spec.sampling.stopped_vehicle_repeat = v;
     }
     if let Some(v) = args.balanced {
-        spec.balanced = v;
+        spec.sampling.balanced = v;
     }
     if let Some(v) = &args.init {
         spec.init = Some(v.clone());

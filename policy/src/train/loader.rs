@@ -33,6 +33,7 @@ use dataset::decode::{BRAKE_THRESHOLD, interpolate_speed, softmax};
 use dataset::format::{DataError, INDEX_FILE, Index, MappedLabels, MappedShard, Q_PER_VIEW};
 use dataset::labels::LABEL_VERSION;
 use rand::RngExt;
+use serde::{Deserialize, Serialize};
 
 use super::augment::{AugmentConfig, Sample as Pixels, augment, mix, sample_rng};
 use super::losses::{TEMPERATURE, command_weights};
@@ -42,15 +43,13 @@ use crate::model::PolicyConfig;
 /// Below this speed a frame counts as standing (metres per second).
 pub const STANDING_MPS: f32 = 0.5;
 
-/// How the loader samples and augments.
-#[derive(Debug, Clone, PartialEq)]
-pub struct LoaderConfig {
-    /// Samples per batch.
-    pub batch: usize,
-    /// Seed of the sample order and the augmentations.
-    pub seed: u64,
-    /// Augment (WoR's ops); `None` feeds the images as stored (BN recalibration, evaluation).
-    pub augment: Option<AugmentConfig>,
+/// Which samples an epoch draws and how often: one struct for a stage's spec, the
+/// loader and the checkpoint's card (flattened into their JSON). The default is WoR's:
+/// every sample once per epoch. A frame that is of several repeated kinds appears the
+/// largest of their numbers of times.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Sampling {
     /// Draw commands evenly instead of visiting every sample once per epoch.
     pub balanced: bool,
     /// The share of standing frames (ego below [`STANDING_MPS`]) kept, in [0, 1]: a
@@ -62,10 +61,65 @@ pub struct LoaderConfig {
     /// once). They are about one standing frame in 25.
     pub start_repeat: usize,
     /// How many times each kept frame with a pedestrian ahead
-    /// ([`TrainSet::pedestrian_ahead`]) appears per epoch (1: once). A frame
-    /// that is both a starting frame and one with a pedestrian ahead appears
-    /// the larger number of times.
+    /// ([`TrainSet::pedestrian_ahead`]) appears per epoch (1: once).
     pub pedestrian_repeat: usize,
+    /// How many times each kept frame with a stopped vehicle ahead
+    /// ([`TrainSet::stopped_vehicle_ahead`]: a queue at a light, a car waiting) appears
+    /// per epoch (1: once). At the paper's densities they are under 1 % of the frames.
+    pub stopped_vehicle_repeat: usize,
+}
+
+impl Default for Sampling {
+    fn default() -> Self {
+        Sampling {
+            balanced: false,
+            standing_keep: 1.0,
+            start_repeat: 1,
+            pedestrian_repeat: 1,
+            stopped_vehicle_repeat: 1,
+        }
+    }
+}
+
+impl Sampling {
+    /// A phrase for a model card: how the samples were drawn (", commands drawn
+    /// evenly, starting frames 8 times").
+    pub fn describe(&self) -> String {
+        let mut s = String::from(if self.balanced {
+            ", commands drawn evenly"
+        } else {
+            ", every sample once per epoch"
+        });
+        if self.standing_keep < 1.0 {
+            s += &format!(", {} of the standing frames", self.standing_keep);
+        }
+        for (n, what) in [
+            (self.start_repeat, "starting frames"),
+            (self.pedestrian_repeat, "frames with a pedestrian ahead"),
+            (
+                self.stopped_vehicle_repeat,
+                "frames with a stopped vehicle ahead",
+            ),
+        ] {
+            if n > 1 {
+                s += &format!(", {what} {n} times");
+            }
+        }
+        s
+    }
+}
+
+/// How the loader samples and augments.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoaderConfig {
+    /// Samples per batch.
+    pub batch: usize,
+    /// Seed of the sample order and the augmentations.
+    pub seed: u64,
+    /// Augment (WoR's ops); `None` feeds the images as stored (BN recalibration, evaluation).
+    pub augment: Option<AugmentConfig>,
+    /// Which samples an epoch draws and how often.
+    pub sampling: Sampling,
     /// The first epoch (to resume a run where it stopped).
     pub first_epoch: u64,
     /// Batches of the first epoch to leave out (to resume a run mid-epoch); the
@@ -89,10 +143,7 @@ impl LoaderConfig {
             batch,
             seed,
             augment: Some(AugmentConfig::default()),
-            balanced: false,
-            standing_keep: 1.0,
-            start_repeat: 1,
-            pedestrian_repeat: 1,
+            sampling: Sampling::default(),
             first_epoch: 0,
             first_batch: 0,
             epochs: None,
@@ -333,19 +384,28 @@ impl TrainSet {
         dataset::format::pedestrian_ahead(&state.ego[f], &state.actors[f]).is_some()
     }
 
-    /// Whether sample `s` is used under `cfg.standing_keep` (the same answer for every
+    /// Whether a stopped vehicle stands in the ego's corridor straight ahead at sample
+    /// `s`'s frame ([`dataset::format::stopped_vehicle_ahead`]).
+    pub fn stopped_vehicle_ahead(&self, s: &SampleRef) -> bool {
+        let state = &self.parts[s.episode as usize].shard.state;
+        let f = s.frame as usize;
+        dataset::format::stopped_vehicle_ahead(&state.ego[f], &state.actors[f]).is_some()
+    }
+
+    /// Whether sample `s` is used under `cfg`'s `standing_keep` (the same answer for every
     /// view of a frame and every epoch).
     pub fn kept(&self, cfg: &LoaderConfig, s: &SampleRef) -> bool {
-        if cfg.standing_keep >= 1.0 || self.speed_mps(s) >= STANDING_MPS {
+        let keep = cfg.sampling.standing_keep;
+        if keep >= 1.0 || self.speed_mps(s) >= STANDING_MPS {
             return true;
         }
         let frame = (u64::from(s.episode) << 32) | u64::from(s.frame);
         let u = (mix(cfg.seed ^ 0x57a4d, frame) >> 11) as f64 / (1u64 << 53) as f64;
-        u < cfg.standing_keep
+        u < keep
     }
 
-    /// Samples per epoch under `cfg`: those [`TrainSet::kept`], each starting frame
-    /// `start_repeat` times and each with a pedestrian ahead `pedestrian_repeat` times.
+    /// Samples per epoch under `cfg`: those [`TrainSet::kept`], each of a repeated kind
+    /// (starting, pedestrian ahead, stopped vehicle ahead) as often as [`Sampling`] says.
     pub fn epoch_len(&self, cfg: &LoaderConfig) -> usize {
         self.pool(cfg).len()
     }
@@ -357,12 +417,16 @@ impl TrainSet {
             if !self.kept(cfg, s) {
                 continue;
             }
+            let sampling = &cfg.sampling;
             let mut copies = 1;
-            if cfg.start_repeat > 1 && self.starts(s) {
-                copies = cfg.start_repeat;
+            if sampling.start_repeat > copies && self.starts(s) {
+                copies = sampling.start_repeat;
             }
-            if cfg.pedestrian_repeat > copies && self.pedestrian_ahead(s) {
-                copies = cfg.pedestrian_repeat;
+            if sampling.pedestrian_repeat > copies && self.pedestrian_ahead(s) {
+                copies = sampling.pedestrian_repeat;
+            }
+            if sampling.stopped_vehicle_repeat > copies && self.stopped_vehicle_ahead(s) {
+                copies = sampling.stopped_vehicle_repeat;
             }
             pool.extend(std::iter::repeat_n(i, copies));
         }
@@ -374,7 +438,7 @@ impl TrainSet {
         let mut rng = sample_rng(cfg.seed, epoch);
         let pool = self.pool(cfg);
         let n = pool.len();
-        if cfg.balanced {
+        if cfg.sampling.balanced {
             let mut by_command: Vec<Vec<usize>> = vec![Vec::new(); NUM_COMMANDS];
             for &i in &pool {
                 by_command[usize::from(self.samples[i].command)].push(i);
@@ -404,7 +468,7 @@ impl TrainSet {
         epoch: u64,
         first_k: u64,
         at: &[usize],
-    ) -> HostBatch {
+    ) -> Result<HostBatch, DataError> {
         let [h, w] = self.size;
         let epoch_seed = mix(cfg.seed, epoch);
         let mut out = HostBatch {
@@ -418,8 +482,7 @@ impl TrainSet {
             let s = self.samples[pos];
             let part = &self.parts[s.episode as usize];
             let (f, v) = (s.frame as usize, usize::from(s.view));
-            let mut rgb = part.shard.rgb(f, v).to_vec();
-            let mut classes = part.shard.classes(f, v).to_vec();
+            let (mut rgb, mut classes) = part.shard.view_images(f, v)?;
             if let Some(aug) = &cfg.augment {
                 let mut rng = sample_rng(epoch_seed, first_k + i as u64);
                 let mut px = Pixels {
@@ -436,7 +499,7 @@ impl TrainSet {
             out.seg.extend(classes.iter().map(|&c| i64::from(c)));
             out.samples.push(s);
         }
-        out
+        Ok(out)
     }
 }
 
@@ -496,9 +559,11 @@ impl HostBatch {
 /// Streams batches of a [`TrainSet`] from worker threads.
 pub struct Loader {
     /// One channel per worker; batch `g` comes from worker `g mod workers`.
-    rx: Vec<Receiver<HostBatch>>,
+    rx: Vec<Receiver<Result<HostBatch, DataError>>>,
     workers: Vec<JoinHandle<()>>,
     next: usize,
+    /// Why the stream ended early (a frame that could not be read), once it has.
+    failure: Option<DataError>,
     /// Batches per epoch.
     pub batches_per_epoch: usize,
 }
@@ -526,15 +591,33 @@ impl Loader {
             workers,
             next: 0,
             batches_per_epoch,
+            failure: None,
         }
     }
 
-    /// The next batch on the host, or `None` after the last epoch.
+    /// The next batch on the host, or `None` after the last epoch, or when a frame
+    /// could not be read ([`Loader::failure`] then says why).
     pub fn next_host(&mut self) -> Option<HostBatch> {
+        if self.failure.is_some() {
+            return None;
+        }
         let n = self.rx.len();
-        let b = self.rx.get(self.next % n.max(1))?.recv().ok()?;
-        self.next += 1;
-        Some(b)
+        match self.rx.get(self.next % n.max(1))?.recv().ok()? {
+            Ok(b) => {
+                self.next += 1;
+                Some(b)
+            }
+            Err(e) => {
+                self.failure = Some(e);
+                None
+            }
+        }
+    }
+
+    /// Why the stream ended before its last epoch, if it did: a frame of the dataset
+    /// could not be read (a damaged shard). Taken once.
+    pub fn failure(&mut self) -> Option<DataError> {
+        self.failure.take()
     }
 
     /// The next batch as tensors on `device`, or `None` after the last epoch.
@@ -550,7 +633,7 @@ fn produce(
     cfg: &LoaderConfig,
     batch: usize,
     (w, n): (usize, usize),
-    tx: &SyncSender<HostBatch>,
+    tx: &SyncSender<Result<HostBatch, DataError>>,
 ) {
     let mut epoch = cfg.first_epoch;
     let mut g = 0usize;
@@ -567,8 +650,9 @@ fn produce(
         for (b, at) in order.chunks_exact(batch).enumerate().skip(skip) {
             if g % n == w {
                 let hb = set.host_batch(config, cfg, epoch, (b * batch) as u64, at);
-                if tx.send(hb).is_err() {
-                    return; // the loader was dropped
+                let failed = hb.is_err();
+                if tx.send(hb).is_err() || failed {
+                    return; // the loader was dropped, or the stream cannot go on
                 }
             }
             g += 1;
@@ -639,7 +723,7 @@ mod tests {
             .iter()
             .position(|s| (s.frame, s.view) == (2, 1))
             .unwrap();
-        let b = set.host_batch(&config(), &cfg, 0, 0, &[k]);
+        let b = set.host_batch(&config(), &cfg, 0, 0, &[k]).unwrap();
         let (h, w) = (8, 24);
         let c = config();
         for (ch, y, x) in [(0, 0, 0), (1, 3, 5), (2, 7, 23)] {
@@ -729,7 +813,10 @@ mod tests {
         let all = LoaderConfig::new(5, 3);
         assert_eq!(set.epoch_len(&all), set.samples.len());
         let none = LoaderConfig {
-            standing_keep: 0.0,
+            sampling: Sampling {
+                standing_keep: 0.0,
+                ..Sampling::default()
+            },
             ..all.clone()
         };
         assert_eq!(set.epoch_len(&none), set.samples.len() - standing_n);
@@ -739,7 +826,10 @@ mod tests {
                 .all(|&i| !standing(&set.samples[i]))
         );
         let half = LoaderConfig {
-            standing_keep: 0.5,
+            sampling: Sampling {
+                standing_keep: 0.5,
+                ..Sampling::default()
+            },
             ..all.clone()
         };
         let kept = set.epoch_len(&half) - (set.samples.len() - standing_n);
@@ -765,8 +855,11 @@ mod tests {
         assert!(starting > 0);
         for balanced in [false, true] {
             let thrice = LoaderConfig {
-                start_repeat: 3,
-                balanced,
+                sampling: Sampling {
+                    start_repeat: 3,
+                    balanced,
+                    ..Sampling::default()
+                },
                 ..all.clone()
             };
             assert_eq!(set.epoch_len(&thrice), set.samples.len() + 2 * starting);
@@ -803,7 +896,10 @@ mod tests {
         assert!(ahead > 0);
         let all = LoaderConfig::new(5, 3);
         let four = LoaderConfig {
-            pedestrian_repeat: 4,
+            sampling: Sampling {
+                pedestrian_repeat: 4,
+                ..Sampling::default()
+            },
             ..all.clone()
         };
         assert_eq!(set.epoch_len(&four), set.samples.len() + 3 * ahead);
@@ -816,13 +912,46 @@ mod tests {
         // With starting frames repeated too, a frame that is both counts once, at the larger.
         let starts = set.samples.iter().filter(|s| set.starts(s)).count();
         let mixed = LoaderConfig {
-            start_repeat: 2,
+            sampling: Sampling {
+                start_repeat: 2,
+                ..four.sampling.clone()
+            },
             ..four
         };
         assert_eq!(
             set.epoch_len(&mixed),
             set.samples.len() + 3 * ahead + (starts - both)
         );
+    }
+
+    #[test]
+    fn frames_with_a_stopped_vehicle_ahead_repeat() {
+        let dir = write(2, 40);
+        let set = TrainSet::open(dir.path(), &config()).unwrap();
+        // The synthetic car 15 m ahead stands when frame mod 6 = 2.
+        for s in &set.samples {
+            assert_eq!(set.stopped_vehicle_ahead(s), s.frame % 6 == 2, "{s:?}");
+        }
+        let ahead = set
+            .samples
+            .iter()
+            .filter(|s| set.stopped_vehicle_ahead(s))
+            .count();
+        assert!(ahead > 0);
+        let five = LoaderConfig {
+            sampling: Sampling {
+                stopped_vehicle_repeat: 5,
+                ..Sampling::default()
+            },
+            ..LoaderConfig::new(5, 3)
+        };
+        assert_eq!(set.epoch_len(&five), set.samples.len() + 4 * ahead);
+        let drawn = set
+            .epoch_order(&five, 0)
+            .iter()
+            .filter(|&&i| set.stopped_vehicle_ahead(&set.samples[i]))
+            .count();
+        assert_eq!(drawn, 5 * ahead);
     }
 
     #[test]
@@ -833,7 +962,10 @@ mod tests {
         let [left, .., follow, _, _] = set.per_command().map(|n| n as f32);
         assert!(follow > 3.0 * left);
         let cfg = LoaderConfig {
-            balanced: true,
+            sampling: Sampling {
+                balanced: true,
+                ..Sampling::default()
+            },
             ..LoaderConfig::new(5, 3)
         };
         let mut drawn = [0usize; NUM_COMMANDS];

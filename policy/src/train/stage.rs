@@ -20,7 +20,7 @@
 //! - `latest.safetensors` + `latest.json`: the network at the last checkpoint;
 //! - `final.safetensors` + `final.json`: the trained checkpoint and its card.
 
-use super::loader::{LoadError, Loader, LoaderConfig, TrainSet};
+use super::loader::{LoadError, Loader, LoaderConfig, Sampling, TrainSet};
 use super::multires::{MultiResTrainer, StateError, StepReport, TrainConfig};
 use super::presets::Preset;
 use super::recalibrate::recalibrate_with;
@@ -57,21 +57,12 @@ pub struct StageSpec {
     pub seed: u64,
     /// The step's settings (losses, learning rate, freezing).
     pub train: TrainConfig,
-    /// Draw commands evenly (TimeParam's command-balanced retargeting set) instead of
-    /// visiting each sample once per epoch (WoR).
-    pub balanced: bool,
     /// Apply WoR's augmentations.
     pub augment: bool,
-    /// The share of standing frames kept ([`LoaderConfig::standing_keep`]; 1: all, WoR).
-    #[serde(default = "one")]
-    pub standing_keep: f64,
-    /// Copies of each starting frame per epoch ([`LoaderConfig::start_repeat`]; 1: WoR).
-    #[serde(default = "one_copy")]
-    pub start_repeat: usize,
-    /// Copies of each frame with a pedestrian ahead per epoch
-    /// ([`LoaderConfig::pedestrian_repeat`]; 1: WoR).
-    #[serde(default = "one_copy")]
-    pub pedestrian_repeat: usize,
+    /// Which samples an epoch draws and how often (WoR: each once; TimeParam's
+    /// retargeting: commands drawn evenly).
+    #[serde(flatten)]
+    pub sampling: Sampling,
     /// Start from this checkpoint's weights instead of a fresh initialisation (same
     /// network; e.g. to go on from a shipped model when a run's state is lost).
     #[serde(default)]
@@ -99,11 +90,8 @@ impl StageSpec {
             train: TrainConfig::new()
                 .with_lr(3e-4)
                 .with_freeze_action_head(false),
-            balanced: false,
             augment: true,
-            standing_keep: 1.0,
-            start_repeat: 1,
-            pedestrian_repeat: 1,
+            sampling: Sampling::default(),
             init: None,
             recalibrate_batches: 0,
             checkpoint_every: 100,
@@ -134,11 +122,12 @@ impl StageSpec {
             train: TrainConfig::new()
                 .with_lr(1.5e-4)
                 .with_unfreeze_every(Some(75)),
-            balanced: true,
             augment: true,
-            standing_keep: 1.0,
-            start_repeat: 8,
-            pedestrian_repeat: 1,
+            sampling: Sampling {
+                balanced: true,
+                start_repeat: 8,
+                ..Sampling::default()
+            },
             init: None,
             recalibrate_batches: 50,
             checkpoint_every: 50,
@@ -174,14 +163,6 @@ impl StageSpec {
     }
 }
 
-fn one() -> f64 {
-    1.0
-}
-
-fn one_copy() -> usize {
-    1
-}
-
 /// Where a stage stands, saved with each checkpoint.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Progress {
@@ -198,7 +179,7 @@ pub struct StepUpdate<'a> {
     pub report: &'a StepReport,
     /// Steps in the stage.
     pub steps: usize,
-    /// Samples per second over this session so far.
+    /// Samples per second since this process started or resumed the stage.
     pub samples_per_s: f64,
     /// Whether the state was just checkpointed.
     pub checkpointed: bool,
@@ -387,10 +368,7 @@ pub fn run_stage(
         batch: spec.batch,
         seed: spec.seed,
         augment: spec.augment.then(Default::default),
-        balanced: spec.balanced,
-        standing_keep: spec.standing_keep,
-        start_repeat: spec.start_repeat,
-        pedestrian_repeat: spec.pedestrian_repeat,
+        sampling: spec.sampling.clone(),
         ..LoaderConfig::new(spec.batch, spec.seed)
     };
     let per_epoch = (set.epoch_len(&loader_cfg) / spec.batch.max(1)).max(1);
@@ -406,6 +384,9 @@ pub fn run_stage(
     let started = Instant::now();
     for step in done..spec.steps {
         let Some(batch) = loader.next_batch(device) else {
+            if let Some(e) = loader.failure() {
+                return Err(LoadError::from(e).into());
+            }
             break;
         };
         let report = trainer.step(&batch);
@@ -497,10 +478,7 @@ pub fn run_stage(
             wall_s: wall_before,
             machine: machine(),
             init: spec.init.as_ref().map(|p| p.display().to_string()),
-            balanced: spec.balanced,
-            standing_keep: spec.standing_keep,
-            start_repeat: spec.start_repeat,
-            pedestrian_repeat: spec.pedestrian_repeat,
+            sampling: spec.sampling.clone(),
         }),
     };
     checkpoint::save(&net, &card, &final_path)?;
@@ -513,32 +491,7 @@ pub fn run_stage(
 
 /// A sentence on what the stage's network is.
 fn describe(spec: &StageSpec) -> String {
-    let sampling = format!(
-        "{}{}{}{}",
-        if spec.balanced {
-            ", commands drawn evenly"
-        } else {
-            ", every sample once per epoch"
-        },
-        if spec.standing_keep < 1.0 {
-            format!(", {} of the standing frames", spec.standing_keep)
-        } else {
-            String::new()
-        },
-        if spec.start_repeat > 1 {
-            format!(", starting frames {} times", spec.start_repeat)
-        } else {
-            String::new()
-        },
-        if spec.pedestrian_repeat > 1 {
-            format!(
-                ", frames with a pedestrian ahead {} times",
-                spec.pedestrian_repeat
-            )
-        } else {
-            String::new()
-        }
-    );
+    let sampling = spec.sampling.describe();
     match (&spec.teacher, spec.scales.as_slice()) {
         (None, _) => match &spec.init {
             None => format!(
@@ -779,10 +732,7 @@ fn recalibrate_on(
 ) -> PolicyNet {
     let cfg = LoaderConfig {
         augment: None,
-        balanced: spec.balanced,
-        standing_keep: spec.standing_keep,
-        start_repeat: spec.start_repeat,
-        pedestrian_repeat: spec.pedestrian_repeat,
+        sampling: spec.sampling.clone(),
         epochs: None,
         ..LoaderConfig::new(spec.batch, spec.seed ^ 0x5ca1e)
     };
