@@ -27,7 +27,7 @@
 //! | `policy.rs` | `policy ...`, `train`, `bench policy` |
 //! | `recalibrate.rs` | `policy recalibrate` |
 //! | `bench.rs` | `bench`: joins `bench render` and `bench policy` |
-//! | `log.rs` | `log summary` |
+//! | `log.rs` | `log summary`, `log picture` |
 
 mod cli;
 
@@ -73,7 +73,7 @@ enum Command {
     /// Datasets: summary, a frame and its label as a picture.
     #[command(subcommand)]
     Data(cli::data::DataCommand),
-    /// Run logs (MCAP): summary.
+    /// Run logs (MCAP) and records: summary, picture.
     #[command(subcommand)]
     Log(cli::log::LogCommand),
     /// Serve one environment over stdin/stdout to another process (the Python package).

@@ -28,7 +28,7 @@ use std::path::{Path, PathBuf};
 use image::{Rgb, RgbImage};
 use sim::render::classes::wor_rgb;
 use world::agents::VehicleParams;
-use world::map::picture::{Canvas, ROAD, View};
+use world::map::picture::{Canvas, GLYPH_PX, ROAD, View, draw_text, light_rgb};
 use world::{Command, LightState, Vec2};
 
 use crate::action::{
@@ -54,7 +54,6 @@ pub const CELL_PX: u32 = 20;
 /// Width of the text and heatmap panel (pixels).
 pub const PANEL_PX: u32 = 312;
 
-const GLYPH_PX: u32 = 8;
 const LINE_PX: u32 = 11;
 const TITLE_PX: u32 = MARGIN_PX + LINE_PX;
 const BACKGROUND: [u8; 3] = [24, 24, 28];
@@ -335,7 +334,11 @@ fn bird_eye(
         cv.polyline(&pts, 0.4, ROUTE);
     }
     let states: Vec<LightState> = state.lights[i].iter().map(|&c| light_of_code(c)).collect();
-    cv.stop_lines(town, &states, 0.6);
+    cv.stop_lines(
+        town,
+        |i| light_rgb(states.get(i).copied().unwrap_or_default()),
+        0.6,
+    );
     for a in &state.actors[i] {
         let colour = if a.kind == ActorRow::PEDESTRIAN {
             PEDESTRIAN
@@ -438,21 +441,7 @@ fn wrap(s: &str, width: u32) -> Vec<String> {
 
 /// Draws `s` with the 8 x 8 font (ASCII; other characters as `?`), top-left at `(x, y)`.
 fn text(img: &mut RgbImage, x: u32, y: u32, s: &str) {
-    for (k, ch) in s.chars().enumerate() {
-        let code = if ch.is_ascii() {
-            ch as usize
-        } else {
-            '?' as usize
-        };
-        let glyph = font8x8::legacy::BASIC_LEGACY[code];
-        for (row, bits) in glyph.iter().enumerate() {
-            for col in 0..8 {
-                if bits & (1 << col) != 0 {
-                    put(img, x + k as u32 * GLYPH_PX + col, y + row as u32, TEXT);
-                }
-            }
-        }
-    }
+    draw_text(img, (i64::from(x), i64::from(y)), s, TEXT, None, 1);
 }
 
 #[cfg(test)]
@@ -460,7 +449,6 @@ mod tests {
     use super::*;
     use crate::synthetic::{self, SyntheticSpec};
     use std::sync::Arc;
-    use world::map::picture::light_rgb;
 
     fn towns() -> impl FnMut(&crate::format::Episode) -> Result<Arc<world::Town>, String> {
         let town = Arc::new(synthetic::town());

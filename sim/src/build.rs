@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use crate::camera::Camera;
 use crate::driver::Driver;
 use crate::expert::{Expert, ExpertParams};
-use crate::observe::{Progress, RenderEveryFrame, RunObserver};
+use crate::observe::{Progress, RenderEveryFrame, RunObserver, RunProgress};
 use crate::record::RunRecord;
 use crate::recorder::{RecordError, RecordOptions, Recorder};
 use crate::render::{RenderError, Renderer, RigConfig};
@@ -403,11 +403,12 @@ pub struct ScenarioRun {
 
 /// Runs one scenario file with overrides: loads and prepares it, builds its
 /// driver, selector, camera (when anything needs images) and recorder, drives
-/// it, and finishes the log. `progress` gets the route completion (percent).
+/// it, and finishes the log. `progress` hears where the run stands every half second
+/// of simulated time, and once at the end.
 pub fn run_scenario(
     request: &RunRequest<'_>,
     drivers: &Drivers,
-    progress: &mut dyn FnMut(f64),
+    progress: &mut dyn FnMut(&RunProgress),
 ) -> Result<ScenarioRun, BuildError> {
     run_scenario_with(request, drivers, progress, Extras::default())
 }
@@ -426,7 +427,7 @@ pub struct Extras<'a> {
 pub fn run_scenario_with(
     request: &RunRequest<'_>,
     drivers: &Drivers,
-    progress: &mut dyn FnMut(f64),
+    progress: &mut dyn FnMut(&RunProgress),
     extras: Extras<'_>,
 ) -> Result<ScenarioRun, BuildError> {
     let path = request.scenario;
@@ -514,7 +515,11 @@ pub fn run_scenario_with(
         path: path.to_path_buf(),
         source: Box::new(source),
     })?;
-    progress(record.result.completion_pct);
+    progress(&RunProgress {
+        sim_time_s: record.result.sim_time_s,
+        completion_pct: record.result.completion_pct,
+        scale: record.result.trace.last().map_or(1.0, |p| p[3]),
+    });
     if let (Some(rec), Some((p, _))) = (recorder, &record_path) {
         // The log holds what the run was, not which machine made it: without the CPU's
         // name its bytes are the same on every machine (README, "Determinism").

@@ -5,7 +5,7 @@
 //!
 //! From a scenario file to a result: [`scenario`] reads it, [`build`] makes
 //! its driver, selector and camera, [`runner`] drives the loop, [`record`]
-//! holds the result, [`sweep`] runs many and tabulates them.
+//! holds the result, [`picture`] draws it, [`sweep`] runs many and tabulates them.
 
 pub mod build;
 pub mod camera;
@@ -14,6 +14,7 @@ pub mod driver;
 pub mod expert;
 pub mod monitors;
 pub mod observe;
+pub mod picture;
 pub mod record;
 pub mod recorder;
 pub mod remote;

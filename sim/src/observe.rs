@@ -133,31 +133,49 @@ impl RunObserver for Moments {
     }
 }
 
-/// Reports route completion (percent) whenever it has grown by a whole percent.
-pub struct Progress<F: FnMut(f64)> {
-    report: F,
-    last_pct: f64,
+/// Where a run stands, for a progress display.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RunProgress {
+    /// Simulated time (seconds).
+    pub sim_time_s: f64,
+    /// Route completion (percent).
+    pub completion_pct: f64,
+    /// The input scale in force (fraction of S0).
+    pub scale: f64,
 }
 
-impl<F: FnMut(f64)> Progress<F> {
-    /// Calls `report` with the completion.
+/// Simulated seconds between two progress reports.
+pub const PROGRESS_EVERY_S: f64 = 0.5;
+
+/// Reports where the run stands every [`PROGRESS_EVERY_S`] of simulated time.
+pub struct Progress<F: FnMut(&RunProgress)> {
+    report: F,
+    next_s: f64,
+}
+
+impl<F: FnMut(&RunProgress)> Progress<F> {
+    /// Calls `report` with where the run stands.
     pub fn new(report: F) -> Self {
         Progress {
             report,
-            last_pct: -1.0,
+            next_s: 0.0,
         }
     }
 }
 
-impl<F: FnMut(f64)> RunObserver for Progress<F> {
+impl<F: FnMut(&RunProgress)> RunObserver for Progress<F> {
     fn on_tick(
         &mut self,
         view: &TickView<'_>,
         _camera: Option<&mut dyn Camera>,
     ) -> Result<(), RunError> {
-        if view.completion_pct - self.last_pct >= 1.0 {
-            (self.report)(view.completion_pct);
-            self.last_pct = view.completion_pct;
+        if view.time_s >= self.next_s {
+            (self.report)(&RunProgress {
+                sim_time_s: view.time_s,
+                completion_pct: view.completion_pct,
+                scale: view.scale,
+            });
+            self.next_s = view.time_s + PROGRESS_EVERY_S;
         }
         Ok(())
     }

@@ -55,6 +55,21 @@ pub struct RunResult {
     pub max_latency_ms: f64,
     /// Every infraction, in order.
     pub infractions: Vec<Infraction>,
+    /// Where the ego was, every [`TRACE_EVERY_S`] of simulated time and at the end:
+    /// `[time (s), x (m), y (m), input scale in force]`, positions to the centimetre.
+    /// What a picture of the run draws (`sim::picture`). Empty (and left out of the
+    /// JSON) in records made before it.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub trace: Vec<[f64; 4]>,
+}
+
+/// Simulated seconds between two points of a record's trace ([`RunResult::trace`]).
+pub const TRACE_EVERY_S: f64 = 0.5;
+
+/// A trace point: time (s), position to the centimetre (m), scale.
+pub fn trace_point(time_s: f64, position: [f32; 2], scale: f64) -> [f64; 4] {
+    let cm = |v: f32| (f64::from(v) * 100.0).round() / 100.0;
+    [time_s, cm(position[0]), cm(position[1]), scale]
 }
 
 /// Where a record came from: enough to rerun it.

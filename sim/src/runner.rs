@@ -623,6 +623,8 @@ pub fn run(
         .min((timeout_s / tick_s).ceil() as u64 + 1);
     let mut termination: Option<InfractionKind> = None;
     let mut tick: u64 = 0;
+    let trace_every = ((crate::record::TRACE_EVERY_S / tick_s).round() as u64).max(1);
+    let mut trace: Vec<[f64; 4]> = Vec::new();
 
     while tick < max_ticks {
         world.traffic.snapshots(&mut snapshots);
@@ -687,6 +689,13 @@ pub fn run(
             dt_s: tick_s,
             on_lane: e.lane.is_some(),
         };
+        if tick.is_multiple_of(trace_every) {
+            trace.push(crate::record::trace_point(
+                ego_tick.time_s,
+                now.ground().to_array(),
+                controls.scale,
+            ));
+        }
         new_infractions.clear();
         monitors.observe(&ego_tick, &mut new_infractions);
         if let Some(end) = new_infractions.iter().find(|i| i.kind.terminates()) {
@@ -732,6 +741,13 @@ pub fn run(
     }
 
     let final_position = world.traffic.ego().map_or(Vec2::ZERO, |e| e.state.position);
+    if !tick.is_multiple_of(trace_every) {
+        trace.push(crate::record::trace_point(
+            tick as f64 * tick_s,
+            final_position.to_array(),
+            controls.scale,
+        ));
+    }
     let completion_pct = monitors.route.completion_pct();
     let success = monitors.route.succeeded(final_position) && termination.is_none();
     perf.render_s = camera.as_ref().map_or(0.0, |c| c.spent_s);
@@ -776,6 +792,7 @@ pub fn run(
         scale_share: controls.scale_share(),
         max_latency_ms: controls.max_latency_ms,
         infractions,
+        trace,
     };
     perf.wall_s = wall.elapsed().as_secs_f64();
     perf.real_time_factor = result.sim_time_s / perf.wall_s.max(1e-9);

@@ -1,4 +1,5 @@
-//! `mrdrive log summary RUN.mcap`: what a recorded run log holds.
+//! `mrdrive log summary RUN.mcap`: what a recorded run log holds;
+//! `mrdrive log picture RUN.mcap|RUN.json`: the run's picture.
 
 use std::path::PathBuf;
 
@@ -12,6 +13,19 @@ pub enum LogCommand {
     /// Print a log's topics (with schemas), message counts, sim-time duration,
     /// infractions and result record.
     Summary(SummaryArgs),
+    /// Draw a run's picture (the route on the map, the path driven coloured by input
+    /// scale, each infraction) from its MCAP log or its JSON record.
+    Picture(PictureArgs),
+}
+
+/// `log picture` arguments.
+#[derive(Args)]
+pub struct PictureArgs {
+    /// The run's MCAP log (`mrdrive run --record`) or JSON record (`--json`, a sweep's `runs/*.json`).
+    pub run: PathBuf,
+    /// The PNG to write [default: beside the run's file, with the extension .png].
+    #[arg(long)]
+    pub out: Option<PathBuf>,
 }
 
 /// `log summary` arguments.
@@ -27,6 +41,14 @@ pub fn run(c: LogCommand) -> anyhow::Result<()> {
         LogCommand::Summary(a) => {
             let summary = read_summary(&a.log)?;
             print!("{}", format_summary(&a.log.display().to_string(), &summary));
+            Ok(())
+        }
+        LogCommand::Picture(a) => {
+            let result = sim::picture::read_result(&a.run)?;
+            let img = sim::picture::picture_of(&result)?;
+            let out = a.out.unwrap_or_else(|| a.run.with_extension("png"));
+            sim::picture::save(&img, &out)?;
+            println!("picture: {}", out.display());
             Ok(())
         }
     }

@@ -95,6 +95,7 @@ pub(crate) mod fixtures {
                 scale_share: BTreeMap::new(),
                 max_latency_ms: 0.0,
                 infractions,
+                trace: Vec::new(),
             },
             perf: RunPerf::default(),
         }

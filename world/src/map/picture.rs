@@ -1,6 +1,7 @@
 //! A top-down picture of a town: lanes, junctions, sidewalks, crosswalks,
 //! markings, buildings, traffic lights coloured by state and optionally a
-//! route, rasterised with supersampling (antialiased) into an RGB image.
+//! route, rasterised with supersampling (antialiased) into an RGB image; and
+//! 8 x 8 pixel text to label pictures ([`draw_text`]).
 
 use glam::{Mat2, Vec2, Vec3};
 use image::RgbImage;
@@ -18,8 +19,14 @@ pub struct RenderOptions {
     pub supersample: u32,
     /// The state of each light (indexed like `Town::lights`); `None` draws them all red.
     pub light_states: Option<Vec<LightState>>,
+    /// Draw the lights and their stop lines in grey, whatever their state (for a
+    /// picture whose own marks use red).
+    pub grey_lights: bool,
     /// A route to draw over the town (points in driving order).
     pub route: Option<Vec<Vec3>>,
+    /// Draw only this part of the town, (lowest, highest) corner in metres; `None`
+    /// fits the town's bounds and buildings.
+    pub crop: Option<(Vec2, Vec2)>,
 }
 
 impl Default for RenderOptions {
@@ -29,7 +36,9 @@ impl Default for RenderOptions {
             margin_m: 10.0,
             supersample: 3,
             light_states: None,
+            grey_lights: false,
             route: None,
+            crop: None,
         }
     }
 }
@@ -46,6 +55,7 @@ const WHITE: Rgb = [240, 240, 240];
 const YELLOW: Rgb = [235, 200, 40];
 const CURB: Rgb = [120, 120, 120];
 const ROUTE: Rgb = [40, 140, 255];
+const LIGHT_GREY: Rgb = [150, 150, 150];
 
 /// The colour a light's stop lines and head are drawn in.
 pub fn light_rgb(state: LightState) -> Rgb {
@@ -81,6 +91,11 @@ impl View {
             metres_per_pixel,
             offset_px: Vec2::ZERO,
         }
+    }
+
+    /// The output pixel (x right, y down; fractional) that shows world point `p`.
+    pub fn pixel(&self, p: Vec2) -> Vec2 {
+        self.offset_px + self.axes * (p - self.origin) / self.metres_per_pixel
     }
 
     /// Heading up: `centre` at output pixel `at_px`, the direction `heading`
@@ -135,6 +150,11 @@ impl Canvas {
 
     fn px(&self, p: Vec2) -> Vec2 {
         self.view.offset_px * self.ss as f32 + self.view.axes * (p - self.view.origin) * self.scale
+    }
+
+    /// What the canvas shows: where a world point lands in the output image.
+    pub fn view(&self) -> View {
+        self.view
     }
 
     /// Fills a polygon given in world coordinates (even-odd rule).
@@ -251,11 +271,11 @@ impl Canvas {
         }
     }
 
-    /// Every light's stop lines, coloured by `states` (indexed like
-    /// `Town::lights`; a light without a state is drawn red), `width_m` wide.
-    pub fn stop_lines(&mut self, town: &Town, states: &[LightState], width_m: f32) {
+    /// Every light's stop lines, `width_m` wide, light `i`'s in `colour(i)`
+    /// (`i` indexes `Town::lights`).
+    pub fn stop_lines(&mut self, town: &Town, colour: impl Fn(usize) -> Rgb, width_m: f32) {
         for (i, l) in town.lights.iter().enumerate() {
-            let col = light_rgb(states.get(i).copied().unwrap_or_default());
+            let col = colour(i);
             for sl in &l.stop_lines {
                 self.segment(sl.ends[0].truncate(), sl.ends[1].truncate(), width_m, col);
             }
@@ -292,6 +312,12 @@ impl Canvas {
 
 /// Rasterises `town` into an RGB image fitted to its bounds.
 pub fn render_town(town: &Town, opts: &RenderOptions) -> RgbImage {
+    town_canvas(town, opts).finish()
+}
+
+/// A canvas fitted to `town`'s bounds with the town drawn on it, for a caller to
+/// draw more over it before [`Canvas::finish`].
+pub fn town_canvas(town: &Town, opts: &RenderOptions) -> Canvas {
     let ss = opts.supersample.clamp(1, 4) as usize;
     let mpp = opts.metres_per_pixel.max(0.01);
     let (mut lo, mut hi) = town.bounds;
@@ -300,6 +326,9 @@ pub fn render_town(town: &Town, opts: &RenderOptions) -> RgbImage {
             lo = lo.min(*p);
             hi = hi.max(*p);
         }
+    }
+    if let Some(crop) = opts.crop {
+        (lo, hi) = crop;
     }
     lo -= Vec2::splat(opts.margin_m);
     hi += Vec2::splat(opts.margin_m);
@@ -378,14 +407,72 @@ pub fn render_town(town: &Town, opts: &RenderOptions) -> RgbImage {
         }
     }
     let states = opts.light_states.clone().unwrap_or_default();
-    cv.stop_lines(town, &states, 0.6_f32.max(min_line));
+    let light_col = |i: usize| {
+        if opts.grey_lights {
+            LIGHT_GREY
+        } else {
+            light_rgb(states.get(i).copied().unwrap_or_default())
+        }
+    };
+    cv.stop_lines(town, light_col, 0.6_f32.max(min_line));
     for (i, l) in town.lights.iter().enumerate() {
-        let col = light_rgb(states.get(i).copied().unwrap_or_default());
+        let col = light_col(i);
         let p = l.position.truncate();
         cv.disc(p, 1.8, [10, 10, 10]);
         cv.disc(p, 1.3, col);
     }
-    cv.finish()
+    cv
+}
+
+/// Width and height of one character of [`draw_text`] at `scale` 1 (pixels).
+pub const GLYPH_PX: u32 = 8;
+
+/// Writes `s` (ASCII; anything else shows as `?`) into `img` with its top-left corner at
+/// pixel `(x, y)`, each glyph `scale` times its 8 x 8 pixels, in `color`; with
+/// `background`, on a box of that colour one pixel larger all round. Whatever falls
+/// outside the image is left out.
+pub fn draw_text(
+    img: &mut RgbImage,
+    (x, y): (i64, i64),
+    s: &str,
+    color: Rgb,
+    background: Option<Rgb>,
+    scale: u32,
+) {
+    let k = i64::from(scale.max(1));
+    let glyph = i64::from(GLYPH_PX) * k;
+    let mut put = |px: i64, py: i64, c: Rgb| {
+        if px >= 0 && py >= 0 && px < i64::from(img.width()) && py < i64::from(img.height()) {
+            img.put_pixel(px as u32, py as u32, image::Rgb(c));
+        }
+    };
+    if let Some(bg) = background {
+        let w = glyph * s.chars().count() as i64;
+        for py in y - 1..y + glyph + 1 {
+            for px in x - 1..x + w + 1 {
+                put(px, py, bg);
+            }
+        }
+    }
+    for (n, ch) in s.chars().enumerate() {
+        let code = if ch.is_ascii() {
+            ch as usize
+        } else {
+            '?' as usize
+        };
+        for (row, bits) in font8x8::legacy::BASIC_LEGACY[code].iter().enumerate() {
+            for col in 0..8 {
+                if bits & (1 << col) != 0 {
+                    for dy in 0..k {
+                        for dx in 0..k {
+                            let px = x + n as i64 * glyph + col * k + dx;
+                            put(px, y + row as i64 * k + dy, color);
+                        }
+                    }
+                }
+            }
+        }
+    }
 }
 
 #[cfg(test)]
@@ -439,6 +526,22 @@ mod tests {
         assert_eq!(at(5.0, 0.0).0, ROAD);
         assert_eq!(at(5.0, 6.0).0, BACKGROUND);
         assert_eq!(at(10.0, 8.0).0, [30, 220, 60], "green light");
+    }
+
+    #[test]
+    fn text_lands_at_its_corner_in_its_colour_and_stops_at_the_edge() {
+        let mut img = RgbImage::new(40, 20);
+        // "I" in font8x8: a vertical bar in columns 2-5 of rows 0-6 (rows 0 and 6 the serifs).
+        draw_text(&mut img, (4, 2), "I", [255, 0, 0], Some([0, 0, 255]), 1);
+        assert_eq!(img.get_pixel(4 + 3, 2 + 3).0, [255, 0, 0], "the bar");
+        assert_eq!(img.get_pixel(4, 2 + 3).0, [0, 0, 255], "the box around");
+        assert_eq!(img.get_pixel(30, 10).0, [0, 0, 0], "untouched");
+        // Twice the size, and partly outside: no panic, the inside drawn.
+        draw_text(&mut img, (30, 10), "II", [0, 255, 0], None, 2);
+        assert_eq!(img.get_pixel(30 + 6, 10 + 6).0, [0, 255, 0]);
+        let view = View::north_up(Vec2::new(-10.0, 12.0), 0.5);
+        assert_eq!(view.pixel(Vec2::new(-10.0, 12.0)), Vec2::ZERO);
+        assert_eq!(view.pixel(Vec2::new(0.0, 0.0)), Vec2::new(20.0, 24.0));
     }
 
     #[test]
