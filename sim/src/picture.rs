@@ -142,6 +142,7 @@ pub fn infraction_rgb(kind: InfractionKind) -> [u8; 3] {
         | InfractionKind::CollisionStatic => [235, 30, 30],
         InfractionKind::RedLight => [230, 40, 230],
         InfractionKind::LaneCrossing => [250, 220, 40],
+        InfractionKind::OnSidewalk => [40, 220, 220],
         InfractionKind::RouteDeviation
         | InfractionKind::Stuck
         | InfractionKind::LowSpeedTimeout
@@ -327,6 +328,11 @@ fn header(img: &mut RgbImage, r: &RunResult) {
         "collision",
     );
     item(img, infraction_rgb(InfractionKind::RedLight), "red light");
+    item(
+        img,
+        infraction_rgb(InfractionKind::OnSidewalk),
+        "on sidewalk",
+    );
     item(
         img,
         infraction_rgb(InfractionKind::LaneCrossing),

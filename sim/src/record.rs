@@ -37,7 +37,8 @@ pub struct RunResult {
     pub success: bool,
     /// Leaderboard-1.0 driving score (percent).
     pub driving_score: f64,
-    /// Share of the distance driven outside the driving lanes (percent).
+    /// Share of the route progress made outside the driving lanes or against them
+    /// (percent; the leaderboard's `OutsideRouteLanesTest`, `monitors::outside_lane`).
     pub outside_lane_pct: f64,
     /// Number of infractions of each kind (every kind listed, zeros included).
     pub counts: BTreeMap<InfractionKind, u32>,

@@ -246,15 +246,18 @@ fn ego_contact(a: Party, b: Party) -> Option<EgoContact> {
         } => EgoContact {
             other: id,
             kind: ContactKind::Pedestrian,
+            static_name: None,
         },
         Party::Actor { id, .. } => EgoContact {
             other: id,
             kind: ContactKind::Vehicle,
+            static_name: None,
         },
         // Statics carry no per-object id: each kind counts as one "actor".
         Party::Static(kind) => EgoContact {
             other: 1_000_000 + kind as u32,
             kind: ContactKind::Static,
+            static_name: Some(kind.name()),
         },
     })
 }
@@ -687,7 +690,6 @@ pub fn run(
             contacts: &contacts,
             lights: &world.light_states,
             dt_s: tick_s,
-            on_lane: e.lane.is_some(),
         };
         if tick.is_multiple_of(trace_every) {
             trace.push(crate::record::trace_point(
@@ -740,6 +742,7 @@ pub fn run(
         }
     }
 
+    monitors.finish(&mut infractions);
     let final_position = world.traffic.ego().map_or(Vec2::ZERO, |e| e.state.position);
     if !tick.is_multiple_of(trace_every) {
         trace.push(crate::record::trace_point(
@@ -782,7 +785,11 @@ pub fn run(
         },
         completion_pct,
         success,
-        driving_score: driving_score(completion_pct, infractions.iter().map(|i| i.kind)),
+        driving_score: driving_score(
+            completion_pct,
+            infractions.iter().map(|i| i.kind),
+            monitors.outside_lane.outside_pct(),
+        ),
         outside_lane_pct: monitors.outside_lane.outside_pct(),
         counts: count_by_kind(&infractions),
         termination,

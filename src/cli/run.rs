@@ -288,7 +288,7 @@ pub fn print_result(record: &RunRecord) {
         r.driving_score
     );
     println!(
-        "outside lanes {:.1} % of the distance driven",
+        "outside lanes {:.1} % of the route (on a sidewalk or against the lane)",
         r.outside_lane_pct
     );
     if let Some(t) = r.termination {

@@ -2,8 +2,9 @@
 //!
 //! The town's static geometry is a rapier [`PhysicsWorld`] of fixed
 //! colliders: buildings (convex hulls of their footprints, extruded), traffic
-//! light poles (capsules) and curbs (a vertical wall along each sidewalk's
-//! road-side edge). Vehicles and pedestrians are kinematic, position-based
+//! light poles (capsules), and the trees and street lamps beside the road
+//! ([`Physics::add_props`]). Kerbs are not walls: a car's wheels climb them
+//! (`crate::agents::kerb`), as in CARLA. Vehicles and pedestrians are kinematic, position-based
 //! bodies: their behaviour (the bicycle model, the walker) proposes a new pose
 //! each 40 Hz tick and [`Physics::move_actor`] realises as much of it as the
 //! world allows:
@@ -26,11 +27,12 @@
 //! pipeline steps (by the step given to [`Physics::new`]), so rapier's broad phase and query pipeline
 //! ([`Physics::world`]) always reflect the current scene for ray and shape casts.
 //!
-//! Pedestrians do not collide with pedestrians, curbs or buildings (they
+//! Pedestrians do not collide with pedestrians or the static world (they
 //! walk on sidewalks and step off them at crossings); they do collide with
 //! vehicles, both ways.
 
 use crate::agents::actor::ActorKind;
+use crate::map::props::{LAMP_HEIGHT_M, LAMP_POST_M, Prop, PropKind, TRUNK_M};
 use crate::map::town::Town;
 use glam::{Quat, Vec2, Vec3};
 use rapier3d::parry::query::{ShapeCastOptions, cast_shapes, intersection_test};
@@ -43,7 +45,7 @@ use std::collections::BTreeMap;
 pub const DT_S: f32 = 0.025;
 /// Gap left between bodies when a sweep stops at a contact (metres).
 pub const SKIN_M: f32 = 0.02;
-/// Ground clearance of a vehicle's collision box (metres): low enough that curbs stop it.
+/// Ground clearance of a vehicle's collision box (metres).
 pub const VEHICLE_CLEARANCE_M: f32 = 0.02;
 /// Radius of a pedestrian's capsule (metres).
 pub const PEDESTRIAN_RADIUS_M: f32 = 0.3;
@@ -55,26 +57,35 @@ pub const PEDESTRIAN_HEIGHT_M: f32 = 1.8;
 pub enum StaticKind {
     /// A building.
     Building,
-    /// A pole (a traffic light's).
+    /// A pole: a traffic light's or a street lamp's.
     Pole,
-    /// A curb along a sidewalk.
-    Curb,
+    /// A tree's trunk.
+    Tree,
 }
 
 impl StaticKind {
+    /// What it is, in a word ("building", "pole", "tree").
+    pub fn name(self) -> &'static str {
+        match self {
+            StaticKind::Building => "building",
+            StaticKind::Pole => "pole",
+            StaticKind::Tree => "tree",
+        }
+    }
+
     fn code(self) -> u128 {
         match self {
             StaticKind::Building => 1,
             StaticKind::Pole => 2,
-            StaticKind::Curb => 3,
+            StaticKind::Tree => 3,
         }
     }
 
     fn from_code(c: u128) -> StaticKind {
         match c {
-            1 => StaticKind::Building,
             2 => StaticKind::Pole,
-            _ => StaticKind::Curb,
+            3 => StaticKind::Tree,
+            _ => StaticKind::Building,
         }
     }
 }
@@ -185,17 +196,13 @@ pub struct Physics {
 }
 
 impl Physics {
-    /// A world with the town's static colliders (buildings, light poles,
-    /// curbs) and no actors, stepping `dt_s` seconds a tick.
+    /// A world with the town's static colliders (buildings, light poles) and no
+    /// actors, stepping `dt_s` seconds a tick.
     pub fn new(town: &Town, dt_s: f32) -> Physics {
         let mut world = PhysicsWorld::new();
         world.gravity = Vec3::new(0.0, 0.0, -9.81);
         world.integration_parameters.dt = dt_s;
-        let ground_z = town
-            .lanes
-            .first()
-            .and_then(|l| l.centerline.first())
-            .map_or(0.0, |p| p.z);
+        let ground_z = town.ground_z();
         let fixed = |kind: StaticKind| kind.code();
         for b in &town.buildings {
             if b.footprint.len() < 3 || b.height_m.is_nan() || b.height_m <= 0.0 {
@@ -219,25 +226,6 @@ impl Physics {
                 .user_data(fixed(StaticKind::Pole));
             world.colliders.insert(c);
         }
-        for sw in &town.sidewalks {
-            if sw.inner.len() < 2 {
-                continue;
-            }
-            let mut v = Vec::with_capacity(sw.inner.len() * 2);
-            let mut idx = Vec::with_capacity(sw.inner.len() * 2);
-            for (i, p) in sw.inner.iter().enumerate() {
-                v.push(*p);
-                v.push(*p + Vec3::new(0.0, 0.0, sw.height_m.max(0.1)));
-                if i > 0 {
-                    let k = (2 * i) as u32;
-                    idx.push([k - 2, k - 1, k]);
-                    idx.push([k - 1, k + 1, k]);
-                }
-            }
-            if let Ok(c) = ColliderBuilder::trimesh(v, idx) {
-                world.colliders.insert(c.user_data(fixed(StaticKind::Curb)));
-            }
-        }
         world.step();
         Physics {
             world,
@@ -246,6 +234,24 @@ impl Physics {
             prev_contacts: BTreeMap::new(),
             events: Vec::new(),
         }
+    }
+
+    /// Adds the trees' trunks and the street lamps' posts (`world::map::props`) as
+    /// fixed colliders standing on `ground_z` (metres).
+    pub fn add_props(&mut self, props: &[Prop], ground_z: f32) {
+        for p in props {
+            let (side, height, kind) = match p.kind {
+                PropKind::Tree { crown_base_m, .. } => {
+                    (TRUNK_M, crown_base_m + 0.5, StaticKind::Tree)
+                }
+                PropKind::StreetLamp => (LAMP_POST_M, LAMP_HEIGHT_M, StaticKind::Pole),
+            };
+            let c = ColliderBuilder::cuboid(side * 0.5, side * 0.5, height * 0.5)
+                .position(pose(p.position, ground_z + height * 0.5, 0.0))
+                .user_data(kind.code());
+            self.world.colliders.insert(c);
+        }
+        self.world.step();
     }
 
     /// Adds a static box (street furniture, a parked obstacle): centre on the ground, size (metres), yaw (radians).
@@ -482,7 +488,7 @@ impl Physics {
                     .world
                     .colliders
                     .get(h)
-                    .map_or(StaticKind::Curb, |c| StaticKind::from_code(c.user_data));
+                    .map_or(StaticKind::Building, |c| StaticKind::from_code(c.user_data));
                 // normal1 is the hit collider's outward normal (world frame).
                 let touch = Touch {
                     party: Party::Static(kind),
@@ -619,7 +625,7 @@ impl Physics {
             .query_pipeline_with_filter(QueryFilter::only_fixed());
         let found = qp.intersect_shape(ps, b.shape.shape()).next();
         Touch {
-            party: Party::Static(found.map_or(StaticKind::Curb, |(_, c)| {
+            party: Party::Static(found.map_or(StaticKind::Building, |(_, c)| {
                 StaticKind::from_code(c.user_data)
             })),
             collider: found.map(|(h, _)| h),
@@ -752,6 +758,35 @@ mod tests {
 
     fn car() -> Vec3 {
         Vec3::new(4.79, 2.16, 1.45)
+    }
+
+    #[test]
+    fn a_tree_beside_the_road_is_solid_and_named() {
+        let mut ph = Physics::new(&Town::empty("props"), DT_S);
+        let tree = Prop {
+            position: Vec2::new(10.0, 0.0),
+            outward: Vec2::Y,
+            kind: PropKind::Tree {
+                crown_base_m: 2.5,
+                crown_radius_m: 1.5,
+            },
+        };
+        ph.add_props(&[tree], 0.0);
+        ph.add_vehicle(0, ActorKind::Ego, car(), Vec2::new(0.0, 0.0), 0.0, 0.0);
+        let mut hit = None;
+        for _ in 0..80 {
+            let (p, yaw) = ph.pose_of(0).unwrap();
+            ph.move_actor(0, p + Vec2::new(0.25, 0.0), yaw);
+            if let Some(ev) = ph.end_tick().iter().find(|e| e.started) {
+                hit = Some(ev.b);
+            }
+        }
+        assert_eq!(hit, Some(Party::Static(StaticKind::Tree)));
+        let (p, _) = ph.pose_of(0).unwrap();
+        assert!(
+            p.x + 4.79 / 2.0 <= 10.0 - TRUNK_M / 2.0 + 1e-3,
+            "stopped at the trunk: {p}"
+        );
     }
 
     #[test]

@@ -51,11 +51,11 @@ impl Monitor for CollisionMonitor {
                 ContactKind::Pedestrian => InfractionKind::CollisionPedestrian,
                 ContactKind::Static => InfractionKind::CollisionStatic,
             };
-            out.push(Infraction::at(
-                tick,
-                kind,
-                format!("actor {}", contact.other),
-            ));
+            let detail = match contact.static_name {
+                Some(name) => format!("a {name}"),
+                None => format!("actor {}", contact.other),
+            };
+            out.push(Infraction::at(tick, kind, detail));
         }
     }
 }
@@ -84,14 +84,17 @@ mod tests {
     const CAR: EgoContact = EgoContact {
         other: 7,
         kind: ContactKind::Vehicle,
+        static_name: None,
     };
     const WALKER: EgoContact = EgoContact {
         other: 9,
         kind: ContactKind::Pedestrian,
+        static_name: None,
     };
     const WALL: EgoContact = EgoContact {
         other: 100,
         kind: ContactKind::Static,
+        static_name: Some("building"),
     };
 
     #[test]

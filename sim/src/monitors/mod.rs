@@ -16,6 +16,7 @@
 pub mod blocked;
 pub mod collision;
 pub mod lane_crossing;
+pub mod on_sidewalk;
 pub mod outside_lane;
 pub mod red_light;
 pub mod route;
@@ -45,6 +46,8 @@ pub struct EgoContact {
     pub other: u32,
     /// What it is.
     pub kind: ContactKind,
+    /// For a static body, what it is in a word ("building", "pole", "tree").
+    pub static_name: Option<&'static str>,
 }
 
 /// Everything the monitors see of one tick, after the physics step.
@@ -70,9 +73,6 @@ pub struct EgoTick<'a> {
     pub lights: &'a [LightState],
     /// The tick's length (seconds).
     pub dt_s: f64,
-    /// Whether the ego is on a driving lane in its direction after the step
-    /// (the rule book's lane under a point).
-    pub on_lane: bool,
 }
 
 impl EgoTick<'_> {
@@ -109,6 +109,7 @@ pub struct Monitors {
     pub red_lights: red_light::RedLightMonitor,
     /// Distance driven off the lanes.
     pub outside_lane: outside_lane::OutsideLaneMonitor,
+    pub on_sidewalk: on_sidewalk::OnSidewalkMonitor,
     /// Stuck, low speed, route timeout.
     pub blocked: blocked::BlockedMonitor,
 }
@@ -117,7 +118,7 @@ impl Monitors {
     /// The monitors of a run in `town` along `route`: deviation limit
     /// (metres), stuck and low-speed limits and route timeout (seconds).
     pub fn new(
-        town: &world::Town,
+        town: &std::sync::Arc<world::Town>,
         rules: std::sync::Arc<world::rules::RuleBook>,
         route: &world::route::DenseRoute,
         deviation_m: f32,
@@ -128,7 +129,8 @@ impl Monitors {
             collisions: collision::CollisionMonitor::default(),
             lane_crossings: lane_crossing::LaneCrossingMonitor::new(town),
             red_lights: red_light::RedLightMonitor::new(rules.clone()),
-            outside_lane: outside_lane::OutsideLaneMonitor::default(),
+            outside_lane: outside_lane::OutsideLaneMonitor::new(town.clone(), rules.clone()),
+            on_sidewalk: on_sidewalk::OnSidewalkMonitor::new(town.clone(), rules.clone()),
             blocked: blocked::BlockedMonitor::new(stuck_s, low_speed_s, timeout_s)
                 .waiting_at_lights_of(rules),
         }
@@ -136,17 +138,23 @@ impl Monitors {
 
     /// Every monitor looks at the tick, in order; their reports go to `out`.
     pub fn observe(&mut self, tick: &EgoTick<'_>, out: &mut Vec<Infraction>) {
-        let all: [&mut dyn Monitor; 6] = [
+        let all: [&mut dyn Monitor; 5] = [
             &mut self.route,
             &mut self.collisions,
             &mut self.lane_crossings,
             &mut self.red_lights,
-            &mut self.outside_lane,
             &mut self.blocked,
         ];
         for m in all {
             m.observe(tick, out);
         }
+        self.outside_lane.observe(tick, self.route.progress_m());
+        self.on_sidewalk.observe(tick, out);
+    }
+
+    /// Reports what was still in progress when the run ended (a stretch on the sidewalk).
+    pub fn finish(&mut self, out: &mut Vec<Infraction>) {
+        self.on_sidewalk.finish(out);
     }
 }
 
@@ -164,6 +172,9 @@ pub enum InfractionKind {
     RedLight,
     /// Crossed a painted lane marking.
     LaneCrossing,
+    /// Drove on the sidewalk (informative: no penalty, no end; its distance counts in
+    /// the outside-lanes share).
+    OnSidewalk,
     /// Drove more than the allowed distance away from the route (ends the run).
     RouteDeviation,
     /// Stood still while pressing the throttle, or after a collision (ends the run).
@@ -176,12 +187,13 @@ pub enum InfractionKind {
 
 impl InfractionKind {
     /// Every kind, in table order.
-    pub const ALL: [InfractionKind; 9] = [
+    pub const ALL: [InfractionKind; 10] = [
         Self::CollisionPedestrian,
         Self::CollisionVehicle,
         Self::CollisionStatic,
         Self::RedLight,
         Self::LaneCrossing,
+        Self::OnSidewalk,
         Self::RouteDeviation,
         Self::Stuck,
         Self::LowSpeedTimeout,
@@ -204,6 +216,7 @@ impl InfractionKind {
             Self::CollisionStatic => "collision_static",
             Self::RedLight => "red_light",
             Self::LaneCrossing => "lane_crossing",
+            Self::OnSidewalk => "on_sidewalk",
             Self::RouteDeviation => "route_deviation",
             Self::Stuck => "stuck",
             Self::LowSpeedTimeout => "low_speed_timeout",
@@ -280,7 +293,6 @@ pub(crate) mod scripted {
                 contacts: &[],
                 lights,
                 dt_s: 0.025,
-                on_lane: true,
             };
             observe(&tick);
         }

@@ -1,41 +1,73 @@
-//! Driving outside the lanes (scenario_runner's `OutsideRouteLanesTest`):
-//! the share of the distance driven with the ego's centre off every driving
-//! lane, or on one that runs the other way. The lane under the ego is the
-//! rule book's ([`world::rules::lanes`]: within half a lane width plus 0.5 m,
-//! heading within 60 degrees), so the NPCs and this monitor agree on it.
+//! Driving outside the route's lanes (the leaderboard's `OutsideRouteLanesTest`):
+//! the share of the route's progress made while the ego was outside the
+//! driving lanes (its centre farther than half a lane's width plus 1.3 m from
+//! every lane: a sidewalk, a verge) or in a lane running the other way. How the
+//! ego stands to the lanes is the rule book's ([`world::rules::LaneGrid::standing`]).
+//! The driving score takes this share off, as leaderboard 1.0 does
+//! ([`super::score::driving_score`]).
+//!
+//! Like the leaderboard, it measures progress along the route (the distance
+//! between the route points the ego passed), not the distance driven: standing
+//! or driving beside the route adds nothing.
 
-use super::{EgoTick, Infraction, Monitor};
+use std::sync::Arc;
 
-/// Accumulates the distance driven outside the lanes.
-#[derive(Debug, Clone, Default)]
+use world::Town;
+use world::rules::{LaneStanding, RuleBook};
+
+use super::EgoTick;
+
+/// Accumulates the route progress made outside the lanes.
+#[derive(Debug, Clone)]
 pub struct OutsideLaneMonitor {
-    driven_m: f64,
+    town: Arc<Town>,
+    rules: Arc<RuleBook>,
+    progress_m: f64,
     outside_m: f64,
+    last_progress_m: f32,
 }
 
 impl OutsideLaneMonitor {
-    /// Distance driven outside the lanes (metres).
+    /// A monitor for `town` with its rule book.
+    pub fn new(town: Arc<Town>, rules: Arc<RuleBook>) -> Self {
+        OutsideLaneMonitor {
+            town,
+            rules,
+            progress_m: 0.0,
+            outside_m: 0.0,
+            last_progress_m: 0.0,
+        }
+    }
+
+    /// Route progress made outside the lanes (metres).
     pub fn outside_m(&self) -> f64 {
         self.outside_m
     }
 
-    /// Share of the distance driven outside the lanes (percent).
+    /// Share of the route progress made outside the lanes (percent).
     pub fn outside_pct(&self) -> f64 {
-        if self.driven_m > 0.0 {
-            100.0 * self.outside_m / self.driven_m
+        if self.progress_m > 0.0 {
+            100.0 * self.outside_m / self.progress_m
         } else {
             0.0
         }
     }
-}
 
-impl Monitor for OutsideLaneMonitor {
-    /// Adds this tick's distance, to the outside share when the ego is not
-    /// on a driving lane in its direction after the step. Reports nothing.
-    fn observe(&mut self, tick: &EgoTick<'_>, _out: &mut Vec<Infraction>) {
-        let d = f64::from(tick.now.ground().distance(tick.prev.ground()));
-        self.driven_m += d;
-        if !tick.on_lane {
+    /// Adds the route progress since the last tick (`progress_m`: the route distance
+    /// reached, metres), to the outside share when the ego stands outside the lanes
+    /// or against them after the step.
+    pub fn observe(&mut self, tick: &EgoTick<'_>, progress_m: f32) {
+        let d = f64::from((progress_m - self.last_progress_m).max(0.0));
+        self.last_progress_m = self.last_progress_m.max(progress_m);
+        if d == 0.0 {
+            return;
+        }
+        self.progress_m += d;
+        let standing = self
+            .rules
+            .lanes
+            .standing(&self.town, tick.now.ground(), tick.now.heading);
+        if standing != LaneStanding::InLane {
             self.outside_m += d;
         }
     }
@@ -45,32 +77,45 @@ impl Monitor for OutsideLaneMonitor {
 mod tests {
     use super::super::scripted;
     use super::*;
+    use world::map::testtown;
 
-    #[test]
-    fn a_quarter_of_the_drive_off_the_lane_is_twenty_five_percent() {
-        let mut m = OutsideLaneMonitor::default();
-        let poses = scripted::straight(0.0, 0.0, 4.0, 400); // 40 m
-        scripted::drive(&poses, 4.0, &[], |t| {
-            let on_lane = !(100..200).contains(&t.tick);
-            m.observe(&EgoTick { on_lane, ..*t }, &mut Vec::new())
+    fn monitor() -> OutsideLaneMonitor {
+        let town = Arc::new(testtown::grid(3, 1, 100.0));
+        let rules = Arc::new(RuleBook::new(&town));
+        OutsideLaneMonitor::new(town, rules)
+    }
+
+    /// Drives `poses`, the route progress being the distance along +x from x = 20.
+    fn drive(m: &mut OutsideLaneMonitor, poses: &[world::EgoPose]) {
+        scripted::drive(poses, 4.0, &[], |t| {
+            m.observe(t, (t.now.position.x - 20.0).max(0.0))
         });
-        assert!((m.outside_pct() - 25.0).abs() < 0.5, "{}", m.outside_pct());
-        assert!((m.outside_m() - 10.0).abs() < 0.2);
     }
 
     #[test]
-    fn standing_still_off_the_lane_adds_nothing() {
-        let mut m = OutsideLaneMonitor::default();
-        let poses = scripted::straight(0.0, 0.0, 0.0, 100);
-        scripted::drive(&poses, 0.0, &[], |t| {
-            m.observe(
-                &EgoTick {
-                    on_lane: false,
-                    ..*t
-                },
-                &mut Vec::new(),
-            )
-        });
+    fn a_quarter_of_the_route_on_the_sidewalk_or_against_the_lane_is_twenty_five_percent() {
+        // 10 m in the lane, 10 m on the southern sidewalk (y = -5), 20 m in the lane.
+        let mut m = monitor();
+        let mut poses = scripted::straight(20.0, -1.75, 4.0, 100);
+        poses.extend(scripted::straight(30.0, -5.0, 4.0, 100));
+        poses.extend(scripted::straight(40.0, -1.75, 4.0, 200));
+        drive(&mut m, &poses);
+        assert!((m.outside_pct() - 25.0).abs() < 0.5, "{}", m.outside_pct());
+        assert!((m.outside_m() - 10.0).abs() < 0.2);
+        // The same in the oncoming lane (y = +1.75, which runs -x).
+        let mut m = monitor();
+        let mut poses = scripted::straight(20.0, -1.75, 4.0, 100);
+        poses.extend(scripted::straight(30.0, 1.75, 4.0, 100));
+        poses.extend(scripted::straight(40.0, -1.75, 4.0, 200));
+        drive(&mut m, &poses);
+        assert!((m.outside_pct() - 25.0).abs() < 0.5, "{}", m.outside_pct());
+    }
+
+    #[test]
+    fn no_route_progress_adds_nothing() {
+        let mut m = monitor();
+        let poses = scripted::straight(30.0, -5.0, 0.0, 100);
+        scripted::drive(&poses, 0.0, &[], |t| m.observe(t, 0.0));
         assert_eq!(m.outside_pct(), 0.0);
     }
 }

@@ -1,11 +1,13 @@
 //! The town as data and where it comes from: the [`Town`] model, OpenDRIVE
 //! loading ([`opendrive`]), our town [`generator`], the hand-built grid town
-//! for tests ([`testtown`]) and a top-down [`picture`] of a town.
+//! for tests ([`testtown`]), a top-down [`picture`] of a town, and the trees and
+//! street lamps beside its roads ([`props`]).
 
 pub mod error;
 pub mod generator;
 pub mod opendrive;
 pub mod picture;
+pub mod props;
 pub mod testtown;
 pub mod town;
 

@@ -214,6 +214,15 @@ impl Town {
             bounds: (Vec2::ZERO, Vec2::ZERO),
         }
     }
+
+    /// The road's height (metres): that of the first lane's first point (our towns
+    /// and CARLA's are flat), 0 for a town without lanes.
+    pub fn ground_z(&self) -> f32 {
+        self.lanes
+            .first()
+            .and_then(|l| l.centerline.first())
+            .map_or(0.0, |p| p.z)
+    }
 }
 
 /// The state of a traffic light's lamps.

@@ -28,6 +28,30 @@ use crate::map::town::{DriveLane, LaneIdx, Town};
 /// Extra distance beyond half a lane's width within which a point is still on it (metres).
 pub const ON_LANE_MARGIN_M: f32 = 0.5;
 
+/// How far beyond half a lane's width a car's centre may be and still count as
+/// inside the driving lanes (metres): the leaderboard's `ALLOWED_OUT_DISTANCE`
+/// (`OutsideRouteLanesTest`), the shoulder between a lane and its sidewalk.
+pub const ALLOWED_OUT_M: f32 = 1.3;
+
+/// The smallest angle between a car's heading and the lane under it that makes
+/// it drive against the lane (degrees): the leaderboard's
+/// `MAX_ALLOWED_VEHICLE_ANGLE` (`OutsideRouteLanesTest`).
+pub const WRONG_WAY_DEG: f32 = 120.0;
+
+/// How a car stands to the driving lanes, as the leaderboard's
+/// `OutsideRouteLanesTest` sees it ([`LaneGrid::standing`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LaneStanding {
+    /// On a driving lane, in its direction (or anywhere in a junction).
+    InLane,
+    /// Farther than half a lane's width plus [`ALLOWED_OUT_M`] from every
+    /// driving lane: on a sidewalk, a verge, a building's lot.
+    OutsideLanes,
+    /// Nearest to a lane outside a junction that runs the other way (more than
+    /// [`WRONG_WAY_DEG`] from the car's heading).
+    WrongWay,
+}
+
 /// Cosine of the largest angle between a heading and a lane's driving
 /// heading that still agree (60 degrees).
 pub const HEADING_AGREEMENT_COS: f32 = 0.5;
@@ -178,6 +202,44 @@ impl LaneGrid {
         seen
     }
 
+    /// Whether `p` lies within the paved width of some driving lane, whatever its direction.
+    pub fn on_any_lane(&self, town: &Town, p: Vec2) -> bool {
+        self.lanes_near(p).into_iter().any(|lane| {
+            project_on_lane(town, lane, p).is_some_and(|lp| lp.distance_m <= lp.width_m * 0.5)
+        })
+    }
+
+    /// How a car at `p` heading `heading` (radians) stands to the driving lanes
+    /// ([`LaneStanding`]): the nearest lane decides, plain lanes winning ties with
+    /// junction lanes as in [`LaneGrid::lane_under`].
+    pub fn standing(&self, town: &Town, p: Vec2, heading: f32) -> LaneStanding {
+        let mut nearest: Option<(f32, LanePoint)> = None;
+        for lane in self.lanes_near(p) {
+            let Some(lp) = project_on_lane(town, lane, p) else {
+                continue;
+            };
+            let junction = town.lane(lp.lane).junction.is_some();
+            let key =
+                lp.distance_m - lp.width_m * 0.5 + if junction { JUNCTION_TIE_M } else { 0.0 };
+            if nearest.is_none_or(|(k, _)| key < k) {
+                nearest = Some((key, lp));
+            }
+        }
+        let Some((beyond, lp)) = nearest else {
+            return LaneStanding::OutsideLanes;
+        };
+        if beyond > ALLOWED_OUT_M {
+            return LaneStanding::OutsideLanes;
+        }
+        let against = Vec2::from_angle(lp.heading).dot(Vec2::from_angle(heading))
+            < WRONG_WAY_DEG.to_radians().cos();
+        if against && town.lane(lp.lane).junction.is_none() {
+            LaneStanding::WrongWay
+        } else {
+            LaneStanding::InLane
+        }
+    }
+
     /// The lane under a point for a heading (radians), see the module docs;
     /// `None` off the driving lanes or against them.
     pub fn lane_under(&self, town: &Town, p: Vec2, heading: f32) -> Option<LanePoint> {
@@ -226,6 +288,29 @@ mod tests {
             lanes,
             ..Town::empty("t")
         }
+    }
+
+    #[test]
+    fn a_car_stands_in_its_lane_outside_the_lanes_or_against_them() {
+        // Lane 0 runs +x at y = -1.75, lane 1 runs -x at y = +1.75, each 3.5 m wide.
+        let t = grid(3, 1, 60.0);
+        let g = LaneGrid::new(&t, 5.0);
+        let at = |x: f32, y: f32, heading: f32| g.standing(&t, Vec2::new(x, y), heading);
+        assert_eq!(at(30.0, -1.75, 0.0), LaneStanding::InLane);
+        assert_eq!(
+            at(30.0, 1.75, 0.0),
+            LaneStanding::WrongWay,
+            "the oncoming lane"
+        );
+        assert_eq!(at(30.0, -1.75, PI), LaneStanding::WrongWay, "turned around");
+        // 1.3 m of shoulder beyond the lane's edge at -3.5 m still counts as in it.
+        assert_eq!(at(30.0, -4.7, 0.0), LaneStanding::InLane);
+        assert_eq!(
+            at(30.0, -5.0, 0.0),
+            LaneStanding::OutsideLanes,
+            "on the sidewalk"
+        );
+        assert_eq!(at(30.0, -40.0, 0.0), LaneStanding::OutsideLanes, "far off");
     }
 
     #[test]

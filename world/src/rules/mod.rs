@@ -9,9 +9,10 @@
 //! | [`crossing`] | the point of a vehicle that crosses a stop line |
 //! | [`route`] | the distance along a route of a pose, the route's point at a distance, the route point reached, the path ahead |
 //! | [`pursuit`] | the pure-pursuit lookahead |
-//! | [`lanes`] | the lane under a point (heading agreement, one width lookup), the nearest lane, and [`LaneGrid`] |
+//! | [`lanes`] | the lane under a point (heading agreement, one width lookup), the nearest lane, how a car stands to the lanes (inside, outside, against them), and [`LaneGrid`] |
 //! | [`conflicts`] | which connecting lanes of a junction conflict |
 //! | [`ahead`] | what is ahead along a path: the nearest actor whose footprint reaches into a corridor (a walking pedestrian's also where it will be within 2 s), and its distance along the path |
+//! | [`sidewalks`] | the sidewalk under a point, its height and the direction of its kerb |
 //!
 //! `docs/rule-book.md` lists where each consumer calls each rule.
 //!
@@ -28,15 +29,17 @@ pub mod lanes;
 pub mod lights;
 pub mod pursuit;
 pub mod route;
+pub mod sidewalks;
 pub mod stop_lines;
 
 pub use ahead::{ActorView, Ahead, nearest_ahead, walker_horizon_s};
 pub use conflicts::JunctionConflicts;
 pub use crossing::{crossing_offset_m, crossing_point};
-pub use lanes::{LaneGrid, heading_agrees, nearest_lane, project_on_lane};
+pub use lanes::{LaneGrid, LaneStanding, heading_agrees, nearest_lane, project_on_lane};
 pub use lights::{YELLOW_SLACK_M, light_state, must_stop};
 pub use pursuit::pursuit_lookahead_m;
 pub use route::{nearest_route_point, route_ahead, route_point_at, route_s_at};
+pub use sidewalks::{OnSidewalk, SidewalkGrid};
 pub use stop_lines::{RouteStop, RouteStops, StopLineEntry, StopLines};
 
 use crate::map::town::Town;
@@ -45,7 +48,7 @@ use crate::map::town::Town;
 pub const LANE_GRID_CELL_M: f32 = 5.0;
 
 /// A town's rule tables, built once: its stop lines by lane, its junction
-/// conflicts and the grid that finds the lane under a point.
+/// conflicts, and the grids that find the lane and the sidewalk under a point.
 #[derive(Debug, Clone)]
 pub struct RuleBook {
     /// Every stop line, and by lane.
@@ -54,6 +57,8 @@ pub struct RuleBook {
     pub conflicts: JunctionConflicts,
     /// The lane under a point.
     pub lanes: LaneGrid,
+    /// The sidewalk under a point.
+    pub sidewalks: SidewalkGrid,
 }
 
 impl RuleBook {
@@ -63,6 +68,7 @@ impl RuleBook {
             stop_lines: StopLines::new(town),
             conflicts: JunctionConflicts::new(town),
             lanes: LaneGrid::new(town, LANE_GRID_CELL_M),
+            sidewalks: SidewalkGrid::new(town),
         }
     }
 }

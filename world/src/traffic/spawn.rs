@@ -16,6 +16,7 @@ use super::{Ego, EgoStart, Traffic, TrafficConfig, TrafficStats};
 use crate::agents::npc::{self, Npc, Scratch};
 use crate::agents::pedestrian::{Pedestrian, WalkGraph};
 use crate::agents::{ActorKind, VehicleControl, VehicleState};
+use crate::map::props::place_props;
 use crate::map::{LaneIdx, Town};
 use crate::physics::Physics;
 use crate::road::LanePath;
@@ -30,7 +31,8 @@ fn actor_rng(seed: u64, id: u32) -> ChaCha8Rng {
 impl Traffic {
     /// Builds the world and spawns the ego (if given), then the NPCs and pedestrians from the seed.
     pub fn new(town: Arc<Town>, cfg: TrafficConfig, ego: Option<EgoStart>) -> Traffic {
-        let physics = Physics::new(&town, cfg.tick_s);
+        let mut physics = Physics::new(&town, cfg.tick_s);
+        physics.add_props(&place_props(&town, cfg.seed), town.ground_z());
         let rules = Arc::new(RuleBook::new(&town));
         let reservations = Reservations::new(town.lanes.len());
         let walk = WalkGraph::new(&town, &cfg.pedestrian);

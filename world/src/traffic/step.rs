@@ -8,7 +8,7 @@
 //! ([`super::TrafficStats`]).
 
 use super::Traffic;
-use crate::agents::npc;
+use crate::agents::{kerb, npc};
 use crate::map::LightState;
 use crate::physics::ContactEvent;
 
@@ -44,9 +44,12 @@ impl Traffic {
         for p in &mut self.pedestrians {
             ped_targets.push(p.decide(&self.walk, &self.cfg.pedestrian, &self.views, dt));
         }
-        // Move: ego, NPCs, pedestrians.
+        // Move: ego, NPCs, pedestrians. A vehicle's wheels climb the kerbs it meets.
+        let sidewalks = &self.rules.sidewalks;
+        let road_z = self.town.ground_z();
         if let Some(e) = &mut self.ego {
             let mut s = e.state;
+            let before = (s.position, s.yaw);
             s.step(&vp, e.control, dt);
             let out = self.physics.move_actor(0, s.position, s.yaw);
             s.position = out.position;
@@ -54,12 +57,15 @@ impl Traffic {
             if out.hit.is_some() {
                 s.speed_mps *= out.fraction;
             }
+            kerb::cross_kerbs(&mut s, &vp, before, sidewalks);
+            e.z = road_z + kerb::ride_height_m(sidewalks, s.position);
             e.state = s;
         }
         for (n, d) in self.npcs.iter_mut().zip(&decisions) {
             let stop_before = npc::next_stop_line(&self.town, &self.rules, n, &vp, 20.0);
             n.control = d.control;
             let mut s = n.state;
+            let before = (s.position, s.yaw);
             s.step(&vp, d.control, dt);
             let out = self.physics.move_actor(n.id, s.position, s.yaw);
             s.position = out.position;
@@ -67,6 +73,7 @@ impl Traffic {
             if out.hit.is_some() {
                 s.speed_mps *= out.fraction;
             }
+            kerb::cross_kerbs(&mut s, &vp, before, sidewalks);
             n.state = s;
             let travelled = n.path.advance_to(&self.town, s.position);
             if let Some((dist, light)) = stop_before

@@ -1,12 +1,11 @@
-//! What stands beside the road: buildings, trees and street lamps placed
-//! from the seed, and the terrain around the town.
+//! What stands beside the road: buildings, trees and street lamps (placed by
+//! `world::map::props` from the seed), and the terrain around the town.
 
-use std::collections::BTreeMap;
-
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use world::Town;
+use world::map::props::{LAMP_HEIGHT_M, LAMP_POST_M, PropKind, TRUNK_M, place_props};
 
 use super::CELL_M;
 use super::primitives::{Tris, pack, paint};
@@ -35,88 +34,33 @@ pub(super) fn buildings(town: &Town, ground_z: f32, seed: u64, t: &mut Tris) {
     }
 }
 
-/// Lane-centre points on a coarse grid, to keep props off the road.
-struct RoadIndex {
-    grid: BTreeMap<(i32, i32), Vec<(Vec2, f32)>>,
-}
-
-impl RoadIndex {
-    const CELL: f32 = 10.0;
-    fn new(town: &Town) -> RoadIndex {
-        let mut grid: BTreeMap<(i32, i32), Vec<(Vec2, f32)>> = BTreeMap::new();
-        for lane in &town.lanes {
-            for (i, p) in lane.centerline.iter().enumerate() {
-                let half = lane.width.get(i).copied().unwrap_or(3.5) * 0.5;
-                let key = (
-                    (p.x / Self::CELL).floor() as i32,
-                    (p.y / Self::CELL).floor() as i32,
-                );
-                grid.entry(key).or_default().push((p.truncate(), half));
-            }
-        }
-        RoadIndex { grid }
-    }
-    /// Whether `p` is within `margin` metres of a lane's paved width.
-    fn near_road(&self, p: Vec2, margin: f32) -> bool {
-        let (cx, cy) = (
-            (p.x / Self::CELL).floor() as i32,
-            (p.y / Self::CELL).floor() as i32,
-        );
-        (-1..=1).any(|dx| {
-            (-1..=1).any(|dy| {
-                self.grid
-                    .get(&(cx + dx, cy + dy))
-                    .is_some_and(|v| v.iter().any(|&(q, half)| q.distance(p) < half + margin))
-            })
-        })
-    }
-}
-
-/// Trees and street lamps beside the road, placed from `seed`.
+/// Trees and street lamps beside the road, where [`place_props`] puts them for `seed`
+/// (the physics makes the same ones solid).
 pub(super) fn props(town: &Town, ground_z: f32, seed: u64, t: &mut Tris) {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x7733);
-    let index = RoadIndex::new(town);
     let trunk = pack(paint::TRUNK, classes::VEGETATION, false);
     let leaves = pack(paint::LEAVES, classes::VEGETATION, false);
     let metal = pack(paint::METAL, classes::BUILDING, false);
-    // Candidate spots: 1 m beyond each sidewalk's outer edge, every ~14 m
-    // of its length (jittered).
-    let mut spots = Vec::new();
-    for sw in &town.sidewalks {
-        let n = sw.inner.len().min(sw.outer.len());
-        let mut next = rng.random_range(2.0..14.0f32);
-        let mut walked = 0.0;
-        for i in 1..n {
-            let (a, b) = (sw.outer[i - 1], sw.outer[i]);
-            let len = a.distance(b);
-            if !len.is_finite() {
-                continue;
+    for p in place_props(town, seed) {
+        let base = p.position.extend(ground_z);
+        match p.kind {
+            PropKind::Tree {
+                crown_base_m: h,
+                crown_radius_m: r,
+            } => {
+                t.boxed(base, Vec3::new(TRUNK_M, TRUNK_M, h + 0.5), 0.0, trunk);
+                t.prism_n(base + Vec3::Z * h, r, r * 1.6, 6, leaves);
             }
-            while next <= walked + len {
-                let u = (next - walked) / len.max(1e-6);
-                let out = (b - sw.inner[i]).truncate().normalize_or_zero();
-                spots.push((a.lerp(b, u).truncate() + out, out));
-                next += rng.random_range(11.0..17.0f32);
+            PropKind::StreetLamp => {
+                let heading = (-p.outward).to_angle();
+                t.boxed(
+                    base,
+                    Vec3::new(LAMP_POST_M, LAMP_POST_M, LAMP_HEIGHT_M),
+                    0.0,
+                    metal,
+                );
+                let arm = base + Vec3::Z * 6.3 + (-p.outward).extend(0.0) * 0.9;
+                t.boxed(arm, Vec3::new(1.8, 0.12, 0.12), heading, metal);
             }
-            walked += len;
-        }
-    }
-    for (p, out) in spots {
-        if !p.is_finite() || index.near_road(p, 2.0) {
-            continue;
-        }
-        let base = p.extend(ground_z);
-        let roll: f32 = rng.random_range(0.0..1.0);
-        if roll < 0.5 {
-            let h = rng.random_range(2.0..3.0f32);
-            let r = rng.random_range(1.2..2.0f32);
-            t.boxed(base, Vec3::new(0.3, 0.3, h + 0.5), 0.0, trunk);
-            t.prism_n(base + Vec3::Z * h, r, r * 1.6, 6, leaves);
-        } else if roll < 0.7 {
-            let heading = (-out).to_angle();
-            t.boxed(base, Vec3::new(0.16, 0.16, 6.5), 0.0, metal);
-            let arm = base + Vec3::Z * 6.3 + (-out).extend(0.0) * 0.9;
-            t.boxed(arm, Vec3::new(1.8, 0.12, 0.12), heading, metal);
         }
     }
 }
