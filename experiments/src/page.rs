@@ -291,22 +291,26 @@ fn header(cfg: &PaperConfig, opts: &RunOptions, results: &Results) -> String {
     let cpus = results.cpus();
     if !cpus.is_empty() {
         s += &format!(
-            "CPUs (runs made on each): {}. llvmpipe compiles its shaders for the CPU it runs \
-             on, and a policy's run made on an Intel Xeon and on an AMD EPYC can differ by a few \
-             ticks (README, \"Determinism\"); the seeds are independent samples either way.\n\n",
+            "CPUs (runs made on each): {}. Runs made since commit 1f7033c (2026-12-05) are the \
+             same on every x86-64 CPU with AVX2 and FMA; before it, llvmpipe's sRGB encode made a \
+             policy's run on an Intel Xeon and on an AMD EPYC differ by a few ticks (README, \
+             \"Determinism\"); the seeds are independent samples either way.\n\n",
             cpus.into_iter()
                 .map(|(cpu, n)| format!("{cpu} ({n})"))
                 .collect::<Vec<_>>()
                 .join(", ")
         );
     }
+    let records: usize = results.units.values().map(|u| u.runs.len()).sum();
     s += &format!(
-        "**Wall time**: {:.2} h in sweeps over {} invocation(s), {} runs, {} at a time, on the \
-         machines that made them (the CPUs above; `docs/bench.md` names the one it was measured \
-         on).\n\n",
+        "**Wall time**: {:.2} h in sweeps over {} invocation(s), which timed {} runs for the {} \
+         recorded here ({} at a time; runs of an invocation stopped by hand were never timed, \
+         and a run made again was timed again), on the machines that made them (the CPUs \
+         above; `docs/bench.md` names the one it was measured on).\n\n",
         wall.sweep_s / 3600.0,
         wall.invocations,
         wall.runs,
+        records,
         wall.jobs
     );
     s += "**Statistics**: rates carry Wilson 95 % intervals `[low, high]`; per-run means carry \

@@ -125,11 +125,29 @@ enum PolicyCommand {
         /// Weights path.
         weights: PathBuf,
     },
+    /// Draw a training run's loss curves from its losses CSV (`runs/NAME/losses.csv`,
+    /// or a shipped `models/NAME.losses.csv`).
+    Losses {
+        /// The losses CSV.
+        csv: PathBuf,
+        /// The PNG to write [default: beside the CSV, extension .png].
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// The plot's title (the model's name).
+        #[arg(long)]
+        title: String,
+    },
 }
 
 /// Runs `mrdrive policy ...`.
 pub fn run_policy(args: PolicyArgs) -> Result<()> {
     match args.command {
+        PolicyCommand::Losses { csv, out, title } => {
+            let png = out.unwrap_or_else(|| csv.with_extension("png"));
+            super::plot::loss_curves(&csv, &png, &title)?;
+            println!("wrote {}", png.display());
+            Ok(())
+        }
         PolicyCommand::Fingerprint { quick } => {
             print!("{}", policy::fingerprint::fingerprint(quick).report());
             Ok(())

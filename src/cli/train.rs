@@ -200,6 +200,16 @@ fn spec_of(args: &TrainArgs, stage: &str) -> Result<StageSpec> {
     Ok(spec)
 }
 
+/// The title of a training run's loss plot: the model's name, and the stage when the
+/// name is another (`ra5 (stage ra)`).
+fn loss_title(name: &str, stage: &str) -> String {
+    if name == stage {
+        name.to_string()
+    } else {
+        format!("{name} (stage {stage})")
+    }
+}
+
 /// Runs `mrdrive train`.
 pub fn run_train(args: TrainArgs) -> Result<()> {
     if args.synthetic {
@@ -254,7 +264,7 @@ pub fn run_train(args: TrainArgs) -> Result<()> {
         );
         bar.set_message(losses_now.clone());
         if u.checkpointed {
-            if let Err(e) = plot::loss_curves(&losses, &png, &spec.name) {
+            if let Err(e) = plot::loss_curves(&losses, &png, &loss_title(&name, &spec.name)) {
                 bar.println(format!("warning: {}: could not plot: {e:#}", png.display()));
             }
             let line = format!(
@@ -270,7 +280,7 @@ pub fn run_train(args: TrainArgs) -> Result<()> {
         }
     })?;
     bar.finish_and_clear();
-    plot::loss_curves(&losses, &png, &spec.name)?;
+    plot::loss_curves(&losses, &png, &loss_title(&name, &spec.name))?;
     publish(&run_dir, &args.out, &name)?;
     println!(
         "stage {}: done ({} steps now, {:.0} s of training in all); checkpoint {}",
@@ -345,4 +355,15 @@ fn run_synthetic(args: &TrainArgs) -> Result<()> {
         bail!("the loss did not fall on the toy batch");
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_loss_plot_names_the_model_then_its_stage() {
+        assert_eq!(loss_title("ra5", "ra"), "ra5 (stage ra)");
+        assert_eq!(loss_title("ra", "ra"), "ra");
+    }
 }

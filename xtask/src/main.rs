@@ -391,17 +391,30 @@ const ORIGINAL_PHASES: &[(&str, &str, &[&str])] = &[
     ),
 ];
 
+/// Where `cargo xtask train` writes its models and runs: `--into DIR`, or
+/// `out/train-quick` with `--quick`. Without either it refuses: the checkout's own
+/// `models/` hold the shipped checkpoints, which `--into .` replaces on purpose.
+fn train_base(args: &[String], quick: bool) -> Result<String, String> {
+    match (into_arg(args)?, quick) {
+        (Some(dir), _) => Ok(dir),
+        (None, true) => Ok("out/train-quick".into()),
+        (None, false) => Err(
+            "cargo xtask train needs --into DIR: --into out/scratch trains beside the shipped \
+             checkpoints, --into . replaces the shipped models/ (their records on the paper \
+             page name their SHA-256)"
+                .into(),
+        ),
+    }
+}
+
 fn train(root: &Path, env: &Env, args: &[String]) -> Result<(), String> {
     let quick = args.iter().any(|a| a == "--quick");
+    let base = train_base(args, quick)?;
     data(root, env, if quick { args } else { &[] })?;
     let vars = borrow(env);
     let bin = root.join("target/release/mrdrive");
     let bin = bin.to_str().ok_or("the target path is not UTF-8")?;
-    let into = into_arg(args)?;
     let suffix = if quick { "-quick" } else { "" };
-    let base = into
-        .as_deref()
-        .unwrap_or(if quick { "out/train-quick" } else { "." });
     let models = format!("{base}/models");
     let runs = format!("{base}/runs");
     // The Original in phases (docs/training.md), each continuing the one before it;
@@ -940,6 +953,24 @@ mod tests {
             let e = lanes_arg(&args(bad)).unwrap_err();
             assert!(e.starts_with("--lanes takes 1"), "{e}");
         }
+    }
+
+    #[test]
+    fn training_without_into_is_refused_and_names_both_ways() {
+        let args = |a: &[&str]| a.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        let e = train_base(&args(&[]), false).unwrap_err();
+        assert!(
+            e.contains("--into out/scratch") && e.contains("--into ."),
+            "{e}"
+        );
+        assert_eq!(
+            train_base(&args(&[]), true).as_deref(),
+            Ok("out/train-quick")
+        );
+        assert_eq!(
+            train_base(&args(&["--into", "."]), false).as_deref(),
+            Ok(".")
+        );
     }
 
     #[test]
