@@ -15,6 +15,7 @@
 pub mod config;
 pub mod experiment;
 pub mod figures;
+pub mod options;
 pub mod page;
 pub mod report;
 pub mod results;
@@ -25,7 +26,8 @@ use std::path::{Path, PathBuf};
 
 pub use config::{Envelope, Models, PaperConfig, Route};
 pub use experiment::Experiment;
-pub use run::{Progress, RunOptions, run_paper};
+pub use options::{RunOptions, WallLog};
+pub use run::{Progress, run_paper};
 pub use units::{Driver, Selection, Unit};
 
 /// What can go wrong in a paper run.

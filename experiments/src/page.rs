@@ -9,11 +9,11 @@ use crate::PaperError;
 use crate::config::PaperConfig;
 use crate::experiment::Experiment;
 use crate::figures::{Panel, Point, Series, plot};
+use crate::options::{RunOptions, WallLog};
 use crate::report::{
     Cells, Comparison, Stats, Table, mean_ci_cell, mean_sd_cell, paired_cell, rate_cell,
 };
 use crate::results::{Results, Run};
-use crate::run::{RunOptions, WallLog};
 use crate::units::{Driver, Unit, scale_label, selector_name};
 use sim::scenario::SelectorKind;
 use sim::sweep::stats::Paired;

@@ -1,37 +1,17 @@
 //! Running a paper: its sweeps (resumable: a finished run is never redone),
 //! Table I, then every table, figure and the page.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
-use serde::{Deserialize, Serialize};
 use sim::build::Drivers;
 use sim::sweep::{self, RunSpec};
 
 use crate::config::PaperConfig;
 use crate::experiment::{Experiment, units_of};
+use crate::options::{RunOptions, WallLog};
 use crate::results::Results;
 use crate::{PaperError, page};
-
-/// How to run a paper.
-#[derive(Debug, Clone)]
-pub struct RunOptions {
-    /// The folder of everything (`docs/paper`): the sweeps (`sweeps/ID/`, one
-    /// record per run, committed so every number can be checked), derived
-    /// scenarios (`scenarios/`), the wall-time log, tables, figures and page.
-    pub out: PathBuf,
-    /// Runs at a time.
-    pub jobs: usize,
-    /// The experiments to run and write.
-    pub experiments: Vec<Experiment>,
-    /// Only write the tables and figures from the runs already finished.
-    pub report_only: bool,
-    /// "quick" or "full", written on the page.
-    pub label: String,
-    /// Run only the configuration's first this many seeds this time (the
-    /// sweep plans still hold every seed; a later call goes on); `None`: all.
-    pub seeds: Option<usize>,
-}
 
 /// What the caller is told as the run goes.
 pub trait Progress: Sync {
@@ -50,44 +30,6 @@ pub struct Outcome {
     pub failed: Vec<(String, String, String)>,
     /// Table, figure and page files written.
     pub written: Vec<PathBuf>,
-}
-
-/// The wall time spent running sweeps into one output folder, over every
-/// invocation (a resumed run adds to it).
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-pub struct WallLog {
-    /// Seconds spent in sweeps.
-    pub sweep_s: f64,
-    /// Invocations that ran at least one run.
-    pub invocations: u32,
-    /// Runs finished over all invocations.
-    pub runs: usize,
-    /// Jobs of the last invocation.
-    pub jobs: usize,
-}
-
-impl WallLog {
-    fn path(out: &Path) -> PathBuf {
-        out.join("wall.json")
-    }
-
-    /// Reads `OUT/wall.json` (zero if there is none yet).
-    pub fn read(out: &Path) -> Self {
-        std::fs::read_to_string(Self::path(out))
-            .ok()
-            .and_then(|t| serde_json::from_str(&t).ok())
-            .unwrap_or_default()
-    }
-
-    /// Writes `OUT/wall.json` whole or not at all (a temporary file, then a
-    /// rename), so a kill never leaves a torn log that reads as zero.
-    fn write(&self, out: &Path) -> Result<(), PaperError> {
-        let p = Self::path(out);
-        let tmp = out.join("wall.json.tmp");
-        let text = serde_json::to_string_pretty(self).expect("a wall log serialises");
-        std::fs::write(&tmp, text).map_err(|e| PaperError::io("write", &tmp, e))?;
-        std::fs::rename(&tmp, &p).map_err(|e| PaperError::io("write", &p, e))
-    }
 }
 
 /// Runs the sweeps the chosen experiments need (skipping finished runs),

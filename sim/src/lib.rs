@@ -11,6 +11,7 @@ pub mod build;
 pub mod camera;
 pub mod delay;
 pub mod driver;
+pub mod error;
 pub mod expert;
 pub mod monitors;
 pub mod observe;

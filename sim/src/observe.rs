@@ -10,8 +10,8 @@ use world::{ActorSnapshot, Command, LightState, Town};
 
 use crate::camera::{Camera, CameraFrame};
 use crate::driver::RgbImage;
+use crate::error::RunError;
 use crate::monitors::Infraction;
-use crate::runner::RunError;
 
 /// What one tick of a run looks like after its physics step and monitors.
 #[derive(Debug, Clone, Copy)]

@@ -18,9 +18,9 @@ use std::sync::{Arc, Mutex};
 
 use crate::camera::Camera;
 use crate::driver::{Driver, DriverNeeds, Observation, VehicleControl};
+use crate::error::RunError;
 use crate::monitors::Infraction;
 use crate::observe::{RunObserver, TickView};
-use crate::runner::RunError;
 use crate::selector::{ResolutionSelector, SelectorInput};
 
 /// What the agent is shown at a control boundary (owned: it crosses threads).

@@ -57,25 +57,7 @@ pub const AHEAD_RANGE_M: f32 = 40.0;
 /// Half-width of the corridor around the route for "ahead" (metres).
 pub const AHEAD_CORRIDOR_M: f32 = 1.4;
 
-/// A run could not be set up or carried out.
-#[derive(Debug, thiserror::Error)]
-pub enum RunError {
-    /// The map could not be loaded.
-    #[error(transparent)]
-    Map(#[from] world::MapError),
-    /// The route could not be read or planned.
-    #[error(transparent)]
-    Route(#[from] world::RouteError),
-    /// The camera failed.
-    #[error("camera: {0}")]
-    Camera(String),
-    /// The recorder failed.
-    #[error(transparent)]
-    Record(#[from] crate::recorder::RecordError),
-    /// Something about the set-up is inconsistent.
-    #[error("{0}")]
-    Setup(String),
-}
+pub use crate::error::RunError;
 
 /// The town and the planned route of a scenario: loaded once, shared by runs.
 #[derive(Debug, Clone)]

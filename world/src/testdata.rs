@@ -8,8 +8,8 @@
 //!
 //! - panics instead when the variable that requires that thing is `1`
 //!   (`MRDRIVE_REQUIRE_SHARED`, `MRDRIVE_REQUIRE_PYTHON`,
-//!   `MRDRIVE_REQUIRE_GPU_API`, `MRDRIVE_REQUIRE_EMULATOR`; `cargo xtask ci`
-//!   sets them all), so CI cannot skip silently;
+//!   `MRDRIVE_REQUIRE_GPU_API`, `MRDRIVE_REQUIRE_EMULATOR`,
+//!   `MRDRIVE_REQUIRE_SLURM`; `cargo xtask ci` sets them all), so CI cannot skip silently;
 //! - otherwise writes `SKIPPED: test: why` straight to stderr (past the test
 //!   harness's capture) and appends it to the skip log, which `cargo xtask
 //!   test` empties before the run and counts after it: a clone without
@@ -51,15 +51,19 @@ pub enum Needs {
     /// An emulated x86-64 CPU (`qemu-x86_64`, Debian's `qemu-user`) for the
     /// cross-CPU test (`tests/cross_cpu.rs`).
     Emulator,
+    /// A local Slurm (Debian's `slurm-wlm` and `munge`, run as root) for the
+    /// scale-out test (`tests/slurm.rs`).
+    Slurm,
 }
 
 impl Needs {
     /// Every kind of need.
-    pub const ALL: [Needs; 4] = [
+    pub const ALL: [Needs; 5] = [
         Needs::Shared,
         Needs::Python,
         Needs::Renderer,
         Needs::Emulator,
+        Needs::Slurm,
     ];
 
     /// The variable that, set to `1`, turns a skip for this into a failure.
@@ -69,6 +73,7 @@ impl Needs {
             Needs::Python => "MRDRIVE_REQUIRE_PYTHON",
             Needs::Renderer => "MRDRIVE_REQUIRE_GPU_API",
             Needs::Emulator => "MRDRIVE_REQUIRE_EMULATOR",
+            Needs::Slurm => "MRDRIVE_REQUIRE_SLURM",
         }
     }
 }

@@ -37,6 +37,8 @@ const DEBIAN_PACKAGES: &[(&str, &str)] = &[
         "qemu-user",
         "an emulated x86-64 CPU for the test that frames and policy arithmetic are the same on every CPU",
     ),
+    ("slurm-wlm", "a local Slurm for the scale-out test"),
+    ("munge", "Slurm's authentication"),
 ];
 
 /// Python packages the cross-checking tests use (readers written by others).
@@ -208,6 +210,7 @@ fn test(root: &Path, env: &Env, args: &[String], strict: bool) -> Result<(), Str
         vars.push(("MRDRIVE_REQUIRE_PYTHON", "1"));
         vars.push(("MRDRIVE_REQUIRE_GPU_API", "1"));
         vars.push(("MRDRIVE_REQUIRE_EMULATOR", "1"));
+        vars.push(("MRDRIVE_REQUIRE_SLURM", "1"));
     }
     let mut cmd: Vec<&str> = vec!["cargo", "test", "--workspace", "--release"];
     cmd.extend(args.iter().map(String::as_str));

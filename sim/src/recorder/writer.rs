@@ -12,9 +12,9 @@ use world::{ActorKind, ActorSnapshot, LightState, MarkColor, Town, Vec3};
 use super::NS;
 use crate::camera::Camera;
 use crate::driver::{RgbImage, VehicleControl};
+use crate::error::RunError;
 use crate::monitors::Infraction;
 use crate::observe::{RunObserver, TickView};
-use crate::runner::RunError;
 
 /// Foxglove schemas, embedded (see `sim/schemas/foxglove/README.md`).
 const COMPRESSED_IMAGE: &str = include_str!("../../schemas/foxglove/CompressedImage.json");

@@ -16,7 +16,7 @@
 
 use crate::map::town::*;
 use crate::route::command::Command;
-use crate::route::planner::{DenseRoute, RoutePoint};
+use crate::route::dense::{DenseRoute, RoutePoint};
 use glam::{Vec2, Vec3};
 
 /// Half the side of a junction's square area (metres): lanes end this far from the node.

@@ -8,7 +8,7 @@
 
 use glam::Vec2;
 
-use crate::route::planner::DenseRoute;
+use crate::route::dense::DenseRoute;
 
 /// Distance along `route` of a position (metres, ground plane), measured
 /// from route point `index`: its `route_s` plus the position's offset along

@@ -12,7 +12,7 @@ use glam::Vec2;
 
 use super::{crossing_point, heading_agrees, light_state, must_stop};
 use crate::map::town::{LaneIdx, LightIdx, LightState, Town};
-use crate::route::planner::DenseRoute;
+use crate::route::dense::DenseRoute;
 
 /// One stop line of a town, as the table lists it.
 #[derive(Debug, Clone, Copy, PartialEq)]
