@@ -91,11 +91,9 @@ fn the_python_environment_passes_its_tests_and_drives_like_rust() {
         ..Default::default()
     };
     let request = RunRequest {
-        scenario: &scenario,
-        overrides: &overrides,
         scale: Some(0.75),
         record: None,
-        render_every_frame: false,
+        ..RunRequest::new(&scenario, &overrides)
     };
     let drivers = Drivers::new().with(DriverKind::External, ScriptedFactory);
     let rust = build::run_scenario_with(&request, &drivers, &mut |_| {}, Extras::default())

@@ -23,7 +23,8 @@ use sim::expert::{Expert, ExpertParams};
 use sim::observe::{RunObserver, TickView};
 use sim::render::classes::to_wor;
 use sim::render::{EgoPose, Renderer, RigConfig};
-use sim::runner::{Prepared, RunError, RunInputs};
+use sim::build::{self, Drivers, Extras, RunRequest};
+use sim::runner::{Overrides, Prepared, RunError};
 use sim::scenario::{MapSpec, RouteSpec as ScenarioRoute, Scenario};
 use sim::selector::Fixed;
 use world::map::{LoadOptions, UnsignalledJunctions, load_xodr_file};
@@ -567,23 +568,22 @@ pub fn drive(
     let town = prepared.town.clone();
     let expert = Expert::new(ExpertParams::default());
     let mut driver = NoisyDriver::new(expert, cfg.noise, spec.seed ^ 0x006e_6f69_7365);
-    let mut selector = Fixed { scale: 1.0 };
     let mut recorder = EpisodeRecorder::new(&town, cfg, spec.seed)?;
     let tick_s = scenario.timing.tick_s;
-    let max_ticks = (cfg.max_s / tick_s).round() as u64;
-    let record = sim::runner::run(
-        &scenario,
-        Path::new("collect.toml"),
-        RunInputs {
-            prepared: &prepared,
-            driver: &mut driver,
-            selector: &mut selector,
-            camera: None,
-            observers: vec![&mut recorder],
-            max_ticks: Some(max_ticks),
-        },
-    )
-    .map_err(|e| e.to_string())?;
+    let overrides = Overrides::default();
+    let request = RunRequest {
+        max_ticks: Some((cfg.max_s / tick_s).round() as u64),
+        ..RunRequest::new(Path::new("collect.toml"), &overrides)
+    };
+    let extras = Extras {
+        observer: Some(&mut recorder),
+        selector: Some(Box::new(Fixed { scale: 1.0 })),
+        driver: Some(&mut driver),
+        prebuilt: Some((&scenario, &prepared)),
+    };
+    let record = build::run_scenario_with(&request, &Drivers::new(), &mut |_| {}, extras)
+        .map_err(|e| build::error_chain(&e))?
+        .record;
     let episode = Episode {
         id: spec.id,
         shard: shard_name(spec.id),

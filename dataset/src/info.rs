@@ -68,10 +68,7 @@ pub fn approaching_red(stops: &RouteStops, ego_s: f32, lights: &[u8]) -> bool {
 /// The state of the next stop line's light within [`RED_LIGHT_RANGE_M`]
 /// ahead of route distance `ego_s` (metres), if the frame has one.
 pub fn light_ahead(stops: &RouteStops, ego_s: f32, lights: &[u8]) -> Option<LightState> {
-    let s = stops.next_after(ego_s)?;
-    if s.route_s - ego_s > RED_LIGHT_RANGE_M {
-        return None;
-    }
+    let (s, _) = stops.light_ahead(ego_s, RED_LIGHT_RANGE_M)?;
     lights
         .get(s.light.0 as usize)
         .map(|&code| light_of_code(code))

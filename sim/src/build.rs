@@ -389,16 +389,50 @@ pub struct RunRequest<'a> {
     /// Render the rig at every camera tick even if nothing needs it (what
     /// data collection costs; shows in the time split).
     pub render_every_frame: bool,
+    /// Stop after this many ticks (the route, the timeout and the
+    /// terminations still end it earlier).
+    pub max_ticks: Option<u64>,
+    /// Open the scenario's camera even if nothing in the run needs it, and
+    /// hand it back in [`ScenarioRun::camera`] (to draw a moment of the run
+    /// afterwards). It renders during the run only if the driver, the log or
+    /// `render_every_frame` asks.
+    pub keep_camera: bool,
+}
+
+impl<'a> RunRequest<'a> {
+    /// The scenario file as it is, with `overrides`: no scale, no log, no tick limit.
+    pub fn new(scenario: &'a Path, overrides: &'a Overrides) -> RunRequest<'a> {
+        RunRequest {
+            scenario,
+            overrides,
+            scale: None,
+            record: None,
+            render_every_frame: false,
+            max_ticks: None,
+            keep_camera: false,
+        }
+    }
 }
 
 /// A finished run and what the user should know about how it ran.
-#[derive(Debug, Clone)]
 pub struct ScenarioRun {
     /// The result record.
     pub record: RunRecord,
     /// Things that did not go as asked but did not stop the run (a log
     /// recorded without images because no renderer could be opened).
     pub warnings: Vec<String>,
+    /// The run's camera, when [`RunRequest::keep_camera`] asked for it.
+    pub camera: Option<Renderer>,
+}
+
+impl std::fmt::Debug for ScenarioRun {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ScenarioRun")
+            .field("record", &self.record)
+            .field("warnings", &self.warnings)
+            .field("camera", &self.camera.as_ref().map(|c| c.backend()))
+            .finish()
+    }
 }
 
 /// Runs one scenario file with overrides: loads and prepares it, builds its
@@ -414,16 +448,24 @@ pub fn run_scenario(
 }
 
 /// What a caller adds to a run of [`run_scenario_with`]: an observer of its own,
-/// a selector in place of the scenario's.
+/// a selector or a driver in place of the scenario's, a scenario built in memory.
 #[derive(Default)]
 pub struct Extras<'a> {
     /// Sees every tick after the run's own observers.
     pub observer: Option<&'a mut dyn RunObserver>,
     /// Chooses the scale instead of the scenario's selector (and `RunRequest::scale`).
     pub selector: Option<Box<dyn ResolutionSelector>>,
+    /// Drives instead of the driver the scenario names (data collection's noisy expert).
+    pub driver: Option<&'a mut dyn Driver>,
+    /// The scenario and its prepared town and route, when the caller built
+    /// them (data collection, from its cache of towns): then
+    /// [`RunRequest::scenario`] only names the scenario in the record, and
+    /// its overrides are not applied again.
+    pub prebuilt: Option<(&'a Scenario, &'a Prepared)>,
 }
 
-/// [`run_scenario`] with [`Extras`] (the remote environment's observer and selector).
+/// [`run_scenario`] with [`Extras`] (the remote environment's observer and
+/// selector, data collection's driver and towns).
 pub fn run_scenario_with(
     request: &RunRequest<'_>,
     drivers: &Drivers,
@@ -431,15 +473,30 @@ pub fn run_scenario_with(
     extras: Extras<'_>,
 ) -> Result<ScenarioRun, BuildError> {
     let path = request.scenario;
-    let scenario = request.overrides.apply(&Scenario::from_file(path)?);
-    let prepared = runner::prepare(&scenario).map_err(|source| BuildError::Run {
-        path: path.to_path_buf(),
-        source: Box::new(source),
-    })?;
-    let mut driver = drivers.driver(&scenario, &prepared)?;
+    let loaded;
+    let (scenario, prepared) = match extras.prebuilt {
+        Some(built) => built,
+        None => {
+            let scenario = request.overrides.apply(&Scenario::from_file(path)?);
+            let prepared = runner::prepare(&scenario).map_err(|source| BuildError::Run {
+                path: path.to_path_buf(),
+                source: Box::new(source),
+            })?;
+            loaded = (scenario, prepared);
+            (&loaded.0, &loaded.1)
+        }
+    };
+    let mut built_driver;
+    let driver: &mut dyn Driver = match extras.driver {
+        Some(d) => d,
+        None => {
+            built_driver = drivers.driver(scenario, prepared)?;
+            built_driver.as_mut()
+        }
+    };
     let mut selector = match extras.selector {
         Some(s) => s,
-        None => selector_for(&scenario, request.scale)?,
+        None => selector_for(scenario, request.scale)?,
     };
     let record_path = request
         .record
@@ -459,10 +516,11 @@ pub fn run_scenario_with(
     let mut record_opts = record_path.as_ref().map(|(_, o)| *o);
     let wants_images = record_opts.is_some_and(|o| o.camera || o.labels || o.bev);
     let needs_camera = driver.needs().camera;
-    let mut camera = if needs_camera || wants_images || request.render_every_frame {
-        match camera_for(&scenario, &prepared, drivers) {
+    let renders = needs_camera || wants_images || request.render_every_frame;
+    let mut camera = if renders || request.keep_camera {
+        match camera_for(scenario, prepared, drivers) {
             Ok(r) => Some(r),
-            Err(e) if !needs_camera => {
+            Err(e) if !needs_camera && !request.keep_camera => {
                 warnings.push(format!(
                     "recording without camera images: {}",
                     error_chain(&e)
@@ -500,15 +558,18 @@ pub fn run_scenario_with(
         observers.push(o);
     }
     let record = runner::run(
-        &scenario,
+        scenario,
         path,
         RunInputs {
-            prepared: &prepared,
-            driver: driver.as_mut(),
+            prepared,
+            driver,
             selector: selector.as_mut(),
-            camera: camera.as_mut().map(|c| c as &mut dyn Camera),
+            camera: camera
+                .as_mut()
+                .filter(|_| renders)
+                .map(|c| c as &mut dyn Camera),
             observers,
-            max_ticks: None,
+            max_ticks: request.max_ticks,
         },
     )
     .map_err(|source| BuildError::Run {
@@ -530,7 +591,11 @@ pub fn run_scenario_with(
             source,
         })?;
     }
-    Ok(ScenarioRun { record, warnings })
+    Ok(ScenarioRun {
+        record,
+        warnings,
+        camera: camera.filter(|_| request.keep_camera),
+    })
 }
 
 /// An error and its causes on one line ("a: b: c").

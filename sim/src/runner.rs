@@ -204,15 +204,8 @@ pub fn traffic_config(scenario: &Scenario) -> TrafficConfig {
 
 /// Where the ego starts: the route's first point.
 pub fn ego_start(route: &DenseRoute) -> Result<EgoStart, RunError> {
-    let p = route
-        .points
-        .first()
-        .ok_or_else(|| RunError::Setup(format!("route {} has no points", route.id)))?;
-    Ok(EgoStart {
-        position: p.position.truncate(),
-        z: p.position.z,
-        yaw: p.heading,
-    })
+    EgoStart::at_start_of(route)
+        .ok_or_else(|| RunError::Setup(format!("route {} has no points", route.id)))
 }
 
 /// The contact's other party as the collision monitor counts it.
@@ -258,7 +251,7 @@ fn selector_input(
 ) -> SelectorInput {
     let ego_s = route_s_at(route, index, ego.position.truncate());
     SelectorInput {
-        light_ahead_m: stops.next_after(ego_s).map(|s| s.route_s - ego_s),
+        light_ahead_m: stops.light_ahead(ego_s, f32::INFINITY).map(|(_, d)| d),
         light_behind_m: stops.last_up_to(ego_s).map(|s| ego_s - s.route_s),
         speed_mps: ego.speed_mps,
         driver_hint,

@@ -5,13 +5,12 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail, ensure};
 use clap::{Args, Subcommand};
-use sim::build;
-use sim::camera::Camera;
+use sim::build::{self, Extras, RunRequest};
 use sim::driver::RgbImage;
 use sim::observe::Moments;
 use sim::render::image::save_png;
 use sim::render::{EgoPose, RigConfig, demo, measure};
-use sim::runner::{self, RunInputs};
+use sim::runner;
 use sim::scenario::Scenario;
 use world::{LightState, rules};
 
@@ -211,24 +210,23 @@ fn render_at(a: &RenderAtArgs) -> Result<()> {
         runner::prepare(&scenario).with_context(|| format!("scenario {}", path.display()))?;
     let tick_s = scenario.timing.tick_s;
     let ticks = (a.at / tick_s).round() as u64;
-    let drivers = super::drivers();
-    let mut driver = drivers.driver(&scenario, &prepared)?;
-    let mut selector = build::selector_for(&scenario, a.drive_scale)?;
-    let mut camera = build::camera_for(&scenario, &prepared, &drivers)?;
     let mut last = Moments::last();
-    let needs_camera = driver.needs().camera;
-    let record = runner::run(
-        &scenario,
-        path,
-        RunInputs {
-            prepared: &prepared,
-            driver: driver.as_mut(),
-            selector: selector.as_mut(),
-            camera: needs_camera.then_some(&mut camera as &mut dyn Camera),
-            observers: vec![&mut last],
-            max_ticks: Some(ticks),
-        },
-    )?;
+    let request = RunRequest {
+        scale: a.drive_scale,
+        max_ticks: Some(ticks),
+        keep_camera: true,
+        ..RunRequest::new(path, &overrides)
+    };
+    let extras = Extras {
+        observer: Some(&mut last),
+        prebuilt: Some((&scenario, &prepared)),
+        ..Extras::default()
+    };
+    let run = build::run_scenario_with(&request, &super::drivers(), &mut |_| {}, extras)?;
+    let record = run.record;
+    let mut camera = run
+        .camera
+        .context("the run handed back no camera (RunRequest::keep_camera)")?;
     let moment = last.kept.pop().unwrap_or_default();
     let (tick, ego) = match (
         moment.actors.first().map(|_| moment.tick),
@@ -285,8 +283,7 @@ fn render_at(a: &RenderAtArgs) -> Result<()> {
     );
     println!(
         "driver        {}   resolution {}",
-        driver.name(),
-        selector.name()
+        record.result.provenance.driver, record.result.settings.resolution
     );
     match light_ahead(&prepared, &ego, &moment.lights) {
         Some((d, state)) => println!("light ahead   {d:.1} m, {state:?}"),
@@ -309,9 +306,8 @@ fn light_ahead(
     let (index, _) = rules::nearest_route_point(route, ego.ground(), 0, route.points.len())?;
     let ego_s = rules::route_s_at(route, index, ego.ground());
     let stops = rules::StopLines::new(&prepared.town).on_route(route);
-    let stop = stops.next_after(ego_s)?;
-    let d = stop.route_s - ego_s;
-    (d <= 60.0).then(|| (d, rules::light_state(states, stop.light)))
+    let (stop, d) = stops.light_ahead(ego_s, 60.0)?;
+    Some((d, rules::light_state(states, stop.light)))
 }
 
 /// `bench render --scenario`: rig fps along a scenario's route, one pose

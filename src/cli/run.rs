@@ -224,11 +224,10 @@ pub fn run(a: RunArgs) -> anyhow::Result<()> {
         }
     };
     let request = RunRequest {
-        scenario: &a.scenario,
-        overrides: &overrides,
         scale: a.scale,
         record: a.record.as_deref().map(|p| (p, record_opts)),
         render_every_frame: a.camera,
+        ..RunRequest::new(&a.scenario, &overrides)
     };
     let done = build::run_scenario(&request, &super::drivers(), &mut |p| display.update(p))?;
     display.finish();

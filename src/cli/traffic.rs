@@ -54,6 +54,9 @@ struct SoakArgs {
     /// Traffic seed.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// List the incidents counted (the first 50 of each kind): tick, time, who, where, lanes, speeds.
+    #[arg(long)]
+    incidents: bool,
 }
 
 #[derive(Debug, Args)]
@@ -177,6 +180,12 @@ pub fn run(args: TrafficArgs) -> Result<()> {
                     cpu
                 );
             }
+            if a.incidents {
+                println!("incidents               {} listed", r.incidents.len());
+                for i in &r.incidents {
+                    println!("  {i}");
+                }
+            }
         }
         TrafficCommand::Table(a) => {
             let town = Arc::new(load_town(&a.town)?);
@@ -225,15 +234,8 @@ fn table_per_route(
     let mut columns = Vec::new();
     for id in ids {
         let dense = plan_route(town, file.route(id)?, &PlannerConfig::default())?;
-        let p = dense
-            .points
-            .first()
+        let ego = EgoStart::at_start_of(&dense)
             .with_context(|| format!("{} route {id}: no points", routes.display()))?;
-        let ego = EgoStart {
-            position: p.position.truncate(),
-            z: p.position.z,
-            yaw: p.heading,
-        };
         columns.push(table_one(
             town.clone(),
             &TrafficConfig::default(),

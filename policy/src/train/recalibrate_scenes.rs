@@ -10,10 +10,10 @@
 use std::path::{Path, PathBuf};
 
 use burn::prelude::*;
-use sim::build::{self, BuildError, Drivers};
+use sim::build::{self, BuildError, Drivers, Extras, RunRequest};
 use sim::observe::{Moment, Moments};
 use sim::render::{EgoPose, Renderer};
-use sim::runner::{self, Overrides, RunInputs};
+use sim::runner::{self, Overrides};
 use sim::scenario::{DriverKind, Scenario};
 
 use super::recalibrate::recalibrate_with;
@@ -131,22 +131,19 @@ fn collect(
         source: Box::new(source),
     };
     let prepared = runner::prepare(&expert).map_err(failed)?;
-    let mut driver = drivers.driver(&expert, &prepared)?;
-    let mut selector = build::selector_for(&expert, None)?;
     let mut moments = Moments::every(every_ticks);
-    let record = runner::run(
-        &expert,
-        path,
-        RunInputs {
-            prepared: &prepared,
-            driver: driver.as_mut(),
-            selector: selector.as_mut(),
-            camera: None,
-            observers: vec![&mut moments],
-            max_ticks: None,
-        },
-    )
-    .map_err(failed)?;
+    let extras = Extras {
+        observer: Some(&mut moments),
+        prebuilt: Some((&expert, &prepared)),
+        ..Extras::default()
+    };
+    let record = build::run_scenario_with(
+        &RunRequest::new(path, overrides),
+        drivers,
+        &mut |_| {},
+        extras,
+    )?
+    .record;
     let collected = Collected {
         scenario: path.to_path_buf(),
         frames: moments.kept.len(),

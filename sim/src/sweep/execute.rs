@@ -32,11 +32,9 @@ pub fn run_spec(
     let overrides = spec.overrides();
     let log = log_dir.map(|d| d.join(format!("{}.mcap", spec.key())));
     let request = RunRequest {
-        scenario: &spec.scenario,
-        overrides: &overrides,
         scale: spec.scale,
         record: log.as_deref().map(|p| (p, RecordOptions::default())),
-        render_every_frame: false,
+        ..RunRequest::new(&spec.scenario, &overrides)
     };
     build::run_scenario(&request, drivers, &mut |_| {})
 }

@@ -4,7 +4,7 @@
 //!
 //! | file | rule |
 //! | --- | --- |
-//! | [`stop_lines`] | the stop lines of a town by lane, the stops a route crosses, in route order, and the line whose light holds a standing car |
+//! | [`stop_lines`] | the stop lines of a town by lane, the stops a route crosses, in route order, the light ahead within a range, and the line whose light holds a standing car |
 //! | [`lights`] | whether a light's state makes a vehicle stop before its line (red, and yellow with one slack) |
 //! | [`crossing`] | the point of a vehicle that crosses a stop line |
 //! | [`route`] | the distance along a route of a pose, the route's point at a distance, the route point reached, the path ahead |

@@ -181,6 +181,16 @@ impl RouteStops {
         self.stops.iter().find(|s| s.route_s > route_s)
     }
 
+    /// The light ahead: the first stop farther along the route than
+    /// `route_s` and no more than `range_m` beyond it (metres), with its
+    /// distance from `route_s` (metres). What "the light ahead" means for the
+    /// selectors (any range), the dataset's statistics and `mrdrive render`.
+    pub fn light_ahead(&self, route_s: f32, range_m: f32) -> Option<(&RouteStop, f32)> {
+        let stop = self.next_after(route_s)?;
+        let d = stop.route_s - route_s;
+        (d <= range_m).then_some((stop, d))
+    }
+
     /// The last stop at or before `route_s` along the route (metres).
     pub fn last_up_to(&self, route_s: f32) -> Option<&RouteStop> {
         self.stops.iter().rev().find(|s| s.route_s <= route_s)
@@ -299,6 +309,12 @@ mod tests {
         assert_eq!(st.line.lane, LaneIdx(0));
         assert_eq!(stops.next_after(30.0).map(|s| s.light), Some(st.light));
         assert!(stops.next_after(31.5).is_none());
+        // The light ahead: within range only, with its distance.
+        let (ahead, d) = stops.light_ahead(20.0, 15.0).unwrap();
+        assert_eq!(ahead.light, st.light);
+        assert!((d - (ahead.route_s - 20.0)).abs() < 1e-6);
+        assert!(stops.light_ahead(20.0, d - 0.01).is_none());
+        assert!(stops.light_ahead(31.5, f32::INFINITY).is_none());
         assert!(stops.last_up_to(30.0).is_none());
         assert_eq!(stops.last_up_to(40.0).map(|s| s.route_s), Some(st.route_s));
     }

@@ -22,12 +22,14 @@
 //! | [`reservations`] | junction reservations and how they are granted |
 //! | `step.rs` | one tick |
 //! | `stats.rs` | the counters ([`TrafficStats`]) |
+//! | [`incidents`] | the incidents counted, listed (the first 50 of each kind): who, where, how fast |
 //! | `views.rs` | actor views, snapshots, what is ahead of the ego |
 //! | [`soak`] | soak runs and the realised-count table (Table I) |
 //! | [`crossings`] | walkers sent across the road ahead of the ego (a collection aid) |
 //! | [`light_controller`] | the traffic-light controllers |
 
 pub mod crossings;
+pub mod incidents;
 pub mod light_controller;
 pub mod reservations;
 pub mod soak;
@@ -37,6 +39,7 @@ mod step;
 mod views;
 
 pub use light_controller::{LightController, LightTiming};
+pub use incidents::{Incident, IncidentActor, IncidentKind, IncidentLane};
 pub use reservations::Reservations;
 pub use soak::{MeanSd, SoakReport, TableOneRow, soak, table_one};
 pub use stats::TrafficStats;
@@ -97,6 +100,18 @@ pub struct EgoStart {
     pub yaw: f32,
 }
 
+impl EgoStart {
+    /// At the first point of a route, facing along it (`None` for a route without points).
+    pub fn at_start_of(route: &crate::route::DenseRoute) -> Option<EgoStart> {
+        let p = route.points.first()?;
+        Some(EgoStart {
+            position: p.position.truncate(),
+            z: p.position.z,
+            yaw: p.heading,
+        })
+    }
+}
+
 /// The ego vehicle.
 #[derive(Debug, Clone)]
 pub struct Ego {
@@ -124,6 +139,7 @@ pub struct Traffic {
     views: Vec<ActorView>,
     events: Vec<ContactEvent>,
     stats: TrafficStats,
+    incidents: Vec<Incident>,
     scratch: Scratch,
     spawn_lanes: Vec<LaneIdx>,
     crossing_edges: Vec<(u32, u32)>,

@@ -8,7 +8,7 @@
 //! reports the realised counts as mean and standard deviation.
 
 use crate::map::town::{LightState, Town};
-use crate::traffic::{EgoStart, Traffic, TrafficConfig, TrafficStats};
+use crate::traffic::{EgoStart, Incident, Traffic, TrafficConfig, TrafficStats};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -33,6 +33,8 @@ pub struct SoakReport {
     pub cpu_s: Option<f64>,
     /// The counters (collisions, red runs, deadlocks, respawns).
     pub stats: TrafficStats,
+    /// The first incidents of each kind ([`crate::traffic::incidents`]).
+    pub incidents: Vec<Incident>,
 }
 
 /// Runs `minutes` of simulated time; `lights(tick, out)` fills the light states for a tick.
@@ -65,6 +67,7 @@ pub fn soak(
         ticks_per_s: if wall > 0.0 { ticks as f64 / wall } else { 0.0 },
         cpu_s,
         stats: traffic.stats(),
+        incidents: traffic.incidents().to_vec(),
     }
 }
 

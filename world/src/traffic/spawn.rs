@@ -11,6 +11,7 @@ use glam::{Vec2, Vec3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+use super::incidents::IncidentKind;
 use super::reservations::Reservations;
 use super::{Ego, EgoStart, Traffic, TrafficConfig, TrafficStats};
 use crate::agents::npc::{self, Npc, Scratch};
@@ -60,6 +61,7 @@ impl Traffic {
             views: Vec::new(),
             events: Vec::new(),
             stats: TrafficStats::default(),
+            incidents: Vec::new(),
             scratch: Scratch::default(),
             spawn_lanes,
             crossing_edges,
@@ -224,6 +226,7 @@ impl Traffic {
         let spot = self.free_spot(&mut rng, 20, Some(id));
         self.npcs[i].rng = rng;
         if let Some((lane, s, ..)) = spot {
+            self.note_npc(IncidentKind::Respawn, id);
             self.place_npc(i, LanePath::new(lane, s));
             self.stats.respawns += 1;
         }

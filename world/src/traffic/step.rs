@@ -8,6 +8,7 @@
 //! ([`super::TrafficStats`]).
 
 use super::Traffic;
+use super::incidents::IncidentKind;
 use crate::agents::{kerb, npc};
 use crate::map::LightState;
 use crate::physics::ContactEvent;
@@ -41,6 +42,7 @@ impl Traffic {
             ));
         }
         let mut ped_targets = Vec::with_capacity(self.pedestrians.len());
+        let mut deadlocked: Vec<u32> = Vec::new();
         for p in &mut self.pedestrians {
             ped_targets.push(p.decide(&self.walk, &self.cfg.pedestrian, &self.views, dt));
         }
@@ -89,6 +91,7 @@ impl Traffic {
                 n.stopped_ticks += 1;
                 if n.stopped_ticks == (DEADLOCK_S / dt) as u32 + 1 {
                     self.stats.deadlocks += 1;
+                    deadlocked.push(n.id);
                 }
                 if d.accel_mps2 > 0.3 {
                     n.stuck_ticks += 1;
@@ -112,6 +115,9 @@ impl Traffic {
                 (WALKER_PATIENCE_S / dt).round() as u32,
             );
         }
+        for id in deadlocked {
+            self.note_npc(IncidentKind::Deadlock, id);
+        }
         self.respawn_stuck();
         if let Some(e) = &mut self.ego {
             e.lane = self
@@ -122,8 +128,12 @@ impl Traffic {
         }
         self.events.clear();
         self.events.extend_from_slice(self.physics.end_tick());
-        for ev in self.events.iter().filter(|ev| ev.started) {
-            self.stats.count_contact(ev);
+        for k in 0..self.events.len() {
+            let ev = self.events[k];
+            if ev.started {
+                self.stats.count_contact(&ev);
+                self.note_contact(&ev);
+            }
         }
         self.stats.ticks += 1;
         self.refresh_views();
