@@ -1,6 +1,5 @@
 //! Subcommands of the `mrdrive` program, one file each.
 
-pub mod bar;
 pub mod bench;
 pub mod collect;
 pub mod data;

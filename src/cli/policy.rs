@@ -218,7 +218,7 @@ pub fn run_policy(args: PolicyArgs) -> Result<()> {
         }
         PolicyCommand::Recalibrate(a) => super::recalibrate::recalibrate(&a),
         PolicyCommand::Table { sweeps, out } => {
-            let table = super::bar::markdown(&super::bar::read(&sweeps)?);
+            let table = experiments::bar::markdown(&experiments::bar::read(&sweeps)?);
             print!("{table}");
             if let Some(out) = out {
                 std::fs::write(&out, &table)

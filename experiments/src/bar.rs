@@ -1,14 +1,14 @@
-//! `mrdrive policy table`: the closed-loop table of the training issue's bar, from
-//! one sweep folder per driver (`<sweeps>/<label>/`): per town, success, runs with a
-//! collision, red-light infractions, lane crossings and route completion.
+//! The closed-loop table of the training issue's bar (`mrdrive policy table`),
+//! from one sweep folder per driver (`<sweeps>/<label>/`): per town, success,
+//! runs with a collision, red-light infractions, lane crossings and route
+//! completion.
 
-use anyhow::{Context, Result};
 use sim::monitors::InfractionKind::{LaneCrossing, RedLight};
 use sim::record::RunRecord;
-use sim::sweep::{SweepDir, read_records};
+use sim::sweep::{SweepDir, SweepError, read_records};
 use std::collections::BTreeMap;
 use std::fmt::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// One row: a driver (the sweep folder's name) in one town.
 #[derive(Debug, Clone, PartialEq)]
@@ -29,6 +29,29 @@ pub struct BarRow {
     pub lane_crossings: u32,
     /// Mean route completion (percent).
     pub completion_pct: f64,
+}
+
+/// What can go wrong reading the sweep folders.
+#[derive(Debug, thiserror::Error)]
+pub enum BarError {
+    /// The folder of sweep folders could not be listed.
+    #[error("{}: cannot list the sweep folders", path.display())]
+    List {
+        /// The folder.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A sweep folder's records could not be read.
+    #[error("{}: cannot read the records", path.display())]
+    Records {
+        /// The sweep folder.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: SweepError,
+    },
 }
 
 /// The town of a scenario name: `town01_route0` -> `town01`.
@@ -65,9 +88,12 @@ pub fn rows(label: &str, records: &[RunRecord]) -> Vec<BarRow> {
 }
 
 /// Reads every sweep folder under `sweeps` (sorted by name) into rows.
-pub fn read(sweeps: &Path) -> Result<Vec<BarRow>> {
+pub fn read(sweeps: &Path) -> Result<Vec<BarRow>, BarError> {
     let mut dirs: Vec<_> = std::fs::read_dir(sweeps)
-        .with_context(|| format!("{}: cannot list the sweep folders", sweeps.display()))?
+        .map_err(|source| BarError::List {
+            path: sweeps.to_path_buf(),
+            source,
+        })?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.join("plan.json").exists())
         .collect();
@@ -79,8 +105,11 @@ pub fn read(sweeps: &Path) -> Result<Vec<BarRow>> {
             .unwrap_or_default()
             .to_string_lossy()
             .into_owned();
-        let records = read_records(&SweepDir { root: d.clone() })
-            .with_context(|| format!("{}: cannot read the records", d.display()))?;
+        let records =
+            read_records(&SweepDir { root: d.clone() }).map_err(|source| BarError::Records {
+                path: d.clone(),
+                source,
+            })?;
         out.extend(rows(&label, &records));
     }
     Ok(out)

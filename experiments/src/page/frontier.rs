@@ -1,0 +1,69 @@
+//! Beyond the paper: success, collisions and red lights against worst-case
+//! latency, fixed scales and switchers alike.
+
+use super::beyond::{ra_fixed_lines, safety_panels};
+use super::configs::Config;
+use super::writer::Writer;
+use crate::PaperError;
+use crate::config::PaperConfig;
+use crate::report::{Cells, Table, mean_ci_cell, rate_cell};
+use crate::results::Results;
+use crate::units::{Unit, selector_name};
+
+/// Beyond the paper: success, collisions and red lights against worst-case latency.
+pub(super) fn frontier(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String, PaperError> {
+    let mut lines = ra_fixed_lines(cfg, results, "");
+    for s in cfg.selectors() {
+        let pts = cfg
+            .envelopes
+            .iter()
+            .map(|e| {
+                let c = Config {
+                    label: String::new(),
+                    unit: Unit::switch(s, *e),
+                    scale: None,
+                };
+                (e.high_ms, c.stats(cfg, results, None))
+            })
+            .filter(|(_, s)| s.n > 0)
+            .collect();
+        lines.push((format!("RA {} switcher", selector_name(s)), pts));
+    }
+    let mut cells = Cells::new();
+    let mut t = Table::new(&[
+        "configuration",
+        "worst-case latency (ms)",
+        "runs",
+        "success %",
+        "collided %",
+        "red lights per run",
+    ]);
+    for (label, pts) in &lines {
+        for (l, s) in pts {
+            cells.push(label, "all", Some(*l), None, s);
+            t.push(vec![
+                label.clone(),
+                l.to_string(),
+                s.n.to_string(),
+                rate_cell(s.success, s.n),
+                rate_cell(s.collided, s.n),
+                mean_ci_cell(s.red, s.red_ci, s.n),
+            ]);
+        }
+    }
+    w.cells("frontier.csv", &cells)?;
+    w.plot(
+        "frontier",
+        &safety_panels(&lines, "worst-case latency (ms)"),
+        1500,
+        480,
+    )?;
+    Ok(format!(
+        "## Beyond the paper: the latency/safety frontier\n\n\
+         One point per fixed scale at each injected delay (its worst-case latency is D) and per \
+         switcher at each envelope (its worst case is the high scale's latency). A switcher is worth \
+         having where its point sits above (success) or below (collisions, red lights) both fixed \
+         lines at the same latency.\n\n![frontier](frontier.png)\n\n{}\nFiles: `frontier.png`, `frontier.svg`, `frontier.csv`.\n",
+        t.markdown()
+    ))
+}

@@ -1,0 +1,187 @@
+//! The page (`docs/paper/README.md`) and every table and figure file beside
+//! it: our numbers next to the paper's, with the checks of the paper's
+//! shapes written out from the numbers.
+//!
+//! One file per table or figure: [`table1`], [`table2`], [`fig34`] (Figs. 3
+//! and 4), [`fig5`], [`table3`], and beyond the paper [`frontier`], [`jitter`]
+//! and [`scales`] (sharing [`beyond`]); [`shapes`] checks the paper's claims,
+//! [`reference`] holds the paper's own numbers, [`configs`] the configurations
+//! compared and [`writer`] the files written. This file writes the page's
+//! header and assembles it.
+
+mod beyond;
+mod configs;
+mod fig34;
+mod fig5;
+mod frontier;
+mod jitter;
+pub mod reference;
+mod scales;
+mod shapes;
+mod table1;
+mod table2;
+mod table3;
+mod writer;
+
+use std::path::PathBuf;
+
+use self::configs::x;
+use self::writer::Writer;
+use crate::PaperError;
+use crate::config::PaperConfig;
+use crate::experiment::Experiment;
+use crate::options::{RunOptions, WallLog};
+use crate::report::Table;
+use crate::results::Results;
+
+/// Writes every table, figure and the page; returns the files written.
+pub fn write_all(
+    cfg: &PaperConfig,
+    opts: &RunOptions,
+    results: &Results,
+) -> Result<Vec<PathBuf>, PaperError> {
+    let mut w = Writer {
+        docs: opts.out.clone(),
+        written: Vec::new(),
+    };
+    let sections = [
+        table1::table1(cfg, &mut w)?,
+        table2::table2(cfg, results, &mut w)?,
+        fig34::fig34(cfg, results, &mut w, true)?,
+        fig34::fig34(cfg, results, &mut w, false)?,
+        fig5::fig5(cfg, results, &mut w)?,
+        table3::table3(cfg, results, &mut w)?,
+        frontier::frontier(cfg, results, &mut w)?,
+        jitter::jitter(cfg, results, &mut w)?,
+        scales::scales(cfg, results, &mut w)?,
+    ];
+    let page =
+        header(cfg, opts, results) + &shapes::shapes(cfg, results) + &sections.join("\n");
+    w.text("README.md", &page)?;
+    Ok(w.written)
+}
+
+fn header(cfg: &PaperConfig, opts: &RunOptions, results: &Results) -> String {
+    let wall = WallLog::read(&opts.out);
+    let builds = results.provenance(|p| &p.build);
+    let backends = results.backends();
+    let mut s =
+        format!(
+        "# The paper's evidence, regenerated\n\n\
+         Made by `cargo xtask paper{}` (`mrdrive paper`), the {} configuration: {} routes \
+         ({}), densities {}, seeds {:?} per (route, density), D in {:?} ms, scales {} and {}, \
+         checkpoints `{}`, `{}`, `{}`, `{}`{}.{} Every table and figure below is rewritten from \
+         the run records in `sweeps/` beside this page each time the command runs; a killed \
+         run resumes where it stopped.\n\n",
+        if opts.label == "quick" {
+            " --quick"
+        } else {
+            ""
+        },
+        opts.label,
+        cfg.routes.len(),
+        cfg.routes
+            .iter()
+            .map(|r| format!("{} {}", r.town, r.route))
+            .collect::<Vec<_>>()
+            .join(", "),
+        cfg.densities
+            .iter()
+            .map(|(v, p)| format!("({v}, {p})"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        cfg.seeds,
+        cfg.delays_ms,
+        x(cfg.low),
+        x(cfg.high),
+        cfg.models.original.display(),
+        cfg.models.nra_low.display(),
+        cfg.models.nra_high.display(),
+        cfg.models.ra.display(),
+        cfg.models.ladder.as_ref().map_or(String::new(), |p| format!(
+            " and `{}` (scales {}) for the more-scales study",
+            p.display(),
+            cfg.ladder.iter().map(|&s| x(s)).collect::<Vec<_>>().join(", ")
+        )),
+        cfg.timeout_s.map_or(String::new(), |t| format!(
+            " Runs are capped at {t} simulated seconds (a smoke test: no run can finish its route)."
+        )),
+    );
+    if backends.len() > 1 {
+        s += "**Warning**: these runs were rendered by more than one backend. Software \
+              rasterisers differ pixel by pixel and a policy can act on that, so rows made on \
+              different backends are not run-for-run comparable; rerun one backend's runs into a \
+              fresh folder.\n\n";
+    }
+    let checkpoints = results.checkpoints();
+    if !checkpoints.is_empty() {
+        s += &format!(
+            "Checkpoints and learned triggers (file, first digits of its SHA-256, from the run \
+             records; a resumed run refuses a folder whose files have changed since): {}.\n\n",
+            checkpoints
+                .into_iter()
+                .map(|c| format!("`{c}`"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    s += &format!(
+        "Builds: {}. Render backend: {}.\n\n",
+        if builds.is_empty() {
+            "none yet".into()
+        } else {
+            builds.into_iter().collect::<Vec<_>>().join(", ")
+        },
+        if backends.is_empty() {
+            "none yet".into()
+        } else {
+            backends.into_iter().collect::<Vec<_>>().join(", ")
+        },
+    );
+    let cpus = results.cpus();
+    if !cpus.is_empty() {
+        s += &format!(
+            "CPUs (runs made on each): {}. Runs made since commit 1f7033c (2026-12-05) are the \
+             same on every x86-64 CPU with AVX2 and FMA; before it, llvmpipe's sRGB encode made a \
+             policy's run on an Intel Xeon and on an AMD EPYC differ by a few ticks (README, \
+             \"Determinism\"); the seeds are independent samples either way.\n\n",
+            cpus.into_iter()
+                .map(|(cpu, n)| format!("{cpu} ({n})"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    let records: usize = results.units.values().map(|u| u.runs.len()).sum();
+    s += &format!(
+        "**Wall time**: {:.2} h in sweeps over {} invocation(s), which timed {} runs for the {} \
+         recorded here ({} at a time; runs of an invocation stopped by hand were never timed, \
+         and a run made again was timed again), on the machines that made them (the CPUs \
+         above; `docs/bench.md` names the one it was measured on).\n\n",
+        wall.sweep_s / 3600.0,
+        wall.invocations,
+        wall.runs,
+        records,
+        wall.jobs
+    );
+    s += "**Statistics**: rates carry Wilson 95 % intervals `[low, high]`; per-run means carry \
+          seeded bootstrap 95 % intervals; `paired` cells compare two configurations run by run on \
+          the same route, density and seed (mean difference b - a, its bootstrap 95 % interval, \
+          `*` where it excludes 0, and how many pairs went up or down).\n\n";
+    let mut t = Table::new(&["experiment", "runs finished / planned"]);
+    for e in Experiment::ALL {
+        let (done, planned) = results.progress(cfg, &e.units(cfg));
+        t.push(vec![
+            e.id().into(),
+            if e == Experiment::Table1 {
+                "(spawns only)".into()
+            } else {
+                format!("{done} / {planned}")
+            },
+        ]);
+    }
+    s += "## Progress\n\n";
+    s += &t.markdown();
+    s += "\nThe discussion of where our shapes differ from the paper's, and why, is in \
+          [`discussion.md`](discussion.md) (written by hand from these tables).\n\n";
+    s
+}

@@ -1,0 +1,359 @@
+//! Our town generator: grid towns written as OpenDRIVE text, so they load
+//! through the same path as CARLA's maps.
+//!
+//! A town is a grid of `blocks_x` x `blocks_y` square blocks. Every grid node
+//! is a junction: 4-way inside, T on the edges, a bend at the corners, and the
+//! seed removes a few interior streets to make interior T junctions. Streets
+//! have one driving lane per direction (3.5 m), a sidewalk each side (3 m,
+//! raised 0.15 m), a broken yellow centre line and solid white edge lines.
+//! Junctions with three or more arms get a traffic light per approach
+//! (`<signal>` + `<controller>`, one controller group per approach). Building
+//! footprints stand on lots beside the streets. Everything is drawn from the
+//! seed with `ChaCha8Rng`: the same parameters give the same bytes.
+//!
+//! The steps, one file each:
+//!
+//! | file | step |
+//! | --- | --- |
+//! | `mod.rs` | the parameters and their checks, and [`generate_grid_town`], which runs the steps in order |
+//! | `layout.rs` | the grid, the streets (the seed removes a few interior ones), each junction's arms and turns, the buildings on the lots |
+//! | `signals.rs` | a traffic light per approach at junctions with three or more arms |
+//! | `xml.rs` | the OpenDRIVE text: header, street roads, junctions' connecting and sidewalk roads, controllers, junctions |
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+use layout::{Building, Grid};
+
+mod layout;
+mod signals;
+mod xml;
+
+
+/// Driving lane width (metres).
+pub const LANE_WIDTH_M: f64 = 3.5;
+/// Sidewalk width (metres).
+pub const SIDEWALK_WIDTH_M: f64 = 3.0;
+/// Sidewalk height above the road (metres).
+pub const SIDEWALK_HEIGHT_M: f64 = 0.15;
+/// Half the size of a junction's square (metres): streets end this far from the node.
+pub const JUNCTION_HALF_M: f64 = 10.0;
+/// Speed limit on generated streets (km/h).
+pub const SPEED_LIMIT_KMH: f64 = 30.0;
+/// A traffic light signal's `zOffset` (metres): its pole's foot below the
+/// ground it stands on, as in CARLA's towns (Town01's and Town02's 60 lights
+/// carry -0.55 to -0.70 m). Our poles stand on the 0.15 m sidewalk, so with
+/// the lamp housing `DEFAULT_LIGHT_HEAD_HEIGHT_M` = 3.0 m above the foot our
+/// lamps hang 2.55 m above the road, CARLA's 2.30-2.45 m; with `zOffset="0"`
+/// (3.15 m) a waiting car saw its lamp in the top rows of the picture, and a
+/// policy trained on Town01 stood through every green.
+pub const SIGNAL_Z_OFFSET_M: f64 = -0.6;
+
+/// Parameters of a grid town.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GridTownParams {
+    /// The town's name (the OpenDRIVE header's `name`).
+    pub name: String,
+    /// Blocks along x.
+    pub blocks_x: u32,
+    /// Blocks along y.
+    pub blocks_y: u32,
+    /// Distance between neighbouring junction centres (metres).
+    pub block_size_m: f64,
+    /// Seed for removed streets and buildings.
+    pub seed: u64,
+}
+
+impl GridTownParams {
+    /// The larger built-in town, about Town01's size (410 m x 328 m).
+    pub fn gen01() -> Self {
+        GridTownParams {
+            name: "gen01".into(),
+            blocks_x: 5,
+            blocks_y: 4,
+            block_size_m: 82.0,
+            seed: 1,
+        }
+    }
+
+    /// The smaller built-in town, about Town02's size (201 m x 201 m).
+    pub fn gen02() -> Self {
+        GridTownParams {
+            name: "gen02".into(),
+            blocks_x: 3,
+            blocks_y: 3,
+            block_size_m: 67.0,
+            seed: 2,
+        }
+    }
+}
+
+/// Parameters the generator cannot build a town from.
+#[derive(Debug, thiserror::Error)]
+#[error("town generator: {what}. Fix: {fix}")]
+pub struct GeneratorError {
+    /// What is wrong.
+    pub what: String,
+    /// How to fix it.
+    pub fix: String,
+}
+
+
+/// Generates the OpenDRIVE text of a grid town.
+pub fn generate_grid_town(p: &GridTownParams) -> Result<String, GeneratorError> {
+    check(p)?;
+    let grid = Grid::of(p);
+    // The seed draws the removed streets first, then each street's buildings in order.
+    let mut rng = ChaCha8Rng::seed_from_u64(p.seed);
+    let streets = grid.streets(&mut rng);
+    let buildings: Vec<Vec<Building>> = streets
+        .iter()
+        .map(|st| layout::buildings(&grid, st, &mut rng))
+        .collect();
+    let arms = layout::arms(&grid, &streets);
+    let lights = signals::lights(&grid, &arms);
+    Ok(xml::town(p, &grid, &streets, &buildings, &arms, &lights))
+}
+
+/// Refuses parameters the generator cannot build a town from: 1 to 50
+/// blocks each way (not 1 x 1), blocks wide enough for two junction squares
+/// and 10 m of street, and no wider than 1 km.
+fn check(p: &GridTownParams) -> Result<(), GeneratorError> {
+    if !(1..=50).contains(&p.blocks_x) || !(1..=50).contains(&p.blocks_y) {
+        return Err(GeneratorError {
+            what: format!("blocks {} x {} out of range", p.blocks_x, p.blocks_y),
+            fix: "use 1 to 50 blocks each way".into(),
+        });
+    }
+    let min_block = 2.0 * JUNCTION_HALF_M + 10.0;
+    if !p.block_size_m.is_finite() || p.block_size_m < min_block || p.block_size_m > 1000.0 {
+        return Err(GeneratorError {
+            what: format!("block size {} m out of range", p.block_size_m),
+            fix: format!("use a block size from {min_block} m to 1000 m"),
+        });
+    }
+    if p.blocks_x * p.blocks_y < 2 {
+        return Err(GeneratorError {
+            what: "a 1 x 1 grid is a single loop with no way to turn around".into(),
+            fix: "use at least 2 blocks one way".into(),
+        });
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::map::opendrive::{LoadOptions, load_xodr_str};
+
+    #[test]
+    fn the_shipped_generated_towns_are_what_the_generator_writes() {
+        // maps/gen01.xodr and maps/gen02.xodr are this generator's output
+        // (`mrdrive map generate`, the parameters in each file's comment): a change
+        // to the generator that moves a byte changes every gen01 run.
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+        for p in [GridTownParams::gen01(), GridTownParams::gen02()] {
+            let path = root.join(format!("maps/{}.xodr", p.name));
+            let shipped = std::fs::read_to_string(&path).unwrap();
+            assert!(
+                generate_grid_town(&p).unwrap() == shipped,
+                "{} differs from the generator's output",
+                path.display()
+            );
+        }
+    }
+
+    #[test]
+    fn small_town_loads_clean_and_connected() {
+        let p = GridTownParams {
+            name: "t".into(),
+            blocks_x: 2,
+            blocks_y: 2,
+            block_size_m: 60.0,
+            seed: 3,
+        };
+        let xml = generate_grid_town(&p).unwrap();
+        let (town, report) = load_xodr_str(&xml, "t", &LoadOptions::default()).unwrap();
+        assert!(report.warnings.is_empty(), "{:#?}", report.warnings);
+        assert!(
+            town.is_strongly_connected(),
+            "{:?}",
+            town.lane_components().len()
+        );
+        // 3x3 nodes: 4 T + 1 four-way junction -> 4*3 + 4 = 16 lights.
+        assert_eq!(town.lights.len(), 16);
+        assert!(
+            town.lights
+                .iter()
+                .all(|l| l.stop_lines.len() == 1 && l.junction.is_some())
+        );
+        // Every lamp hangs 2.55 m above the road: the sidewalk, the signal's
+        // zOffset and the head; CARLA's Town01 and Town02 lamps hang at
+        // 2.30-2.45 m (zOffset -0.70 to -0.55 m under the same head).
+        for l in &town.lights {
+            let lamp = l.position.z + l.head_height_m;
+            let want = SIDEWALK_HEIGHT_M
+                + SIGNAL_Z_OFFSET_M
+                + f64::from(crate::map::opendrive::DEFAULT_LIGHT_HEAD_HEIGHT_M);
+            assert!((f64::from(lamp) - want).abs() < 1e-4, "lamp at {lamp} m");
+            assert!((2.5..2.6).contains(&lamp), "lamp at {lamp} m");
+        }
+        assert!(!town.buildings.is_empty());
+        // Street sidewalks (2 per street, 12 streets) plus one piece per
+        // junction arm joining it to the next street's (24 arms).
+        assert_eq!(town.sidewalks.len(), 48);
+        // Every sidewalk end meets another sidewalk's end: a closed network.
+        let ends: Vec<glam::Vec3> = town
+            .sidewalks
+            .iter()
+            .flat_map(|w| [w.inner[0], *w.inner.last().unwrap()])
+            .collect();
+        for (i, e) in ends.iter().enumerate() {
+            let near = ends
+                .iter()
+                .enumerate()
+                .filter(|(j, f)| *j != i && f.truncate().distance(e.truncate()) < 0.05)
+                .count();
+            assert_eq!(near, 1, "sidewalk end {e:?} meets {near} others");
+        }
+        assert!(
+            town.markings
+                .iter()
+                .any(|m| m.kind == crate::MarkKind::Broken && m.color == crate::MarkColor::Yellow)
+        );
+        assert!(
+            town.markings
+                .iter()
+                .any(|m| m.kind == crate::MarkKind::Solid && m.color == crate::MarkColor::White)
+        );
+    }
+
+    #[test]
+    fn stop_lines_sit_at_the_light_before_the_junction_and_markings_bound_the_lane() {
+        use crate::road::geometry::{OrientedBox, box_touches_polyline, crosses_stop_line};
+        use glam::Vec2;
+        // Nodes at x = 0, 60, 120 and y = 0, 60; junction squares 10 m half size.
+        let p = GridTownParams {
+            name: "t".into(),
+            blocks_x: 2,
+            blocks_y: 1,
+            block_size_m: 60.0,
+            seed: 0,
+        };
+        let (town, _) = load_xodr_str(
+            &generate_grid_town(&p).unwrap(),
+            "t",
+            &LoadOptions::default(),
+        )
+        .unwrap();
+        // The eastbound lane of the street from (0, 0) to (60, 0) runs along
+        // y = -1.75 and enters the T junction at (60, 0) at x = 50; its
+        // light's pole stands 1 m before that, and so does the stop line.
+        let sl = town
+            .lights
+            .iter()
+            .flat_map(|l| l.stop_lines.iter())
+            .find(|sl| sl.ends[0].truncate().distance(Vec2::new(49.0, 0.0)) < 0.5)
+            .expect("a stop line at (49, 0)");
+        assert!(
+            sl.ends[0].truncate().distance(Vec2::new(49.0, 0.0)) < 0.02,
+            "left end {:?}",
+            sl.ends[0]
+        );
+        assert!(
+            sl.ends[1].truncate().distance(Vec2::new(49.0, -3.5)) < 0.02,
+            "right end {:?}",
+            sl.ends[1]
+        );
+        let lane = town.lane(sl.lane);
+        assert!(
+            (sl.s - (lane.length_m() - 1.0)).abs() < 1e-3 && (lane.length_m() - 40.0).abs() < 0.01
+        );
+        let ends = [sl.ends[0].truncate(), sl.ends[1].truncate()];
+        assert!(crosses_stop_line(
+            Vec2::new(48.8, -1.75),
+            Vec2::new(49.2, -1.75),
+            ends
+        ));
+        assert!(!crosses_stop_line(
+            Vec2::new(48.0, -1.75),
+            Vec2::new(48.9, -1.75),
+            ends
+        ));
+        // A 4.8 m x 2.1 m car centred in that lane touches no marking; moved
+        // 1.0 m left (its left side at y = 0.3) it touches the centre line.
+        let car = OrientedBox {
+            center: Vec2::new(25.0, -1.75),
+            heading: 0.0,
+            half_length: 2.4,
+            half_width: 1.05,
+        };
+        assert!(
+            !town
+                .markings
+                .iter()
+                .any(|m| box_touches_polyline(&car, &m.points))
+        );
+        let over = OrientedBox {
+            center: Vec2::new(25.0, -0.75),
+            ..car
+        };
+        let touched: Vec<_> = town
+            .markings
+            .iter()
+            .filter(|m| box_touches_polyline(&over, &m.points))
+            .collect();
+        assert_eq!(touched.len(), 1);
+        assert_eq!(
+            (touched[0].kind, touched[0].color),
+            (crate::MarkKind::Broken, crate::MarkColor::Yellow)
+        );
+        // Moved 1.0 m right it touches the solid white edge line at y = -3.5.
+        let right = OrientedBox {
+            center: Vec2::new(25.0, -2.75),
+            ..car
+        };
+        let touched: Vec<_> = town
+            .markings
+            .iter()
+            .filter(|m| box_touches_polyline(&right, &m.points))
+            .collect();
+        assert_eq!(touched.len(), 1);
+        assert_eq!(
+            (touched[0].kind, touched[0].color),
+            (crate::MarkKind::Solid, crate::MarkColor::White)
+        );
+    }
+
+    #[test]
+    fn same_seed_same_bytes_other_seed_other_buildings() {
+        let p = GridTownParams::gen02();
+        assert_eq!(
+            generate_grid_town(&p).unwrap(),
+            generate_grid_town(&p).unwrap()
+        );
+        let q = GridTownParams {
+            seed: 99,
+            ..p.clone()
+        };
+        assert_ne!(
+            generate_grid_town(&p).unwrap(),
+            generate_grid_town(&q).unwrap()
+        );
+    }
+
+    #[test]
+    fn bad_parameters_are_errors() {
+        let p = GridTownParams {
+            block_size_m: 5.0,
+            ..GridTownParams::gen02()
+        };
+        let e = generate_grid_town(&p).unwrap_err().to_string();
+        assert!(e.contains("block size") && e.contains("Fix"), "{e}");
+        let p = GridTownParams {
+            blocks_x: 0,
+            ..GridTownParams::gen02()
+        };
+        assert!(generate_grid_town(&p).is_err());
+    }
+}
