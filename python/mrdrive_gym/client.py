@@ -1,4 +1,4 @@
-"""The client side of `mrdrive serve` (see src/cli/serve.rs for the protocol).
+"""The client side of `mrdrive serve` (see sim/src/remote/server.rs for the protocol).
 
 A frame is a little-endian u32 length, that much JSON, a little-endian u64 length,
 that many payload bytes. Images arrive as the payload and become a NumPy array

@@ -12,6 +12,15 @@
 //! Dropping the [`Link`]'s action sender aborts the run: the driver unwinds its
 //! thread with [`std::panic::resume_unwind`] (no panic message), so a client that
 //! goes away never leaves a run behind.
+//!
+//! | file | what |
+//! | --- | --- |
+//! | `mod.rs` | the link between a run and its agent: [`RemoteDriver`], [`RemoteWatch`], [`RemoteSelector`], [`reward`] |
+//! | [`frame`] | the wire format: length-prefixed JSON and a payload |
+//! | [`server`] | the environment server (`mrdrive serve`): its requests, answers and episodes |
+
+pub mod frame;
+pub mod server;
 
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::sync::{Arc, Mutex};
