@@ -11,12 +11,22 @@
 //! - [`figures`]: the plots (PNG and SVG).
 //! - [`page`]: `README.md`, our numbers beside the paper's.
 //! - [`run`]: running the units and writing everything.
+//! - [`pipeline`]: the training pipeline as a plan ([`pipeline::TrainPlan`]:
+//!   datasets, the Original's phases, the retargeting lanes, the bar), run as
+//!   commands of this binary (`mrdrive train --all`).
+//! - [`bench_page`]: every benchmark in one go, into `docs/bench.md`
+//!   (`mrdrive bench all`).
+//! - [`bar`]: the training issue's closed-loop table (`mrdrive policy table`)
+//!   from one sweep folder per driver.
 
+pub mod bar;
+pub mod bench_page;
 pub mod config;
 pub mod experiment;
 pub mod figures;
 pub mod options;
 pub mod page;
+pub mod pipeline;
 pub mod report;
 pub mod results;
 pub mod run;

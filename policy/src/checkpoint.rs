@@ -466,6 +466,68 @@ mod tests {
         assert_eq!(logits(&net, &device), logits(&back, &device));
     }
 
+    /// The record of `models/ra.json`, with a stopped-vehicle repeat of 3.
+    fn ra_record() -> TrainingRecord {
+        TrainingRecord {
+            stage: "ra".into(),
+            data: "data/retarget".into(),
+            samples_in_data: 39444,
+            steps: 600,
+            batch: 32,
+            seed: 1,
+            lr: 0.00015,
+            losses: "see losses.csv beside the run".into(),
+            wall_s: 2047.006782124,
+            machine: "Intel(R) Xeon(R) Processor, 2 cores".into(),
+            init: None,
+            sampling: crate::train::loader::Sampling {
+                balanced: true,
+                start_repeat: 8,
+                stopped_vehicle_repeat: 3,
+                ..Default::default()
+            },
+        }
+    }
+
+    #[test]
+    fn a_training_record_keeps_its_json_layout() {
+        // The sampling fields sit flat after the others, as in every checkpoint's card.
+        let want = r#"{
+  "stage": "ra",
+  "data": "data/retarget",
+  "samples_in_data": 39444,
+  "steps": 600,
+  "batch": 32,
+  "seed": 1,
+  "lr": 0.00015,
+  "losses": "see losses.csv beside the run",
+  "wall_s": 2047.006782124,
+  "machine": "Intel(R) Xeon(R) Processor, 2 cores",
+  "balanced": true,
+  "standing_keep": 1.0,
+  "start_repeat": 8,
+  "pedestrian_repeat": 1,
+  "stopped_vehicle_repeat": 3
+}"#;
+        assert_eq!(serde_json::to_string_pretty(&ra_record()).unwrap(), want);
+        let with_init = TrainingRecord {
+            init: Some("models/original.safetensors".into()),
+            ..ra_record()
+        };
+        let json = serde_json::to_string_pretty(&with_init).unwrap();
+        assert!(json.contains(
+            "\"machine\": \"Intel(R) Xeon(R) Processor, 2 cores\",\n  \"init\": \"models/original.safetensors\",\n  \"balanced\": true,"
+        ), "{json}");
+        assert_eq!(
+            serde_json::from_str::<TrainingRecord>(&json).unwrap(),
+            with_init
+        );
+        // A card written before a sampling field existed reads it as WoR's (once).
+        let old = want.replace(",\n  \"stopped_vehicle_repeat\": 3", "");
+        let back: TrainingRecord = serde_json::from_str(&old).unwrap();
+        assert_eq!(back.sampling.stopped_vehicle_repeat, 1);
+    }
+
     #[test]
     fn the_metadata_is_written_in_key_order_and_nothing_else_moves() {
         let header = br#"{"__metadata__":{"z":"1","a":"2","m":"3"},"t":{"dtype":"F32","shape":[1],"data_offsets":[0,4]}}    "#;

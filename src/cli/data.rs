@@ -1,6 +1,6 @@
 //! `mrdrive data ...`: look at a collected dataset; `mrdrive bench loader`.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use anyhow::Context;
@@ -8,6 +8,7 @@ use clap::{Args, Subcommand};
 use dataset::info::{Summary, towns_from_maps};
 use dataset::show::show;
 use dataset::synthetic::{self, SyntheticSpec};
+use experiments::pipeline::{self, Group, TrainPlan};
 use policy::bench;
 use policy::train::Preset;
 use policy::train::loader::TrainSet;
@@ -19,6 +20,17 @@ pub enum DataCommand {
     Info(InfoArgs),
     /// Draw one frame and its label to a PNG, for a person to check.
     Show(ShowArgs),
+    /// Collect and label the study's two datasets into data/original and data/retarget
+    /// (resumable: finished episodes and labels are kept; `cargo xtask data`).
+    Study(StudyArgs),
+}
+
+/// `data study` arguments.
+#[derive(Args)]
+pub struct StudyArgs {
+    /// Two episodes of 20 s each into data/*-quick: the plumbing, in minutes.
+    #[arg(long)]
+    pub quick: bool,
 }
 
 /// `data info` arguments.
@@ -47,6 +59,18 @@ pub struct ShowArgs {
 /// Runs a `data` subcommand.
 pub fn run(c: DataCommand) -> anyhow::Result<()> {
     match c {
+        DataCommand::Study(a) => {
+            let plan = if a.quick {
+                TrainPlan::quick(Path::new("."), false)
+            } else {
+                TrainPlan::full(Path::new("."), false)
+            };
+            let groups: Vec<Group> = plan.data_steps().into_iter().map(Group::One).collect();
+            let exe = std::env::current_exe().context("finding this program")?;
+            pipeline::execute(&exe, Path::new("."), &groups, &|s| {
+                eprintln!("data study: {s}")
+            })?;
+        }
         DataCommand::Info(a) => {
             let summary = Summary::of(&a.dir, &mut towns_from_maps())?;
             print!("{summary}");

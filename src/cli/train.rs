@@ -1,12 +1,15 @@
 //! `mrdrive train`: a training stage of the paper's pipeline (Original, NRA, RA) on a
-//! labelled dataset, resumable, with loss curves; or `--synthetic`, a smoke run.
+//! labelled dataset, resumable, with loss curves; `--all`, the whole pipeline
+//! ([`experiments::pipeline::TrainPlan`]); or `--synthetic`, a smoke run.
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
+use experiments::pipeline::{self, Group, TrainPlan};
 use policy::device::{self, DeviceKind};
-use policy::train::Preset;
-use policy::train::stage::{FINAL_FILE, LOSSES_FILE, StageSpec, run_stage};
+use policy::train::publish::{LOSSES_PLOT_FILE, publish, published_checkpoint};
+use policy::train::stage::{LOSSES_FILE, run_stage};
 use policy::train::synthetic::{SmokeRun, train_on_toy_batch};
+use policy::train::{Preset, RecipeChanges, StageRequest};
 use std::path::{Path, PathBuf};
 
 use super::plot;
@@ -15,8 +18,23 @@ use super::plot;
 #[derive(Debug, Args)]
 pub struct TrainArgs {
     /// The stage: `original`, `nra-<scale>` (e.g. nra-0.75) or `ra`.
-    #[arg(long, required_unless_present = "synthetic")]
+    #[arg(long, required_unless_present_any = ["synthetic", "all"])]
     stage: Option<String>,
+    /// The whole pipeline, skipping what is done: the datasets, the Original in three
+    /// phases, NRA 0.75, NRA 1.0 and RA, the closed-loop bar, RA5 (`cargo xtask train`).
+    #[arg(long, conflicts_with_all = ["stage", "synthetic"])]
+    all: bool,
+    /// With `--all`: the folder whose models/, runs/ and out/bar/ the pipeline writes
+    /// (`--into .` replaces the shipped models/).
+    #[arg(long, requires = "all")]
+    into: Option<PathBuf>,
+    /// With `--all`: the same plumbing at toy size, into out/train-quick unless --into.
+    #[arg(long, requires = "all")]
+    quick: bool,
+    /// With `--all`: 2 runs the retargeting stages two at a time on one thread each
+    /// (the default on 2 or more cores), 1 one after another on every thread.
+    #[arg(long, requires = "all", value_parser = clap::value_parser!(u8).range(1..=2))]
+    lanes: Option<u8>,
     /// The labelled dataset [default: data/original for the Original, data/retarget otherwise].
     #[arg(long)]
     data: Option<PathBuf>,
@@ -90,114 +108,33 @@ pub struct TrainArgs {
     synthetic: bool,
 }
 
-/// The stage's spec from its name and the overrides.
-fn spec_of(args: &TrainArgs, stage: &str) -> Result<StageSpec> {
-    let data_or = |d: &str| args.data.clone().unwrap_or_else(|| PathBuf::from(d));
-    let teacher = args
-        .teacher
-        .clone()
-        .unwrap_or_else(|| args.out.join("original.safetensors"));
-    let mut spec = if stage == "original" {
-        StageSpec::original(&data_or("data/original"), args.preset)
-    } else if stage == "ra" {
-        StageSpec::retarget(
-            stage,
-            &args.scales,
-            &data_or("data/retarget"),
-            &teacher,
-            args.preset,
-        )
-    } else if let Some(r) = stage.strip_prefix("nra-") {
-        let r: f32 = r
-            .parse()
-            .ok()
-            .filter(|r: &f32| *r > 0.0 && *r <= 1.0)
-            .with_context(|| {
-                format!(
-                    "--stage {stage}: `{r}` is not a scale in (0, 1]; fix: e.g. --stage nra-0.75"
-                )
-            })?;
-        StageSpec::retarget(
-            stage,
-            &[r],
-            &data_or("data/retarget"),
-            &teacher,
-            args.preset,
-        )
-    } else {
-        bail!(
-            "--stage {stage}: unknown stage; fix: use original, nra-<scale> (e.g. nra-0.75) or ra"
-        );
-    };
-    if spec.teacher.is_some() && !teacher.exists() {
-        bail!(
-            "{}: the teacher of stage {stage} does not exist; fix: train the Original first (`mrdrive train --stage original`) or pass --teacher",
-            teacher.display()
-        );
+/// The stage asked for by `--stage` and the flags that change its recipe.
+fn request_of(args: &TrainArgs, stage: &str) -> StageRequest {
+    StageRequest {
+        stage: stage.into(),
+        preset: args.preset,
+        scales: args.scales.clone(),
+        data: args.data.clone(),
+        teacher: args
+            .teacher
+            .clone()
+            .unwrap_or_else(|| args.out.join("original.safetensors")),
+        changes: RecipeChanges {
+            steps: args.steps,
+            batch: args.batch,
+            lr: args.lr,
+            seed: args.seed,
+            unfreeze_every: args.unfreeze_every,
+            recalibrate_batches: args.recalibrate_batches,
+            checkpoint_every: args.checkpoint_every,
+            standing_keep: args.standing_keep,
+            start_repeat: args.start_repeat,
+            pedestrian_repeat: args.pedestrian_repeat,
+            stopped_vehicle_repeat: args.stopped_vehicle_repeat,
+            balanced: args.balanced,
+            init: args.init.clone(),
+        },
     }
-    if let Some(v) = args.steps {
-        spec.steps = v;
-    }
-    if let Some(v) = args.batch {
-        spec.batch = v;
-    }
-    if let Some(v) = args.lr {
-        spec.train.lr = v;
-    }
-    if let Some(v) = args.seed {
-        spec.seed = v;
-    }
-    if let Some(v) = args.unfreeze_every {
-        spec.train.unfreeze_every = (v > 0).then_some(v);
-    }
-    if let Some(v) = args.recalibrate_batches {
-        spec.recalibrate_batches = v;
-    }
-    if let Some(v) = args.checkpoint_every {
-        spec.checkpoint_every = v;
-    }
-    if let Some(v) = args.standing_keep {
-        if !(0.0..=1.0).contains(&v) {
-            bail!("--standing-keep {v}: a share in [0, 1]");
-        }
-        spec.sampling.standing_keep = v;
-    }
-    if let Some(v) = args.start_repeat {
-        if v == 0 {
-            bail!("--start-repeat 0: at least 1 (1 draws each starting frame once per epoch)");
-        }
-        spec.sampling.start_repeat = v;
-    }
-    if let Some(v) = args.pedestrian_repeat {
-        if v == 0 {
-            bail!(
-                "--pedestrian-repeat 0: at least 1 (1 draws each frame with a pedestrian ahead once per epoch)"
-            );
-        }
-        spec.sampling.pedestrian_repeat = v;
-    }
-    if let Some(v) = args.stopped_vehicle_repeat {
-        if v == 0 {
-            bail!(
-                "--stopped-vehicle-repeat 0: at least 1 (1 draws each frame with a stopped vehicle ahead once per epoch)"
-            );
-        }
-        spec.sampling.stopped_vehicle_repeat = v;
-    }
-    if let Some(v) = args.balanced {
-        spec.sampling.balanced = v;
-    }
-    if let Some(v) = &args.init {
-        spec.init = Some(v.clone());
-    }
-    if spec.steps == 0 || spec.batch == 0 {
-        bail!(
-            "--steps {} --batch {}: both must be at least 1",
-            spec.steps,
-            spec.batch
-        );
-    }
-    Ok(spec)
 }
 
 /// The title of a training run's loss plot: the model's name, and the stage when the
@@ -215,8 +152,11 @@ pub fn run_train(args: TrainArgs) -> Result<()> {
     if args.synthetic {
         return run_synthetic(&args);
     }
+    if args.all {
+        return run_all(&args);
+    }
     let stage = args.stage.clone().expect("clap requires --stage");
-    let spec = spec_of(&args, &stage)?;
+    let spec = request_of(&args, &stage).spec()?;
     let name = args.name.clone().unwrap_or_else(|| spec.name.clone());
     let run_dir = args.runs.join(&name);
     eprintln!(
@@ -239,7 +179,7 @@ pub fn run_train(args: TrainArgs) -> Result<()> {
         .progress_chars("=> "),
     );
     let losses = run_dir.join(LOSSES_FILE);
-    let png = run_dir.join("losses.png");
+    let png = run_dir.join(LOSSES_PLOT_FILE);
     let mut first = true;
     let outcome = run_stage(&spec, &run_dir, &dev, |u| {
         if std::mem::take(&mut first) {
@@ -287,26 +227,39 @@ pub fn run_train(args: TrainArgs) -> Result<()> {
         spec.name,
         outcome.steps_now,
         outcome.wall_s,
-        args.out.join(format!("{name}.safetensors")).display()
+        published_checkpoint(&args.out, &name).display()
     );
     Ok(())
 }
 
-/// Copies a finished run's checkpoint, card, loss CSV and plot to `out` as `<name>.*`.
-fn publish(run_dir: &Path, out: &Path, name: &str) -> Result<()> {
-    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
-    let from_weights = run_dir.join(FINAL_FILE);
-    let copies = [
-        (from_weights.clone(), format!("{name}.safetensors")),
-        (from_weights.with_extension("json"), format!("{name}.json")),
-        (run_dir.join(LOSSES_FILE), format!("{name}.losses.csv")),
-        (run_dir.join("losses.png"), format!("{name}.losses.png")),
-    ];
-    for (from, to) in copies {
-        let to = out.join(to);
-        std::fs::copy(&from, &to)
-            .with_context(|| format!("copying {} to {}", from.display(), to.display()))?;
-    }
+/// `mrdrive train --all`: the pipeline's plan, run step by step.
+fn run_all(args: &TrainArgs) -> Result<()> {
+    let base = match (&args.into, args.quick) {
+        (Some(dir), _) => dir.clone(),
+        (None, true) => PathBuf::from("out/train-quick"),
+        (None, false) => bail!(
+            "the pipeline needs --into DIR: --into out/scratch trains beside the shipped \
+             checkpoints, --into . replaces the shipped models/ (their records on the paper \
+             page name their SHA-256)"
+        ),
+    };
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let lanes = args.lanes.unwrap_or(if cores >= 2 { 2 } else { 1 });
+    let plan = if args.quick {
+        TrainPlan::quick(&base, lanes == 2)
+    } else {
+        TrainPlan::full(&base, lanes == 2)
+    };
+    let mut groups: Vec<Group> = plan.data_steps().into_iter().map(Group::One).collect();
+    groups.extend(plan.train_steps());
+    let exe = std::env::current_exe().context("finding this program")?;
+    pipeline::execute(&exe, Path::new("."), &groups, &|s| {
+        eprintln!("train --all: {s}")
+    })?;
+    eprintln!(
+        "train --all: done; the closed-loop table is {}",
+        base.join("models/closed-loop.md").display()
+    );
     Ok(())
 }
 

@@ -1,0 +1,614 @@
+//! The training pipeline as a plan (`mrdrive train --all`, `cargo xtask train`):
+//! the study's datasets, the Original in phases, the three retargeted models,
+//! the closed-loop bar and the five-scale RA, each a command of this binary.
+//!
+//! [`TrainPlan`] is the configuration ([`TrainPlan::full`] is the study's,
+//! [`TrainPlan::quick`] the same plumbing at toy size); [`TrainPlan::steps`]
+//! turns it into [`Step`]s, the commands in order, grouped where two may run at
+//! once; [`execute`] runs them as child processes. Every command it runs is
+//! resumable on its own (collect skips finished episodes, a stage resumes from
+//! its checkpoint, a sweep skips finished runs), so running the plan again
+//! after an interruption goes on where it stopped. Why these phases and
+//! options: `docs/training.md`.
+
+use std::fs::{File, OpenOptions};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// A dataset of the study: `mrdrive collect --preset PRESET --out DIR --episodes N
+/// --max-s S`, then `mrdrive label DIR`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Dataset {
+    /// The collection preset (`original`, `retarget`).
+    pub preset: String,
+    /// The folder (relative to the working directory).
+    pub dir: PathBuf,
+    /// Episodes to collect.
+    pub episodes: u32,
+    /// Each episode's length cap (simulated seconds).
+    pub max_s: f64,
+}
+
+/// One phase of the Original's training: `mrdrive train --stage original`, starting
+/// from the phase before it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Phase {
+    /// Its name: phase NAME trains in `runs/NAME/original/` and publishes
+    /// `runs/NAME/original.*`; the last trains in `runs/original/` and publishes
+    /// `models/original.*`.
+    pub name: String,
+    /// Training steps (batches of 32).
+    pub steps: u32,
+    /// Further `mrdrive train` options.
+    pub options: Vec<String>,
+}
+
+/// One retargeting stage: `mrdrive train --stage STAGE` on the retargeting set.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Retarget {
+    /// Its name (its log is `runs/NAME.log` when it runs in a lane).
+    pub name: String,
+    /// The stage (`nra-0.75`, `nra-1.0`, `ra`).
+    pub stage: String,
+    /// Further `mrdrive train` options.
+    pub options: Vec<String>,
+}
+
+/// One driver of the closed-loop bar: a sweep folder, a model (or the expert), a scale.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BarDriver {
+    /// The sweep folder's name under `out/bar/`.
+    pub label: String,
+    /// The model under `models/` (`None`: the expert).
+    pub model: Option<String>,
+    /// The fixed input scale.
+    pub scale: String,
+}
+
+/// The training pipeline's configuration; paths under `base` are the outputs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrainPlan {
+    /// The folder whose `models/`, `runs/` and `out/bar/` the pipeline writes.
+    pub base: PathBuf,
+    /// The datasets (the Original's first, then the retargeting set).
+    pub datasets: Vec<Dataset>,
+    /// The Original's phases, each continuing the one before it.
+    pub original_phases: Vec<Phase>,
+    /// The paper's three retargeted models, in the lanes they run in when two run at
+    /// once: each lane a list run in order (each stage needs only the Original).
+    pub lanes: Vec<Vec<Retarget>>,
+    /// Run the lanes at once (one thread each) rather than one stage after another.
+    pub parallel_lanes: bool,
+    /// The drivers of the closed-loop bar.
+    pub bar: Vec<BarDriver>,
+    /// The bar's scenarios.
+    pub bar_scenarios: Vec<PathBuf>,
+    /// The bar's densities (`mrdrive sweep --densities`).
+    pub bar_densities: String,
+    /// Trained after the bar, which does not need it: RA with five scales for the
+    /// more-scales study.
+    pub after_bar: Retarget,
+    /// Options added to every training command (the quick plan's toy sizes).
+    pub toy_options: Vec<String>,
+    /// Options added to every retargeting command (the quick plan's).
+    pub toy_retarget_options: Vec<String>,
+    /// Steps of every Original phase instead of its own (the quick plan's 4).
+    pub phase_steps_override: Option<u32>,
+}
+
+fn strings(s: &[&str]) -> Vec<String> {
+    s.iter().map(|s| s.to_string()).collect()
+}
+
+impl TrainPlan {
+    /// The study's pipeline into `base`: about 250k frames for the Original (the
+    /// paper pre-trains on 270k), the retargeting set at TimeParam's 50k; the
+    /// retargeting stages in two lanes when `parallel_lanes` (on 2 cores two
+    /// single-threaded stages make 1.39-1.46x the samples/s of one stage on two
+    /// threads, docs/training.md).
+    pub fn full(base: &Path, parallel_lanes: bool) -> Self {
+        let retarget = |name: &str, stage: &str, options: &[&str]| Retarget {
+            name: name.into(),
+            stage: stage.into(),
+            options: strings(options),
+        };
+        let bar = |label: &str, model: Option<&str>, scale: &str| BarDriver {
+            label: label.into(),
+            model: model.map(String::from),
+            scale: scale.into(),
+        };
+        TrainPlan {
+            base: base.to_path_buf(),
+            datasets: vec![
+                Dataset {
+                    preset: "original".into(),
+                    dir: "data/original".into(),
+                    episodes: 760,
+                    max_s: 90.0,
+                },
+                Dataset {
+                    preset: "retarget".into(),
+                    dir: "data/retarget".into(),
+                    episodes: 150,
+                    max_s: 90.0,
+                },
+            ],
+            original_phases: vec![
+                // WoR's recipe: every sample once per epoch.
+                Phase {
+                    name: "wor".into(),
+                    steps: 2300,
+                    options: Vec::new(),
+                },
+                // Commands drawn evenly, a quarter of the standing frames.
+                Phase {
+                    name: "balanced".into(),
+                    steps: 2000,
+                    options: strings(&["--standing-keep", "0.25", "--balanced", "true"]),
+                },
+                // Frames with a walker in the corridor ahead drawn 8 times an epoch:
+                // without this phase the Original hit a walker in 3 of the 6 Town01
+                // runs of the bar, with it in none.
+                Phase {
+                    name: "original".into(),
+                    steps: 800,
+                    options: strings(&[
+                        "--standing-keep",
+                        "0.25",
+                        "--balanced",
+                        "true",
+                        "--pedestrian-repeat",
+                        "8",
+                    ]),
+                },
+            ],
+            // RA (both scales per step) takes about as long as the two NRA stages together.
+            lanes: vec![
+                vec![retarget("ra", "ra", &[])],
+                vec![
+                    retarget("nra-1.0", "nra-1.0", &[]),
+                    retarget("nra-0.75", "nra-0.75", &[]),
+                ],
+            ],
+            parallel_lanes,
+            bar: vec![
+                bar("expert", None, "1.0"),
+                bar("original@1.0", Some("original"), "1.0"),
+                bar("nra-0.75@0.75", Some("nra-0.75"), "0.75"),
+                bar("nra-1.0@1.0", Some("nra-1.0"), "1.0"),
+                bar("ra@0.75", Some("ra"), "0.75"),
+                bar("ra@1.0", Some("ra"), "1.0"),
+            ],
+            bar_scenarios: [
+                "town01_route0",
+                "town01_route1",
+                "town02_route0",
+                "town02_route1",
+            ]
+            .iter()
+            .map(|r| PathBuf::from(format!("scenarios/paper/{r}.toml")))
+            .collect(),
+            bar_densities: "0:0,5:10,20:40".into(),
+            after_bar: retarget(
+                "ra5",
+                "ra",
+                &["--scales", "0.5,0.625,0.75,0.875,1.0", "--name", "ra5"],
+            ),
+            toy_options: Vec::new(),
+            toy_retarget_options: Vec::new(),
+            phase_steps_override: None,
+        }
+    }
+
+    /// The same plumbing at toy size (minutes): datasets of 2 episodes of 20 s in
+    /// `data/*-quick`, 4 steps a stage of batch 4, one route and one density for the bar.
+    pub fn quick(base: &Path, parallel_lanes: bool) -> Self {
+        let mut plan = Self::full(base, parallel_lanes);
+        for d in &mut plan.datasets {
+            d.dir = PathBuf::from(format!("{}-quick", d.dir.display()));
+            d.episodes = 2;
+            d.max_s = 20.0;
+        }
+        plan.bar_scenarios.truncate(1);
+        plan.bar_densities = "0:0".into();
+        plan.toy_options = strings(&["--batch", "4", "--recalibrate-batches", "2"]);
+        plan.toy_retarget_options = strings(&["--steps", "4", "--unfreeze-every", "1"]);
+        plan.phase_steps_override = Some(4);
+        plan
+    }
+
+    /// The commands that make the datasets.
+    pub fn data_steps(&self) -> Vec<Step> {
+        let mut steps = Vec::new();
+        for d in &self.datasets {
+            let dir = d.dir.display().to_string();
+            steps.push(Step::new(
+                format!("collect {dir}"),
+                vec![
+                    "collect".into(),
+                    "--preset".into(),
+                    d.preset.clone(),
+                    "--out".into(),
+                    dir.clone(),
+                    "--episodes".into(),
+                    d.episodes.to_string(),
+                    "--max-s".into(),
+                    d.max_s.to_string(),
+                ],
+            ));
+            steps.push(Step::new(
+                format!("label {dir}"),
+                vec!["label".into(), dir.clone()],
+            ));
+            steps.push(Step {
+                may_fail: true,
+                ..Step::new(
+                    format!("data info {dir}"),
+                    vec!["data".into(), "info".into(), dir],
+                )
+            });
+        }
+        steps
+    }
+
+    fn models(&self) -> String {
+        self.base.join("models").display().to_string()
+    }
+
+    fn runs(&self) -> String {
+        self.base.join("runs").display().to_string()
+    }
+
+    fn sweeps(&self) -> String {
+        self.base.join("out/bar").display().to_string()
+    }
+
+    fn retarget_step(&self, r: &Retarget) -> Step {
+        let data = self
+            .datasets
+            .get(1)
+            .map(|d| d.dir.display().to_string())
+            .unwrap_or_default();
+        let mut args = strings(&["train", "--stage"]);
+        args.extend([r.stage.clone(), "--data".into(), data]);
+        args.extend(["--runs".into(), self.runs(), "--out".into(), self.models()]);
+        args.extend(r.options.iter().cloned());
+        args.extend(self.toy_options.iter().cloned());
+        args.extend(self.toy_retarget_options.iter().cloned());
+        Step::new(format!("train {}", r.name), args)
+    }
+
+    /// The commands that train and judge the models, after the datasets: the
+    /// Original's phases, the retargeting lanes, the bar and its table, RA5.
+    pub fn train_steps(&self) -> Vec<Group> {
+        let mut groups = Vec::new();
+        let (models, runs) = (self.models(), self.runs());
+        let original_data = self
+            .datasets
+            .first()
+            .map(|d| d.dir.display().to_string())
+            .unwrap_or_default();
+        let mut init: Option<String> = None;
+        for (i, phase) in self.original_phases.iter().enumerate() {
+            let last = i + 1 == self.original_phases.len();
+            let (run_root, out) = if last {
+                (runs.clone(), models.clone())
+            } else {
+                let own = format!("{runs}/{}", phase.name);
+                (own.clone(), own)
+            };
+            let steps = self.phase_steps_override.unwrap_or(phase.steps);
+            let mut args = strings(&["train", "--stage", "original", "--data"]);
+            args.push(original_data.clone());
+            args.extend(["--runs".into(), run_root, "--out".into(), out.clone()]);
+            args.extend(["--steps".into(), steps.to_string()]);
+            if let Some(init) = &init {
+                args.extend(["--init".into(), init.clone()]);
+            }
+            args.extend(phase.options.iter().cloned());
+            args.extend(self.toy_options.iter().cloned());
+            groups.push(Group::One(Step::new(
+                format!("original phase {}", phase.name),
+                args,
+            )));
+            init = Some(format!("{out}/original.safetensors"));
+        }
+        if self.parallel_lanes {
+            groups.push(Group::Lanes(
+                self.lanes
+                    .iter()
+                    .map(|lane| {
+                        lane.iter()
+                            .map(|r| Step {
+                                log: Some(PathBuf::from(format!("{runs}/{}.log", r.name))),
+                                one_thread: true,
+                                ..self.retarget_step(r)
+                            })
+                            .collect()
+                    })
+                    .collect(),
+            ));
+        } else {
+            // One after another: NRA 0.75, NRA 1.0, RA (the order of the paper's table).
+            let mut all: Vec<&Retarget> = self.lanes.iter().flatten().collect();
+            all.sort_by_key(|r| match r.stage.as_str() {
+                "nra-0.75" => 0,
+                "nra-1.0" => 1,
+                _ => 2,
+            });
+            groups.extend(all.into_iter().map(|r| Group::One(self.retarget_step(r))));
+        }
+        let sweeps = self.sweeps();
+        for b in &self.bar {
+            let mut args = vec!["sweep".to_string()];
+            args.extend(self.bar_scenarios.iter().map(|p| p.display().to_string()));
+            args.extend(strings(&["--delays", "0", "--scales"]));
+            args.extend([
+                b.scale.clone(),
+                "--densities".into(),
+                self.bar_densities.clone(),
+            ]);
+            args.extend(strings(&["--seeds", "0", "--out"]));
+            args.push(format!("{sweeps}/{}", b.label));
+            match &b.model {
+                Some(m) => {
+                    args.extend(["--checkpoint".into(), format!("{models}/{m}.safetensors")])
+                }
+                None => args.push("--expert".into()),
+            }
+            groups.push(Group::One(Step::new(format!("bar {}", b.label), args)));
+        }
+        groups.push(Group::One(Step::new(
+            "closed-loop table",
+            vec![
+                "policy".into(),
+                "table".into(),
+                sweeps,
+                "--out".into(),
+                format!("{models}/closed-loop.md"),
+            ],
+        )));
+        groups.push(Group::One(self.retarget_step(&self.after_bar)));
+        groups
+    }
+}
+
+/// One command of the plan: arguments to this binary.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Step {
+    /// What it does, for progress lines.
+    pub name: String,
+    /// The arguments (the binary's subcommand first).
+    pub args: Vec<String>,
+    /// Where its output goes (appended) when it runs beside another; `None`: the terminal.
+    pub log: Option<PathBuf>,
+    /// Run it on one thread (`RAYON_NUM_THREADS=1`).
+    pub one_thread: bool,
+    /// A failure is reported and the plan goes on (a summary, not a product).
+    pub may_fail: bool,
+}
+
+impl Step {
+    fn new(name: impl Into<String>, args: Vec<String>) -> Self {
+        Step {
+            name: name.into(),
+            args,
+            log: None,
+            one_thread: false,
+            may_fail: false,
+        }
+    }
+}
+
+/// Steps that run alone, or lanes that run at once (each lane's steps in order).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Group {
+    /// One step.
+    One(Step),
+    /// Lanes side by side.
+    Lanes(Vec<Vec<Step>>),
+}
+
+/// A step that failed.
+#[derive(Debug, thiserror::Error)]
+#[error("{step}: `{command}` {what}")]
+pub struct StepError {
+    /// The step's name.
+    pub step: String,
+    /// The command line.
+    pub command: String,
+    /// What went wrong (its exit status and where its output is, or why it did not start).
+    pub what: String,
+}
+
+/// Runs one step with `exe` in `dir`.
+fn run_step(exe: &Path, dir: &Path, step: &Step) -> Result<(), StepError> {
+    let fail = |what: String| StepError {
+        step: step.name.clone(),
+        command: format!("{} {}", exe.display(), step.args.join(" ")),
+        what,
+    };
+    let mut cmd = Command::new(exe);
+    cmd.args(&step.args).current_dir(dir);
+    if step.one_thread {
+        cmd.env("RAYON_NUM_THREADS", "1");
+    }
+    if let Some(log) = &step.log {
+        let path = dir.join(log);
+        let open = || -> std::io::Result<(File, File)> {
+            if let Some(parent) = path.parent() {
+                std::fs::create_dir_all(parent)?;
+            }
+            let f = OpenOptions::new().create(true).append(true).open(&path)?;
+            let g = f.try_clone()?;
+            Ok((f, g))
+        };
+        let (out, err) =
+            open().map_err(|e| fail(format!("cannot open its log {}: {e}", path.display())))?;
+        cmd.stdout(out).stderr(err);
+    }
+    match cmd.status() {
+        Ok(s) if s.success() => Ok(()),
+        Ok(s) => Err(fail(match &step.log {
+            Some(log) => format!("failed ({s}); its output is in {}", log.display()),
+            None => format!("failed ({s})"),
+        })),
+        Err(e) => Err(fail(format!("could not start: {e}"))),
+    }
+}
+
+/// Runs `groups` in order with the binary `exe` in `dir`; `note` hears each step's
+/// start and end. Stops at the first failed step (the lanes of a group finish
+/// first), except for steps marked `may_fail`, which are noted and passed.
+pub fn execute(
+    exe: &Path,
+    dir: &Path,
+    groups: &[Group],
+    note: &(dyn Fn(&str) + Sync),
+) -> Result<(), StepError> {
+    let one = |step: &Step| -> Result<(), StepError> {
+        note(&match &step.log {
+            Some(log) => format!("{} (log {})", step.name, log.display()),
+            None => step.name.clone(),
+        });
+        match run_step(exe, dir, step) {
+            Err(e) if step.may_fail => {
+                note(&format!("{e} (going on)"));
+                Ok(())
+            }
+            Err(e) => Err(e),
+            Ok(()) => {
+                note(&format!("{} done", step.name));
+                Ok(())
+            }
+        }
+    };
+    for g in groups {
+        match g {
+            Group::One(step) => one(step)?,
+            Group::Lanes(lanes) => {
+                let results: Vec<Result<(), StepError>> = std::thread::scope(|scope| {
+                    let handles: Vec<_> = lanes
+                        .iter()
+                        .map(|lane| scope.spawn(|| lane.iter().try_for_each(one)))
+                        .collect();
+                    handles
+                        .into_iter()
+                        .map(|h| {
+                            h.join().unwrap_or_else(|_| {
+                                Err(StepError {
+                                    step: "a training lane".into(),
+                                    command: String::new(),
+                                    what: "panicked".into(),
+                                })
+                            })
+                        })
+                        .collect()
+                });
+                results.into_iter().collect::<Result<Vec<()>, _>>()?;
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn joined(g: &Group) -> Vec<String> {
+        match g {
+            Group::One(s) => vec![s.args.join(" ")],
+            Group::Lanes(l) => l.iter().flatten().map(|s| s.args.join(" ")).collect(),
+        }
+    }
+
+    #[test]
+    fn the_full_plan_chains_the_phases_and_trains_the_lanes_on_one_thread_each() {
+        let plan = TrainPlan::full(Path::new("out/scratch"), true);
+        let data: Vec<String> = plan.data_steps().iter().map(|s| s.args.join(" ")).collect();
+        assert_eq!(
+            data[0],
+            "collect --preset original --out data/original --episodes 760 --max-s 90"
+        );
+        assert_eq!(data[1], "label data/original");
+        let groups = plan.train_steps();
+        assert_eq!(
+            joined(&groups[0])[0],
+            "train --stage original --data data/original --runs out/scratch/runs/wor \
+             --out out/scratch/runs/wor --steps 2300"
+        );
+        assert_eq!(
+            joined(&groups[2])[0],
+            "train --stage original --data data/original --runs out/scratch/runs \
+             --out out/scratch/models --steps 800 --init out/scratch/runs/balanced/original.safetensors \
+             --standing-keep 0.25 --balanced true --pedestrian-repeat 8"
+        );
+        let Group::Lanes(lanes) = &groups[3] else {
+            panic!("the retargeting stages run in lanes")
+        };
+        assert_eq!(lanes.len(), 2);
+        assert!(
+            lanes
+                .iter()
+                .flatten()
+                .all(|s| s.one_thread && s.log.is_some())
+        );
+        assert_eq!(
+            lanes[0][0].args.join(" "),
+            "train --stage ra --data data/retarget --runs out/scratch/runs --out out/scratch/models"
+        );
+        // Six bar sweeps, the table, then RA5.
+        assert_eq!(groups.len(), 3 + 1 + 6 + 1 + 1);
+        assert!(joined(&groups[4])[0].ends_with("--out out/scratch/out/bar/expert --expert"));
+        assert!(joined(&groups[11])[0].contains("--name ra5"));
+    }
+
+    #[test]
+    fn one_lane_runs_the_stages_in_the_tables_order_and_quick_is_toy_sized() {
+        let plan = TrainPlan::quick(Path::new("out/train-quick"), false);
+        let groups = plan.train_steps();
+        let stages: Vec<String> = groups[3..6].iter().map(|g| joined(g)[0].clone()).collect();
+        assert!(stages[0].starts_with("train --stage nra-0.75 --data data/retarget-quick"));
+        assert!(stages[1].starts_with("train --stage nra-1.0"));
+        assert!(stages[2].starts_with("train --stage ra "));
+        assert!(
+            stages[2].ends_with("--batch 4 --recalibrate-batches 2 --steps 4 --unfreeze-every 1")
+        );
+        assert!(joined(&groups[0])[0].contains("--steps 4 --batch 4"));
+        let bar = joined(&groups[6])[0].clone();
+        assert!(bar.starts_with("sweep scenarios/paper/town01_route0.toml --delays 0"));
+        assert!(bar.contains("--densities 0:0 "));
+        let data: Vec<String> = plan.data_steps().iter().map(|s| s.args.join(" ")).collect();
+        assert_eq!(
+            data[3],
+            "collect --preset retarget --out data/retarget-quick --episodes 2 --max-s 20"
+        );
+    }
+
+    #[test]
+    fn a_failed_step_names_itself_and_stops_the_plan_unless_it_may_fail() {
+        let dir = tempfile::tempdir().unwrap();
+        let step = |name: &str, args: &[&str], may_fail: bool| Step {
+            may_fail,
+            ..Step::new(name, strings(args))
+        };
+        let notes = std::sync::Mutex::new(Vec::new());
+        let note = |s: &str| notes.lock().unwrap().push(s.to_string());
+        let groups = vec![
+            Group::One(step("a summary", &["-c", "exit 3"], true)),
+            Group::Lanes(vec![
+                vec![step("lane one", &["-c", "true"], false)],
+                vec![step("lane two", &["-c", "exit 2"], false)],
+            ]),
+            Group::One(step("never", &["-c", "true"], false)),
+        ];
+        let e = execute(Path::new("/bin/sh"), dir.path(), &groups, &note).unwrap_err();
+        assert_eq!(e.step, "lane two");
+        assert!(e.what.contains("failed"), "{e}");
+        let notes = notes.into_inner().unwrap();
+        assert!(notes.iter().any(|n| n.contains("(going on)")));
+        assert!(notes.iter().any(|n| n == "lane one done"));
+        assert!(!notes.iter().any(|n| n == "never"));
+    }
+}

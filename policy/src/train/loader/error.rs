@@ -1,0 +1,57 @@
+//! Why a dataset cannot feed training: [`LoadError`].
+
+use std::path::PathBuf;
+
+use dataset::action::{NUM_COMMANDS, NUM_SPEED_BINS};
+use dataset::format::DataError;
+
+/// Why a dataset cannot feed training.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    /// The index is missing or unreadable.
+    #[error(transparent)]
+    Data(#[from] DataError),
+    /// The directory has nothing in it.
+    #[error(
+        "{0}: the dataset directory is empty; collect into it with `mrdrive collect --out {0}`, then label it with `mrdrive label {0}`"
+    )]
+    EmptyDir(PathBuf),
+    /// No episode gave a labelled frame.
+    #[error(
+        "{dir}: no labelled frame to train on ({episodes} episodes in the index{skipped}); label the dataset with `mrdrive label {dir}`"
+    )]
+    NoSamples {
+        /// The dataset directory.
+        dir: PathBuf,
+        /// Episodes in the index.
+        episodes: usize,
+        /// The skipped files, as text.
+        skipped: String,
+    },
+    /// The dataset's images are not the size the policy takes.
+    #[error(
+        "{index}: s0 is {w} x {h} but the policy takes {pw} x {ph}; train a policy config with input_width {w} and input_height {h}, or collect at the policy's size"
+    )]
+    Size {
+        /// The index file.
+        index: PathBuf,
+        /// The dataset's width.
+        w: u32,
+        /// The dataset's height.
+        h: u32,
+        /// The policy's width.
+        pw: usize,
+        /// The policy's height.
+        ph: usize,
+    },
+    /// The policy's head does not have WoR's commands and speed bins.
+    #[error(
+        "policy config num_commands {commands} and num_speed_bins {bins}: the labels have {NUM_COMMANDS} and {NUM_SPEED_BINS}; use those"
+    )]
+    Head {
+        /// The config's commands.
+        commands: usize,
+        /// The config's speed bins.
+        bins: usize,
+    },
+}

@@ -1,0 +1,95 @@
+//! Publishing a finished run: its checkpoint, card, loss log and loss plot copied
+//! from the run folder to a models folder as `<name>.*`.
+
+use std::path::{Path, PathBuf};
+
+use super::stage::{FINAL_FILE, LOSSES_FILE};
+use crate::checkpoint::manifest_path;
+
+/// The loss plot of a run folder (drawn by the command line from `losses.csv`).
+pub const LOSSES_PLOT_FILE: &str = "losses.png";
+
+/// Why a run could not be published.
+#[derive(Debug, thiserror::Error)]
+pub enum PublishError {
+    /// The models folder could not be made.
+    #[error("{}: cannot create", path.display())]
+    Create {
+        /// The models folder.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// A file of the run could not be copied.
+    #[error("copying {} to {}", from.display(), to.display())]
+    Copy {
+        /// The file of the run folder.
+        from: PathBuf,
+        /// Where it was to go.
+        to: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+}
+
+/// The published checkpoint of the network `name` in the models folder `out`.
+pub fn published_checkpoint(out: &Path, name: &str) -> PathBuf {
+    out.join(format!("{name}.safetensors"))
+}
+
+/// Copies the finished run in `run_dir` (its checkpoint and card, `losses.csv` and
+/// [`LOSSES_PLOT_FILE`]) to `out` as `<name>.safetensors`, `<name>.json`,
+/// `<name>.losses.csv` and `<name>.losses.png`.
+pub fn publish(run_dir: &Path, out: &Path, name: &str) -> Result<(), PublishError> {
+    std::fs::create_dir_all(out).map_err(|source| PublishError::Create {
+        path: out.to_path_buf(),
+        source,
+    })?;
+    let weights = run_dir.join(FINAL_FILE);
+    let copies = [
+        (manifest_path(&weights), format!("{name}.json")),
+        (run_dir.join(LOSSES_FILE), format!("{name}.losses.csv")),
+        (run_dir.join(LOSSES_PLOT_FILE), format!("{name}.losses.png")),
+    ];
+    let copies = std::iter::once((weights, published_checkpoint(out, name)))
+        .chain(copies.map(|(from, to)| (from, out.join(to))));
+    for (from, to) in copies {
+        std::fs::copy(&from, &to).map_err(|source| PublishError::Copy { from, to, source })?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_run_is_copied_under_its_name_and_a_missing_file_is_named() {
+        let run = tempfile::tempdir().unwrap();
+        let out = tempfile::tempdir().unwrap();
+        let out = out.path().join("models");
+        let files = [FINAL_FILE, "final.json", LOSSES_FILE, LOSSES_PLOT_FILE];
+        for (i, f) in files.iter().enumerate() {
+            std::fs::write(run.path().join(f), [i as u8]).unwrap();
+        }
+        publish(run.path(), &out, "ra5").unwrap();
+        let published = [
+            "ra5.safetensors",
+            "ra5.json",
+            "ra5.losses.csv",
+            "ra5.losses.png",
+        ];
+        for (i, f) in published.iter().enumerate() {
+            assert_eq!(std::fs::read(out.join(f)).unwrap(), [i as u8], "{f}");
+        }
+        assert_eq!(published_checkpoint(&out, "ra5"), out.join(published[0]));
+        std::fs::remove_file(run.path().join(LOSSES_PLOT_FILE)).unwrap();
+        let err = publish(run.path(), &out, "ra5").unwrap_err().to_string();
+        assert!(
+            err.starts_with("copying ")
+                && err.contains("losses.png to ")
+                && err.ends_with("ra5.losses.png"),
+            "{err}"
+        );
+    }
+}

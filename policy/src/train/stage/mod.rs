@@ -1,0 +1,79 @@
+//! A training stage on a dataset: the paper's four recipes, run in a folder that
+//! survives a kill.
+//!
+//! A stage is one of (PROTOCOL §4-§6, WOR.md §4-§5):
+//! - **original**: a single-resolution network (1.0x) from scratch, WoR's loss
+//!   (action KL with the command grouping + 0.05 segmentation), Adam 3e-4;
+//! - **nra-R**: the Original retargeted to the one scale R without BN banks: teacher
+//!   = the frozen Original at 1.0x, act + 0.05 seg + KD + features, progressive
+//!   unfreezing layer4 -> layer1 with a new Adam per stage, the action head frozen,
+//!   then BN recalibration;
+//! - **ra**: the same with a BN branch per scale and the multi-resolution step.
+//!
+//! The run folder holds:
+//! - `spec.json`: the stage's settings; a resume with other settings is refused by
+//!   the field's name;
+//! - `state/`: the network, Adam's moments and `progress.json`, written every
+//!   [`StageSpec::checkpoint_every`] steps (to `state.tmp/`, then renamed);
+//! - `losses.csv`: one row per step (a resume drops rows past the checkpoint: they
+//!   are recomputed, bit for bit);
+//! - `latest.safetensors` + `latest.json`: the network at the last checkpoint;
+//! - `final.safetensors` + `final.json`: the trained checkpoint and its card.
+//!
+//! | file | concern |
+//! | --- | --- |
+//! | `start.rs` | resume and init: where a run folder stands, the network, the dataset and the trainer |
+//! | `train_loop.rs` | the steps: batches, the loss log, the checkpoints of the run state |
+//! | `finish.rs` | the BN recalibration and the trained checkpoint |
+//! | `cards.rs` | the cards written on `latest.safetensors` and `final.safetensors` |
+//! | `run_folder.rs` | the files of a run folder, written so that a kill leaves them whole |
+//! | `error.rs` | [`StageError`]: why a stage could not run, and the fix |
+//!
+//! The stage's settings are [`StageSpec`] (`crate::train::spec`); a finished run is
+//! copied beside the other models by [`crate::train::publish`].
+
+mod cards;
+mod error;
+mod finish;
+mod run_folder;
+mod start;
+mod train_loop;
+
+use std::path::Path;
+
+use burn::prelude::*;
+
+pub use crate::train::spec::StageSpec;
+pub use cards::machine;
+pub use error::StageError;
+pub use finish::StageOutcome;
+pub use run_folder::{FINAL_FILE, LATEST_FILE, LOSSES_FILE, Progress, losses_header};
+pub use train_loop::StepUpdate;
+
+use start::{ResumePoint, Session, resume_point};
+
+/// Runs (or resumes, or skips when done) the stage `spec` in `run_dir` on `device` (an
+/// autodiff device); `on_step` sees every step. Returns the trained checkpoint.
+pub fn run_stage(
+    spec: &StageSpec,
+    run_dir: &Path,
+    device: &Device,
+    mut on_step: impl FnMut(&StepUpdate<'_>),
+) -> Result<StageOutcome, StageError> {
+    let progress = match resume_point(spec, run_dir)? {
+        ResumePoint::Done(p) => {
+            return Ok(StageOutcome {
+                checkpoint: run_dir.join(FINAL_FILE),
+                steps_now: 0,
+                wall_s: p.wall_s,
+            });
+        }
+        ResumePoint::From(progress) => progress,
+    };
+    let mut session = Session::start(spec, run_dir, device, progress)?;
+    let wall_s = session.train(device, &mut on_step)?;
+    session.finish(device, wall_s)
+}
+
+// The tests are in `policy/tests/stage.rs`: they seed burn's device RNG, which is global,
+// so they run in their own process, one at a time.

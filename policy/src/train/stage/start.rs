@@ -1,0 +1,198 @@
+//! Resume and init: where a run folder stands (done, or the step to resume from),
+//! and the [`Session`] a stage trains in: the network (fresh, from `init`, or from
+//! the teacher), the dataset, the trainer (new or resumed) and the loss log.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use burn::prelude::*;
+
+use super::error::{StageError, io_err};
+use super::run_folder::{
+    FINAL_FILE, LOSSES_FILE, Progress, SPEC_FILE, STATE_DIR, check_or_write_inputs,
+    check_or_write_spec, open_losses, read_progress,
+};
+use crate::checkpoint;
+use crate::model::{PolicyConfig, PolicyNet};
+use crate::train::loader::TrainSet;
+use crate::train::multires::MultiResTrainer;
+use crate::train::presets::Preset;
+use crate::train::spec::StageSpec;
+
+/// Where a run folder stands before training.
+pub(super) enum ResumePoint {
+    /// The final checkpoint is that of the saved state's last step: nothing to do.
+    Done(Progress),
+    /// Train from the saved state (`None`: from the start).
+    From(Option<Progress>),
+}
+
+/// A stage opened for training.
+pub(super) struct Session<'a> {
+    /// The stage's settings.
+    pub(super) spec: &'a StageSpec,
+    /// The run folder.
+    pub(super) run_dir: &'a Path,
+    /// The network the stage trains.
+    pub(super) config: PolicyConfig,
+    /// The dataset.
+    pub(super) set: Arc<TrainSet>,
+    /// The trainer: the student, the teacher and Adam's moments.
+    pub(super) trainer: MultiResTrainer,
+    /// Steps done before this session.
+    pub(super) done: usize,
+    /// Training wall time before this session (seconds, over every session).
+    pub(super) wall_before_s: f64,
+    /// The trainer state's folder.
+    pub(super) state_dir: PathBuf,
+    /// The loss log, open for appending.
+    pub(super) losses: std::fs::File,
+    /// Its path.
+    pub(super) losses_path: PathBuf,
+}
+
+/// Makes the run folder, refuses one made with other settings or inputs, and says
+/// where the stage resumes. Done when the final checkpoint is that of the saved
+/// state's step (an extended run's earlier final is not).
+pub(super) fn resume_point(spec: &StageSpec, run_dir: &Path) -> Result<ResumePoint, StageError> {
+    std::fs::create_dir_all(run_dir)
+        .map_err(|e| io_err(run_dir, e, "check the parent folder exists and is writable"))?;
+    check_or_write_spec(spec, &run_dir.join(SPEC_FILE), run_dir)?;
+    check_or_write_inputs(spec, run_dir)?;
+    let progress = read_progress(&run_dir.join(STATE_DIR))?;
+    let final_step = checkpoint::read_manifest(&run_dir.join(FINAL_FILE))
+        .ok()
+        .and_then(|(_, card)| card.training.map(|t| t.steps));
+    Ok(
+        match progress.filter(|p| p.step >= spec.steps && final_step == Some(p.step)) {
+            Some(p) => ResumePoint::Done(p),
+            None => ResumePoint::From(progress),
+        },
+    )
+}
+
+impl<'a> Session<'a> {
+    /// Builds the network (the device seeded with the spec's seed first), opens the
+    /// dataset, and makes or resumes the trainer at `progress`; the loss log keeps
+    /// the rows of the steps done.
+    pub(super) fn start(
+        spec: &'a StageSpec,
+        run_dir: &'a Path,
+        device: &Device,
+        progress: Option<Progress>,
+    ) -> Result<Session<'a>, StageError> {
+        let preset: Preset = spec.preset.parse()?;
+        let config = preset.config(&spec.scales);
+        config.validate()?;
+        device.seed(spec.seed);
+        let (student, teacher) = match &spec.teacher {
+            None => (initial_net(spec, &config, device)?, None),
+            Some(path) => {
+                let (teacher, _) = checkpoint::load(path, device)?;
+                check_teacher(&teacher, &config, path)?;
+                (teacher.to_multires(spec.scales.clone())?, Some(teacher))
+            }
+        };
+        let set = Arc::new(TrainSet::open(&spec.data, &config)?);
+        let state_dir = run_dir.join(STATE_DIR);
+        let trainer = match progress {
+            Some(p) => MultiResTrainer::resume(
+                student,
+                teacher,
+                spec.train.clone(),
+                device,
+                &state_dir,
+                p.step,
+            )?,
+            None => MultiResTrainer::new(student, teacher, spec.train.clone(), device),
+        };
+        let done = trainer.steps_done();
+        let losses_path = run_dir.join(LOSSES_FILE);
+        let losses = open_losses(&losses_path, &spec.scales, done)?;
+        Ok(Session {
+            spec,
+            run_dir,
+            config,
+            set,
+            trainer,
+            done,
+            wall_before_s: progress.map_or(0.0, |p| p.wall_s),
+            state_dir,
+            losses,
+            losses_path,
+        })
+    }
+}
+
+/// The network a stage without a teacher starts from: a fresh initialisation, or the
+/// weights of `spec.init` when they are of the same network.
+fn initial_net(
+    spec: &StageSpec,
+    config: &PolicyConfig,
+    device: &Device,
+) -> Result<PolicyNet, StageError> {
+    let Some(path) = &spec.init else {
+        return Ok(config.init(device));
+    };
+    let (net, _) = checkpoint::load(path, device)?;
+    let c = &net.config;
+    if (c.depth, c.widths, c.input_width, c.input_height, &c.scales)
+        != (
+            config.depth,
+            config.widths,
+            config.input_width,
+            config.input_height,
+            &config.scales,
+        )
+    {
+        return Err(StageError::Misfit {
+            path: path.clone(),
+            problem: "the initial weights are of another network than the stage trains".into(),
+            fix: "pass --init a checkpoint of the same preset and scales".into(),
+        });
+    }
+    Ok(net)
+}
+
+/// Refuses a teacher that is not a single-resolution 1.0x network of the stage's
+/// depth, widths and input size.
+fn check_teacher(
+    teacher: &PolicyNet,
+    config: &PolicyConfig,
+    path: &Path,
+) -> Result<(), StageError> {
+    let t = &teacher.config;
+    let fail = |problem: String| StageError::Misfit {
+        path: path.to_path_buf(),
+        problem,
+        fix: "train the Original first (`mrdrive train --stage original`) with the same preset"
+            .into(),
+    };
+    if t.scales != [1.0] {
+        return Err(fail(format!(
+            "the teacher has scales {:?}; a teacher is a single-resolution 1.0x network",
+            t.scales
+        )));
+    }
+    if (t.depth, t.widths, t.input_width, t.input_height)
+        != (
+            config.depth,
+            config.widths,
+            config.input_width,
+            config.input_height,
+        )
+    {
+        return Err(fail(format!(
+            "the teacher is a {} {:?} at {}x{}, the stage trains a {} {:?} at {}x{}",
+            t.depth.name(),
+            t.widths,
+            t.input_width,
+            t.input_height,
+            config.depth.name(),
+            config.widths,
+            config.input_width,
+            config.input_height
+        )));
+    }
+    Ok(())
+}
