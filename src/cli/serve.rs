@@ -26,6 +26,10 @@ pub fn serve() -> Result<()> {
         count: NUM_ACTIONS,
         control: wor_control,
     };
-    server::serve(&mut std::io::stdin().lock(), &mut std::io::stdout().lock(), &actions)?;
+    server::serve(
+        &mut std::io::stdin().lock(),
+        &mut std::io::stdout().lock(),
+        &actions,
+    )?;
     Ok(())
 }

@@ -8,8 +8,8 @@ use ::safetensors::tensor::Dtype;
 use memmap2::Mmap;
 
 use super::safetensors::{
-    bytes_of, check_format, expect_shape, f32s, map_file, offset_in, parse, serialize,
-    st_metadata, tensor,
+    bytes_of, check_format, expect_shape, f32s, map_file, offset_in, parse, serialize, st_metadata,
+    tensor,
 };
 use super::{DataError, FORMAT};
 

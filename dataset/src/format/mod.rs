@@ -53,10 +53,10 @@ mod labels;
 mod safetensors;
 mod shard;
 
+pub use self::safetensors::file_metadata;
 pub use ahead::{PEDESTRIAN_AHEAD_M, STOPPED_MPS, pedestrian_ahead, stopped_vehicle_ahead};
 pub use index::{Episode, INDEX_FILE, Index, RouteSpec};
 pub use labels::{Labels, MappedLabels, Q_PER_VIEW};
-pub use self::safetensors::file_metadata;
 pub use shard::{ACTOR_FIELDS, ActorRow, EgoRow, MappedShard, Shard, light_code, light_of_code};
 
 /// The format tag in the index and in every shard's metadata.

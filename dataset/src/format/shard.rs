@@ -11,8 +11,8 @@ use memmap2::Mmap;
 
 use super::DataError;
 use super::safetensors::{
-    bytes_of, check_format, expect_shape, f32s, map_file, offset_in, parse, serialize,
-    st_metadata, tensor,
+    bytes_of, check_format, expect_shape, f32s, map_file, offset_in, parse, serialize, st_metadata,
+    tensor,
 };
 
 /// The zstd level of a frame's images: level 3 compresses our frames about 27 times

@@ -11,7 +11,11 @@ use crate::results::Results;
 use crate::units::{Driver, Unit};
 
 /// Fig. 5: success and collisions against D, each model and scale, the expert dashed.
-pub(super) fn fig5(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String, PaperError> {
+pub(super) fn fig5(
+    cfg: &PaperConfig,
+    results: &Results,
+    w: &mut Writer,
+) -> Result<String, PaperError> {
     let mut configs: Vec<Config> = Vec::new();
     for ra in [false, true] {
         for scale in [cfg.low, cfg.high] {

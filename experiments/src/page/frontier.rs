@@ -11,7 +11,11 @@ use crate::results::Results;
 use crate::units::{Unit, selector_name};
 
 /// Beyond the paper: success, collisions and red lights against worst-case latency.
-pub(super) fn frontier(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String, PaperError> {
+pub(super) fn frontier(
+    cfg: &PaperConfig,
+    results: &Results,
+    w: &mut Writer,
+) -> Result<String, PaperError> {
     let mut lines = ra_fixed_lines(cfg, results, "");
     for s in cfg.selectors() {
         let pts = cfg

@@ -13,7 +13,11 @@ use sim::scenario::SelectorKind;
 
 /// Beyond the paper: fixed scales and switchers under the first envelope as
 /// the execution latency spreads.
-pub(super) fn jitter(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String, PaperError> {
+pub(super) fn jitter(
+    cfg: &PaperConfig,
+    results: &Results,
+    w: &mut Writer,
+) -> Result<String, PaperError> {
     let Some(e) = cfg.envelopes.first().copied() else {
         return Ok(String::new());
     };

@@ -55,8 +55,7 @@ pub fn write_all(
         jitter::jitter(cfg, results, &mut w)?,
         scales::scales(cfg, results, &mut w)?,
     ];
-    let page =
-        header(cfg, opts, results) + &shapes::shapes(cfg, results) + &sections.join("\n");
+    let page = header(cfg, opts, results) + &shapes::shapes(cfg, results) + &sections.join("\n");
     w.text("README.md", &page)?;
     Ok(w.written)
 }

@@ -20,8 +20,7 @@ pub const TABLE1_PEDESTRIANS: [(&str, RoutesPedestrians); 2] = [
     ),
 ];
 /// Table II: success (%) per town for Original, NRA 0.75, NRA 1.0, RA 0.75, RA 1.0.
-pub const TABLE2_SUCCESS: [(&str, [f64; 5]); 2] =
-    [("Town01", [100.0; 5]), ("Town02", [100.0; 5])];
+pub const TABLE2_SUCCESS: [(&str, [f64; 5]); 2] = [("Town01", [100.0; 5]), ("Town02", [100.0; 5])];
 /// Table II: collision incidence (runs of 6) per town, same columns.
 pub const TABLE2_COLLISIONS: [(&str, [u32; 5]); 2] =
     [("Town01", [0, 0, 0, 0, 0]), ("Town02", [0, 1, 1, 1, 2])];

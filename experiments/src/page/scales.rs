@@ -16,7 +16,11 @@ use sim::scenario::SelectorKind;
 /// Beyond the paper: one RA network with a BN branch for every scale of the
 /// ladder, each scale alone at the latency each envelope gives it, paired
 /// with the two-scale RA where both have the scale.
-pub(super) fn scales(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String, PaperError> {
+pub(super) fn scales(
+    cfg: &PaperConfig,
+    results: &Results,
+    w: &mut Writer,
+) -> Result<String, PaperError> {
     let Some(file) = &cfg.models.ladder else {
         return Ok(String::new());
     };

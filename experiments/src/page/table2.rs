@@ -33,7 +33,11 @@ fn table2_configs(cfg: &PaperConfig) -> Vec<Config> {
 }
 
 /// Table II: success and collisions per town at D = 0, with the expert.
-pub(super) fn table2(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String, PaperError> {
+pub(super) fn table2(
+    cfg: &PaperConfig,
+    results: &Results,
+    w: &mut Writer,
+) -> Result<String, PaperError> {
     let configs = table2_configs(cfg);
     let mut header = vec!["town", "row"];
     header.extend(configs.iter().map(|c| c.label.as_str()));
@@ -49,7 +53,9 @@ pub(super) fn table2(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Re
             cells.push(&c.label, &town, d0, c.scale, s);
         }
         let paper_success = reference::TABLE2_SUCCESS.iter().find(|(t, _)| *t == town);
-        let paper_coll = reference::TABLE2_COLLISIONS.iter().find(|(t, _)| *t == town);
+        let paper_coll = reference::TABLE2_COLLISIONS
+            .iter()
+            .find(|(t, _)| *t == town);
         let row = |name: &str, f: &dyn Fn(&Stats) -> String| -> Vec<String> {
             let mut r = vec![town.clone(), name.to_string()];
             r.extend(stats.iter().map(f));

@@ -12,7 +12,11 @@ use crate::units::{Driver, Unit, selector_name};
 use sim::scenario::SelectorKind;
 
 /// Table III: the switchers against the fixed scales under each envelope.
-pub(super) fn table3(cfg: &PaperConfig, results: &Results, w: &mut Writer) -> Result<String, PaperError> {
+pub(super) fn table3(
+    cfg: &PaperConfig,
+    results: &Results,
+    w: &mut Writer,
+) -> Result<String, PaperError> {
     let mut t = Table::new(&[
         "envelope",
         "configuration",

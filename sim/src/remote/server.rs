@@ -459,9 +459,19 @@ mod tests {
         ]);
         assert_eq!(answers.len(), 5);
         assert_eq!(answers[0]["error"], "no episode: call reset first");
-        assert!(answers[1]["error"].as_str().unwrap().contains("unknown op `fly`"));
+        assert!(
+            answers[1]["error"]
+                .as_str()
+                .unwrap()
+                .contains("unknown op `fly`")
+        );
         assert!(answers[2]["error"].as_str().unwrap().contains("`scenario`"));
-        assert!(answers[3]["error"].as_str().unwrap().contains("/no/such/scenario.toml"));
+        assert!(
+            answers[3]["error"]
+                .as_str()
+                .unwrap()
+                .contains("/no/such/scenario.toml")
+        );
         assert_eq!(answers[4], json!({"ok": true}));
     }
 

@@ -38,8 +38,8 @@ mod stats;
 mod step;
 mod views;
 
-pub use light_controller::{LightController, LightTiming};
 pub use incidents::{Incident, IncidentActor, IncidentKind, IncidentLane};
+pub use light_controller::{LightController, LightTiming};
 pub use reservations::Reservations;
 pub use soak::{MeanSd, SoakReport, TableOneRow, soak, table_one};
 pub use stats::TrafficStats;

@@ -29,7 +29,6 @@ mod layout;
 mod signals;
 mod xml;
 
-
 /// Driving lane width (metres).
 pub const LANE_WIDTH_M: f64 = 3.5;
 /// Sidewalk width (metres).
@@ -97,7 +96,6 @@ pub struct GeneratorError {
     /// How to fix it.
     pub fix: String,
 }
-
 
 /// Generates the OpenDRIVE text of a grid town.
 pub fn generate_grid_town(p: &GridTownParams) -> Result<String, GeneratorError> {
