@@ -557,6 +557,31 @@ pub struct EpisodeReport {
     pub success: bool,
 }
 
+impl EpisodeReport {
+    /// One line for a progress log (`mrdrive collect`): the episode's number of
+    /// `planned`, town, route, traffic, frames and rate.
+    pub fn line(&self, planned: usize) -> String {
+        let e = &self.episode;
+        format!(
+            "episode {:>3}/{} {} route {:<12} traffic {:>2}+{:<2} {:>4} frames in {:>5.1} s ({:.0} frames/s){}",
+            e.id + 1,
+            planned,
+            e.town,
+            e.route.id,
+            e.vehicles,
+            e.pedestrians,
+            e.frames,
+            self.wall_s,
+            f64::from(e.frames) / self.wall_s.max(1e-9),
+            if self.success {
+                ""
+            } else {
+                "  (route not completed)"
+            }
+        )
+    }
+}
+
 /// Drives one episode and returns its frames and index entry (not yet written).
 pub fn drive(
     spec: &EpisodeSpec,

@@ -48,9 +48,9 @@ pub enum BarError {
     Records {
         /// The sweep folder.
         path: PathBuf,
-        /// Why.
+        /// Why (boxed: a sweep error is large, and this one is rare).
         #[source]
-        source: SweepError,
+        source: Box<SweepError>,
     },
 }
 
@@ -108,7 +108,7 @@ pub fn read(sweeps: &Path) -> Result<Vec<BarRow>, BarError> {
         let records =
             read_records(&SweepDir { root: d.clone() }).map_err(|source| BarError::Records {
                 path: d.clone(),
-                source,
+                source: Box::new(source),
             })?;
         out.extend(rows(&label, &records));
     }

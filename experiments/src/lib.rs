@@ -9,6 +9,7 @@
 //! - [`results`]: the records of a unit, each beside its run's settings.
 //! - [`report`]: Tables I-III, the figures' data, CSV and Markdown.
 //! - [`figures`]: the plots (PNG and SVG).
+//! - [`loss_plot`]: a training run's loss curves (`mrdrive train`, `mrdrive policy losses`).
 //! - [`page`]: `README.md`, our numbers beside the paper's.
 //! - [`run`]: running the units and writing everything.
 //! - [`pipeline`]: the training pipeline as a plan ([`pipeline::TrainPlan`]:
@@ -24,6 +25,7 @@ pub mod bench_page;
 pub mod config;
 pub mod experiment;
 pub mod figures;
+pub mod loss_plot;
 pub mod options;
 pub mod page;
 pub mod pipeline;

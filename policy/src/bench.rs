@@ -1,5 +1,6 @@
 //! Benchmarks that print figures: inference latency per scale and training throughput.
-//! Called by `mrdrive bench policy`; never asserted in tests.
+//! Called by `mrdrive bench policy`; never asserted in tests. [`report`] writes
+//! their tables as the command line prints them.
 
 use crate::model::{ParamCounts, PolicyConfig};
 use crate::train::loader::{Loader, LoaderConfig, TrainSet};
@@ -10,6 +11,8 @@ use burn::prelude::*;
 use sim::render::image::test_pattern;
 use std::sync::Arc;
 use std::time::Instant;
+
+pub mod report;
 
 /// Latency statistics of repeated runs (milliseconds).
 #[derive(Debug, Clone, Copy, PartialEq)]

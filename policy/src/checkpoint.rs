@@ -72,6 +72,17 @@ impl ModelCard {
             training: None,
         }
     }
+
+    /// The card of a network whose backbone was imported from `source`, a
+    /// torchvision ResNet state dict, and whose heads are initialised (seed 0).
+    pub fn torchvision_import(source: &Path) -> Self {
+        ModelCard {
+            trained: false,
+            description: "backbone imported from a torchvision ResNet state dict; heads randomly initialised (seed 0): not a trained driving policy".into(),
+            source: source.display().to_string(),
+            training: None,
+        }
+    }
 }
 
 /// The JSON file beside the weights.
@@ -115,6 +126,9 @@ pub enum CheckpointError {
         /// What would fix it.
         fix: String,
     },
+    /// The network's config is invalid.
+    #[error(transparent)]
+    Config(#[from] crate::model::ConfigError),
 }
 
 /// The JSON path of a checkpoint: the weights path with extension `.json`.
@@ -183,6 +197,38 @@ fn sort_metadata(bytes: &mut [u8]) -> Result<(), String> {
     header[..text.len()].copy_from_slice(&text);
     header[text.len()..].fill(b' ');
     Ok(())
+}
+
+/// Saves a network of `config` initialised on the CPU with device seed `seed`
+/// to `weights`, with a card that says it is untrained (`mrdrive policy init`).
+pub fn save_random_init(
+    config: &PolicyConfig,
+    seed: u64,
+    weights: &Path,
+) -> Result<(), CheckpointError> {
+    config.validate()?;
+    let device = Device::flex();
+    device.seed(seed);
+    save(
+        &config.init(&device),
+        &ModelCard::random_init(seed),
+        weights,
+    )
+}
+
+/// Saves to `weights` a network of `config` whose backbone comes from the
+/// torchvision state dict `source` ([`load_torchvision_backbone`]) and whose
+/// heads are initialised with seed 0 (`mrdrive policy import-torchvision`).
+pub fn import_torchvision(
+    source: &Path,
+    prefix: &str,
+    config: &PolicyConfig,
+    weights: &Path,
+) -> Result<(), CheckpointError> {
+    let device = Device::flex();
+    device.seed(0);
+    let net = load_torchvision_backbone(source, prefix, config, &device)?;
+    save(&net, &ModelCard::torchvision_import(source), weights)
 }
 
 /// Reads the JSON beside `weights`: the config (validated) and the card.
@@ -464,6 +510,16 @@ mod tests {
         assert!(!card.trained);
         assert_eq!(back.config, net.config);
         assert_eq!(logits(&net, &device), logits(&back, &device));
+        // A random init by seed says so on its card (that the seed alone fixes
+        // its weights is tested in its own process, policy/tests/random_init.rs:
+        // the backend's random stream is shared by the threads of this test binary).
+        let init = dir.path().join("init.safetensors");
+        save_random_init(&tiny(), 5, &init).unwrap();
+        let (back, card) = load(&init, &device).unwrap();
+        assert_eq!(card, ModelCard::random_init(5));
+        assert_eq!(back.config, tiny());
+        let bad = tiny().with_scales(Vec::new());
+        assert!(save_random_init(&bad, 5, &init).is_err());
     }
 
     /// The record of `models/ra.json`, with a stopped-vehicle repeat of 3.

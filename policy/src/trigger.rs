@@ -99,6 +99,38 @@ pub struct TriggerCard {
 }
 
 impl TriggerCard {
+    /// What the fit did, three lines (`mrdrive policy trigger`): the frames and
+    /// what a positive is, then the scores on the fit and on the held-out episodes.
+    pub fn report(&self) -> String {
+        use std::fmt::Write;
+        let mut out = String::new();
+        let _ = writeln!(
+            out,
+            "{} frames fit, {} held out (episodes 4 mod 5); positive: {} >= {:.3} (top {:.0} %)",
+            self.frames_fit,
+            self.frames_held_out,
+            match self.target {
+                Target::Disagreement => "total variation",
+                Target::Regret => "regret",
+            },
+            self.tv_threshold,
+            100.0 * self.positive_share
+        );
+        for (name, s) in [("fit", self.fit), ("held out", self.held_out)] {
+            let _ = writeln!(
+                out,
+                "{name:<9} n {:>6}  positive {:>5.1} %  predicted {:>5.1} %  accuracy {:>5.1} %  recall {:>5.1} %  precision {:>5.1} %",
+                s.n,
+                100.0 * s.positive_rate,
+                100.0 * s.predicted_rate,
+                100.0 * s.accuracy,
+                100.0 * s.recall,
+                100.0 * s.precision
+            );
+        }
+        out
+    }
+
     /// A card for a trigger of `checkpoint` fit on every `every`-th frame of
     /// `data`; [`fit`] fills in the rest.
     pub fn new(checkpoint: String, data: String, every: usize) -> Self {
@@ -213,6 +245,9 @@ pub enum TriggerError {
         /// What to do.
         fix: String,
     },
+    /// The policy checkpoint cannot be loaded.
+    #[error(transparent)]
+    Checkpoint(#[from] crate::checkpoint::CheckpointError),
 }
 
 impl Trigger {
@@ -378,6 +413,21 @@ pub fn expected_value(p: &[f32; NUM_ACTIONS], q: &[f32; NUM_ACTIONS]) -> f32 {
 /// Total-variation distance between two distributions over the actions.
 pub fn total_variation(p: &[f32; NUM_ACTIONS], q: &[f32; NUM_ACTIONS]) -> f32 {
     0.5 * p.iter().zip(q).map(|(a, b)| (a - b).abs()).sum::<f32>()
+}
+
+/// [`frame_samples`] of the policy checkpoint `weights` (its running
+/// statistics synchronised, fused for the CPU).
+pub fn checkpoint_samples(
+    weights: &Path,
+    data: &Path,
+    scales: (f32, f32),
+    every: usize,
+) -> Result<(Vec<FrameSample>, Vec<String>), TriggerError> {
+    use burn::prelude::*;
+    let (net, _) = crate::checkpoint::load(weights, &Device::flex())?;
+    net.sync_running_stats();
+    let fused = FusedPolicy::from_net(&net.valid());
+    frame_samples(&fused, data, scales, every)
 }
 
 /// Runs every `every`-th frame of `data` (the rig as mounted, view 0)
@@ -668,6 +718,12 @@ mod tests {
         assert!(t.card.held_out.accuracy >= 0.75, "{:?}", t.card.held_out);
         assert!((t.card.fit.positive_rate - 0.25).abs() < 1e-6);
         assert!(t.p_high(&[3.95, 0.5]) > 0.5 && t.p_high(&[1.0, 0.5]) < 0.5);
+        let report = t.card.report();
+        assert!(
+            report.contains("positive: total variation >= 0.750 (top 25 %)\n"),
+            "{report}"
+        );
+        assert!(report.contains("\nheld out  n "), "{report}");
         // Deterministic.
         assert_eq!(
             t,

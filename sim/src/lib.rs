@@ -5,7 +5,8 @@
 //!
 //! From a scenario file to a result: [`scenario`] reads it, [`build`] makes
 //! its driver, selector and camera, [`runner`] drives the loop, [`record`]
-//! holds the result, [`picture`] draws it, [`sweep`] runs many and tabulates them.
+//! holds the result, [`picture`] draws it, [`sweep`] runs many and tabulates them;
+//! [`moment`] drives a run to a moment and draws its camera's picture there.
 
 pub mod build;
 pub mod camera;
@@ -13,6 +14,7 @@ pub mod delay;
 pub mod driver;
 pub mod error;
 pub mod expert;
+pub mod moment;
 pub mod monitors;
 pub mod observe;
 pub mod picture;

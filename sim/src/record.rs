@@ -213,6 +213,75 @@ pub struct RunPerf {
     pub other_s: f64,
 }
 
+impl RunRecord {
+    /// The run's result as a small table, one line a figure (`mrdrive run`):
+    /// scenario, driver, delay, traffic, result, infractions and the time split.
+    pub fn table(&self) -> String {
+        use std::fmt::Write;
+        let r = &self.result;
+        let p = &self.perf;
+        let mut out = String::new();
+        let _ = writeln!(
+            out,
+            "scenario      {} ({})",
+            r.provenance.scenario, r.provenance.route
+        );
+        let _ = writeln!(
+            out,
+            "driver        {}   resolution {}",
+            r.provenance.driver, r.settings.resolution
+        );
+        let _ = writeln!(
+            out,
+            "delay         {} ms (max latency in force {} ms)",
+            r.settings.delay_ms, r.max_latency_ms
+        );
+        let _ = writeln!(
+            out,
+            "traffic       {} vehicles, {} pedestrians (asked {}, {}), seed {}",
+            r.traffic.vehicles,
+            r.traffic.pedestrians,
+            r.settings.vehicles,
+            r.settings.pedestrians,
+            r.settings.seed
+        );
+        let _ = writeln!(
+            out,
+            "result        {}  completion {:.1} % of {:.0} m  driving score {:.1}",
+            if r.success { "SUCCESS" } else { "FAILURE" },
+            r.completion_pct,
+            r.route_length_m,
+            r.driving_score
+        );
+        let _ = writeln!(
+            out,
+            "outside lanes {:.1} % of the route (on a sidewalk or against the lane)",
+            r.outside_lane_pct
+        );
+        if let Some(t) = r.termination {
+            let _ = writeln!(out, "ended by      {}", t.name());
+        }
+        let _ = writeln!(out, "infractions");
+        for (kind, n) in &r.counts {
+            if !kind.terminates() || *n > 0 {
+                let _ = writeln!(out, "  {:<22} {n}", kind.name());
+            }
+        }
+        let _ = writeln!(
+            out,
+            "time          {:.1} s simulated in {:.2} s wall ({:.0}x real time): traffic {:.2} s, render {:.2} s, driver {:.2} s, other {:.2} s",
+            r.sim_time_s,
+            p.wall_s,
+            p.real_time_factor,
+            p.traffic_s,
+            p.render_s,
+            p.driver_s,
+            p.other_s
+        );
+        out
+    }
+}
+
 impl RunResult {
     /// The count of one infraction kind.
     pub fn count(&self, kind: InfractionKind) -> u32 {
@@ -297,5 +366,26 @@ mod tests {
             sha256: sha256_hex(b"abc"),
         };
         assert_eq!(id.short(), "ba7816bf8f01");
+    }
+
+    #[test]
+    fn the_table_lists_the_result_and_every_non_terminating_kind() {
+        let spec = crate::sweep::RunSpec {
+            scenario: "a.toml".into(),
+            delay_ms: Some(100.0),
+            scale: None,
+            density: None,
+            seed: 0,
+            driver: None,
+        };
+        let table = crate::sweep::fixtures::fake_record(&spec).table();
+        assert!(table.starts_with("scenario      a__d100"), "{table}");
+        assert!(
+            table.contains("result        SUCCESS  completion 100.0 % of 100 m"),
+            "{table}"
+        );
+        assert!(table.contains("  red_light              2\n"), "{table}");
+        assert!(!table.contains("ended by"), "{table}");
+        assert!(table.ends_with("other 0.00 s\n"), "{table}");
     }
 }

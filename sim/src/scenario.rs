@@ -201,6 +201,17 @@ impl Default for DriverSpec {
     }
 }
 
+impl DriverSpec {
+    /// The policy of `checkpoint` on the default device, without a trigger.
+    pub fn policy(checkpoint: PathBuf) -> Self {
+        Self {
+            kind: DriverKind::Policy,
+            checkpoint: Some(checkpoint),
+            ..Self::default()
+        }
+    }
+}
+
 /// The kinds of driver a scenario can name.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]

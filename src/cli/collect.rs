@@ -96,8 +96,8 @@ pub fn collect(a: CollectArgs) -> anyhow::Result<()> {
             let densities = a
                 .densities
                 .iter()
-                .map(|d| super::sweep::parse_density(d))
-                .collect::<anyhow::Result<Vec<_>>>()?;
+                .map(|d| sim::sweep::parse_density(d))
+                .collect::<Result<Vec<_>, _>>()?;
             (
                 collect::scenario_plan(&scenario, &a.seeds, &densities),
                 "scenario",
@@ -138,23 +138,9 @@ pub fn collect(a: CollectArgs) -> anyhow::Result<()> {
     cfg.noise.mean_gap_s = a.noise_gap_s;
     let started = std::time::Instant::now();
     let quiet = a.quiet;
-    let index = collect::collect(&plan, &cfg, &a.out, &mut |r, index| {
+    let index = collect::collect(&plan, &cfg, &a.out, &mut |r, _| {
         if !quiet {
-            let e = &r.episode;
-            println!(
-                "episode {:>3}/{} {} route {:<12} traffic {:>2}+{:<2} {:>4} frames in {:>5.1} s ({:.0} frames/s){}",
-                e.id + 1,
-                plan.len(),
-                e.town,
-                e.route.id,
-                e.vehicles,
-                e.pedestrians,
-                e.frames,
-                r.wall_s,
-                f64::from(e.frames) / r.wall_s.max(1e-9),
-                if r.success { "" } else { "  (route not completed)" }
-            );
-            let _ = index;
+            println!("{}", r.line(plan.len()));
         }
     })
     .with_context(|| format!("collecting into {}", a.out.display()))?;

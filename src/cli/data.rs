@@ -141,37 +141,12 @@ pub fn run_bench(c: BenchCommand) -> anyhow::Result<()> {
     for s in &set.skipped {
         eprintln!("warning: skipped {}: {}", s.path.display(), s.why);
     }
-    println!(
-        "loader benchmark: {} ({} samples), batch {batch}, S0 {} x {}, {workers} loader thread(s) + {} rayon threads; load average {}",
-        dir.display(),
-        set.samples.len(),
-        config.input_width,
-        config.input_height,
-        policy::cpu_threads(),
-        std::fs::read_to_string("/proc/loadavg")
-            .unwrap_or_default()
-            .trim()
-    );
-    let r = bench::loader_bench(set, &config, batch, workers, batches, train_steps);
-    let per_s = |bps: f64| format!("{bps:.2} batches/s = {:.0} samples/s", bps * batch as f64);
-    println!(
-        "loader alone, augmented:     {} ({batches} batches)",
-        per_s(r.augmented_batches_per_s)
-    );
-    println!(
-        "loader alone, not augmented: {} ({batches} batches)",
-        per_s(r.plain_batches_per_s)
-    );
-    if let (Some(sps), Some(fed)) = (r.train_samples_per_s, r.fed) {
-        println!(
-            "training step alone (default model, 0.75x + 1.0x, segmentation on), toy batch: {sps:.1} samples/s = {:.3} batches/s ({train_steps} steps)",
-            sps / batch as f64
-        );
-        println!(
-            "training step fed by the augmenting loader: {:.1} samples/s, waiting for a batch {:.1} % of the time",
-            fed.samples_per_s,
-            100.0 * fed.waiting
-        );
-    }
+    let run = bench::report::LoaderRun {
+        batch,
+        workers,
+        batches,
+        train_steps,
+    };
+    bench::report::loader_bench(&dir, set, &config, &run, &mut std::io::stdout())?;
     Ok(())
 }

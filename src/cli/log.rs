@@ -4,8 +4,7 @@
 use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
-use serde_json::Value;
-use sim::recorder::{LogSummary, read_summary};
+use sim::recorder::read_summary;
 
 /// Log subcommands.
 #[derive(Subcommand)]
@@ -40,7 +39,7 @@ pub fn run(c: LogCommand) -> anyhow::Result<()> {
     match c {
         LogCommand::Summary(a) => {
             let summary = read_summary(&a.log)?;
-            print!("{}", format_summary(&a.log.display().to_string(), &summary));
+            print!("{}", summary.report(&a.log.display().to_string()));
             Ok(())
         }
         LogCommand::Picture(a) => {
@@ -52,70 +51,4 @@ pub fn run(c: LogCommand) -> anyhow::Result<()> {
             Ok(())
         }
     }
-}
-
-/// The summary as text, one topic a line.
-fn format_summary(name: &str, s: &LogSummary) -> String {
-    use std::fmt::Write;
-    let mut out = String::new();
-    let total: u64 = s.topics.iter().map(|t| t.messages).sum();
-    let _ = writeln!(out, "log           {name}");
-    let _ = writeln!(
-        out,
-        "duration      {:.3} s of sim time, {total} messages on {} topics",
-        s.duration_s(),
-        s.topics.len()
-    );
-    let _ = writeln!(out, "topics");
-    for t in &s.topics {
-        let _ = writeln!(out, "  {:<22} {:<26} {:>7}", t.topic, t.schema, t.messages);
-    }
-    let _ = writeln!(out, "infractions   {}", s.infractions.len());
-    for i in &s.infractions {
-        let _ = writeln!(
-            out,
-            "  {:>8.2} s  {:<22} at ({:.1}, {:.1})  {}",
-            i.time_s,
-            i.kind.name(),
-            i.position[0],
-            i.position[1],
-            i.detail
-        );
-    }
-    match s.result() {
-        Some(r) => {
-            let number = |k: &str| r.get(k).and_then(Value::as_f64);
-            let _ = writeln!(
-                out,
-                "result        {}  completion {}  driving score {}  ended by {}",
-                match r.get("success").and_then(Value::as_bool) {
-                    Some(true) => "SUCCESS",
-                    Some(false) => "FAILURE",
-                    None => "(no success field)",
-                },
-                number("completion_pct").map_or("?".into(), |c| format!("{c:.1} %")),
-                number("driving_score").map_or("?".into(), |c| format!("{c:.1}")),
-                r.get("termination")
-                    .and_then(Value::as_str)
-                    .unwrap_or("the route's end or the tick limit"),
-            );
-            if let Some(Value::Object(counts)) = r.get("counts") {
-                let counts: Vec<String> = counts
-                    .iter()
-                    .filter(|(_, v)| v.as_u64() != Some(0))
-                    .map(|(k, v)| format!("{k} {v}"))
-                    .collect();
-                let counts = if counts.is_empty() {
-                    "none".to_string()
-                } else {
-                    counts.join(", ")
-                };
-                let _ = writeln!(out, "counts        {counts}");
-            }
-        }
-        None => {
-            let _ = writeln!(out, "result        (no result metadata)");
-        }
-    }
-    out
 }

@@ -116,74 +116,7 @@ fn info(a: InfoArgs) -> anyhow::Result<()> {
     let t0 = Instant::now();
     let (town, report) = load_xodr_file(&a.file, &a.load.options())?;
     let ms = t0.elapsed().as_secs_f64() * 1e3;
-    let in_junction = town.lanes.iter().filter(|l| l.junction.is_some()).count();
-    println!("map: {}", a.file.display());
-    println!("town: {}", town.name);
-    println!("roads: {}", report.roads);
-    println!("lanes (all types): {}", report.lanes);
-    println!(
-        "drivable lanes: {} ({} in junctions)",
-        town.lanes.len(),
-        in_junction
-    );
-    println!("junctions: {}", town.junctions.len());
-    println!(
-        "traffic lights: {}{}",
-        town.lights.len(),
-        if report.generated_lights {
-            " (generated)"
-        } else {
-            ""
-        }
-    );
-    println!(
-        "stop lines: {}",
-        town.lights
-            .iter()
-            .map(|l| l.stop_lines.len())
-            .sum::<usize>()
-    );
-    println!("drivable lane length: {:.1} m", town.total_lane_length_m());
-    println!("lane markings: {}", town.markings.len());
-    println!("sidewalks: {}", town.sidewalks.len());
-    let from_map = town.crosswalks.iter().filter(|c| c.from_map).count();
-    println!(
-        "crosswalks: {} ({} from the map, {} generated)",
-        town.crosswalks.len(),
-        from_map,
-        town.crosswalks.len() - from_map
-    );
-    println!("buildings: {}", town.buildings.len());
-    println!(
-        "road surface: {} triangles",
-        town.road_surface.indices.len() / 3
-    );
-    let (lo, hi) = town.bounds;
-    println!(
-        "bounds: ({:.1}, {:.1}) to ({:.1}, {:.1}) m, {:.1} m x {:.1} m",
-        lo.x,
-        lo.y,
-        hi.x,
-        hi.y,
-        hi.x - lo.x,
-        hi.y - lo.y
-    );
-    println!(
-        "lane graph strongly connected: {}",
-        if town.is_strongly_connected() {
-            "yes"
-        } else {
-            "no"
-        }
-    );
-    println!("load time: {ms:.1} ms");
-    println!("warnings: {}", report.warnings.len());
-    for w in report.warnings.iter().take(20) {
-        println!("  - {w}");
-    }
-    if report.warnings.len() > 20 {
-        println!("  ... and {} more", report.warnings.len() - 20);
-    }
+    print!("{}", report.summary(&town, ms));
     Ok(())
 }
 

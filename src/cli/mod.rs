@@ -6,7 +6,6 @@ pub mod data;
 pub mod log;
 pub mod map;
 pub mod paper;
-pub mod plot;
 pub mod policy;
 pub mod recalibrate;
 pub mod render;

@@ -3,9 +3,9 @@
 use anyhow::Result;
 use clap::{Args, Subcommand};
 use policy::bench;
-use policy::checkpoint::{self, ModelCard};
+use policy::checkpoint;
 use policy::device::{self, DeviceKind};
-use policy::train::{Preset, TrainConfig};
+use policy::train::Preset;
 use std::path::PathBuf;
 
 /// `mrdrive policy ...`
@@ -144,7 +144,7 @@ pub fn run_policy(args: PolicyArgs) -> Result<()> {
     match args.command {
         PolicyCommand::Losses { csv, out, title } => {
             let png = out.unwrap_or_else(|| csv.with_extension("png"));
-            super::plot::loss_curves(&csv, &png, &title)?;
+            experiments::loss_plot::loss_curves(&csv, &png, &title)?;
             println!("wrote {}", png.display());
             Ok(())
         }
@@ -153,27 +153,7 @@ pub fn run_policy(args: PolicyArgs) -> Result<()> {
             Ok(())
         }
         PolicyCommand::Overhead => {
-            println!(
-                "BN-bank parameter overhead (learnable gamma/beta of the extra branches; whole network: backbone + action head + decoder)"
-            );
-            println!(
-                "{:<34} {:>6} {:>12} {:>12} {:>10} {:>9} {:>14}",
-                "network", "scales", "single", "banked", "extra", "extra %", "extra buffers"
-            );
-            let rows = bench::overhead_networks();
-            for (name, cfg) in rows {
-                let o = bench::overhead(name, &cfg);
-                println!(
-                    "{:<34} {:>6} {:>12} {:>12} {:>10} {:>8.3}% {:>14}",
-                    o.name,
-                    o.scales,
-                    o.single,
-                    o.multi,
-                    o.multi - o.single,
-                    o.percent(),
-                    o.extra_buffers
-                );
-            }
+            print!("{}", bench::report::overhead_table());
             Ok(())
         }
         PolicyCommand::Init {
@@ -182,12 +162,7 @@ pub fn run_policy(args: PolicyArgs) -> Result<()> {
             scales,
             seed,
         } => {
-            let cfg = preset.config(&scales);
-            cfg.validate()?;
-            let dev = device::open(DeviceKind::Cpu)?;
-            dev.seed(seed);
-            let net = cfg.init(&dev);
-            checkpoint::save(&net, &ModelCard::random_init(seed), &out)?;
+            checkpoint::save_random_init(&preset.config(&scales), seed, &out)?;
             println!(
                 "wrote {} and {} (random init, seed {seed})",
                 out.display(),
@@ -202,17 +177,7 @@ pub fn run_policy(args: PolicyArgs) -> Result<()> {
             preset,
             scales,
         } => {
-            let cfg = preset.config(&scales);
-            let dev = device::open(DeviceKind::Cpu)?;
-            dev.seed(0);
-            let net = checkpoint::load_torchvision_backbone(&weights, &prefix, &cfg, &dev)?;
-            let card = ModelCard {
-                trained: false,
-                description: "backbone imported from a torchvision ResNet state dict; heads randomly initialised (seed 0): not a trained driving policy".into(),
-                source: weights.display().to_string(),
-                training: None,
-            };
-            checkpoint::save(&net, &card, &out)?;
+            checkpoint::import_torchvision(&weights, &prefix, &preset.config(&scales), &out)?;
             println!("wrote {}", out.display());
             Ok(())
         }
@@ -244,22 +209,7 @@ pub fn run_policy(args: PolicyArgs) -> Result<()> {
             let set =
                 std::sync::Arc::new(policy::train::loader::TrainSet::open(&data, &net.config)?);
             let groups = policy::train::fit::fit(&net, branch, &set, batches, batch, &dev);
-            println!(
-                "| frames | n | KL (nats) | argmax agrees | target brakes | net brakes | brake disagrees |"
-            );
-            println!("| --- | --- | --- | --- | --- | --- | --- |");
-            for g in groups {
-                println!(
-                    "| {} | {} | {:.3} | {:.1} % | {:.1} % | {:.1} % | {:.1} % |",
-                    g.name,
-                    g.n,
-                    g.kl,
-                    100.0 * g.argmax_agree,
-                    100.0 * g.target_brakes,
-                    100.0 * g.net_brakes,
-                    100.0 * g.brake_disagree
-                );
-            }
+            print!("{}", policy::train::fit::markdown(&groups));
             Ok(())
         }
         PolicyCommand::Trigger {
@@ -294,14 +244,7 @@ fn fit_trigger(
 ) -> Result<()> {
     use policy::trigger::{self, FitConfig, TriggerCard};
     let started = std::time::Instant::now();
-    let dev = device::open(DeviceKind::Cpu)?;
-    let (net, _) = checkpoint::load(weights, &dev)?;
-    let fused = {
-        use policy::burn::prelude::*;
-        net.sync_running_stats();
-        policy::fused::FusedPolicy::from_net(&net.valid())
-    };
-    let (samples, skipped) = trigger::frame_samples(&fused, data, scales, every)?;
+    let (samples, skipped) = trigger::checkpoint_samples(weights, data, scales, every)?;
     for s in &skipped {
         eprintln!("skipped: {s}");
     }
@@ -318,29 +261,7 @@ fn fit_trigger(
     let t = trigger::fit(&samples, scales, cfg, card)?;
     t.save(out)
         .map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", out.display()))?;
-    let c = &t.card;
-    println!(
-        "{} frames fit, {} held out (episodes 4 mod 5); positive: {} >= {:.3} (top {:.0} %)",
-        c.frames_fit,
-        c.frames_held_out,
-        match target {
-            policy::trigger::Target::Disagreement => "total variation",
-            policy::trigger::Target::Regret => "regret",
-        },
-        c.tv_threshold,
-        100.0 * share
-    );
-    for (name, s) in [("fit", c.fit), ("held out", c.held_out)] {
-        println!(
-            "{name:<9} n {:>6}  positive {:>5.1} %  predicted {:>5.1} %  accuracy {:>5.1} %  recall {:>5.1} %  precision {:>5.1} %",
-            s.n,
-            100.0 * s.positive_rate,
-            100.0 * s.predicted_rate,
-            100.0 * s.accuracy,
-            100.0 * s.recall,
-            100.0 * s.precision
-        );
-    }
+    print!("{}", t.card.report());
     println!(
         "wrote {} in {:.0} s",
         out.display(),
@@ -390,68 +311,12 @@ pub fn run_bench_command(command: BenchCommand) -> Result<()> {
         device: kind,
     } = command;
     let dev = device::open(kind)?;
-    let threads = policy::cpu_threads();
-    let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
-    println!(
-        "policy benchmark: device {kind} (burn; cpu = flex with {threads} rayon threads, RAYON_NUM_THREADS), batch 1 inference, median of {repeats} (scales interleaved)"
-    );
-    println!("load average before: {}", load.trim());
-    let nets = bench::latency_networks(quick);
-    println!(
-        "{:<36} {:<6} {:>6} {:>10} {:>10} {:>9} {:>9} {:>12}",
-        "network", "engine", "scale", "input WxH", "median ms", "min ms", "max ms", "t(.75)/t(1)"
-    );
-    for (name, cfg) in &nets {
-        let mut engines = vec![("burn", bench::inference_latency(cfg, &dev, 3, repeats))];
-        if kind == DeviceKind::Cpu {
-            engines.push(("fused", bench::fused_latency(cfg, 3, repeats)));
-        }
-        for (e, (engine, rows)) in engines.iter().enumerate() {
-            let t = |s: f32| rows.iter().find(|r| r.0 == s).map(|r| r.2.median_ms);
-            let ratio = match (t(0.75), t(1.0)) {
-                (Some(a), Some(b)) => format!("{:.3}", a / b),
-                _ => "-".into(),
-            };
-            for (i, (r, [h, w], l)) in rows.iter().enumerate() {
-                println!(
-                    "{:<36} {:<6} {:>6} {:>10} {:>10.2} {:>9.2} {:>9.2} {:>12}",
-                    if i == 0 && e == 0 { *name } else { "" },
-                    if i == 0 { *engine } else { "" },
-                    r,
-                    format!("{w}x{h}"),
-                    l.median_ms,
-                    l.min_ms,
-                    l.max_ms,
-                    if i + 1 == rows.len() {
-                        ratio.as_str()
-                    } else {
-                        ""
-                    }
-                );
-            }
-        }
-    }
-    println!(
-        "(ideal t(0.75)/t(1.0) = 0.5625, the area ratio; burn: tensor in, logits read back; fused: the driver's CPU path, RGB8 in, normalisation included)"
-    );
-    println!(
-        "load average after inference: {}",
-        std::fs::read_to_string("/proc/loadavg")
-            .unwrap_or_default()
-            .trim()
-    );
-    if train_steps > 0 {
-        let cfg = Preset::Cpu.config(&[0.75, 1.0]);
-        let ad = dev.clone().autodiff();
-        for (what, tc) in [
-            ("segmentation on (weight 0.05)", TrainConfig::new()),
-            ("segmentation off", TrainConfig::new().with_seg_weight(0.0)),
-        ] {
-            let sps = bench::train_throughput(&cfg, tc, &ad, batch, 1, train_steps);
-            println!(
-                "training, multi-resolution step (0.75x + 1.0x, {what}, Adam, head frozen), default model, batch {batch}: {sps:.1} samples/s (each sample at both scales; {train_steps} steps after 1 warm-up)"
-            );
-        }
-    }
+    let b = bench::report::PolicyBench {
+        repeats,
+        train_steps,
+        batch,
+        quick,
+    };
+    bench::report::policy_bench(&b, kind, &dev, &mut std::io::stdout())?;
     Ok(())
 }

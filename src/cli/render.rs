@@ -5,14 +5,12 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail, ensure};
 use clap::{Args, Subcommand};
-use sim::build::{self, Extras, RunRequest};
-use sim::driver::RgbImage;
-use sim::observe::Moments;
+use sim::build::{self, RunRequest};
+use sim::moment::{LIGHT_AHEAD_RANGE_M, MomentRequest, View, render_moment};
 use sim::render::image::save_png;
-use sim::render::{EgoPose, RigConfig, demo, measure};
+use sim::render::{RigConfig, demo, measure};
 use sim::runner;
 use sim::scenario::Scenario;
-use world::{LightState, rules};
 
 /// `mrdrive render-demo`: a hand-made junction scene, rendered.
 #[derive(Debug, Args)]
@@ -205,109 +203,41 @@ fn render_at(a: &RenderAtArgs) -> Result<()> {
         driver: a.driver.driver(),
         ..a.traffic.overrides(a.delay_ms)
     };
-    let scenario = overrides.apply(&Scenario::from_file(path)?);
-    let prepared =
-        runner::prepare(&scenario).with_context(|| format!("scenario {}", path.display()))?;
-    let tick_s = scenario.timing.tick_s;
-    let ticks = (a.at / tick_s).round() as u64;
-    let mut last = Moments::last();
-    let request = RunRequest {
-        scale: a.drive_scale,
-        max_ticks: Some(ticks),
-        keep_camera: true,
-        ..RunRequest::new(path, &overrides)
+    let request = MomentRequest {
+        run: RunRequest {
+            scale: a.drive_scale,
+            ..RunRequest::new(path, &overrides)
+        },
+        at_s: a.at,
+        view: match a.top_down {
+            Some(px) => View::TopDown { px },
+            None => View::Rig { scale: a.scale },
+        },
+        labels: a.labels,
     };
-    let extras = Extras {
-        observer: Some(&mut last),
-        prebuilt: Some((&scenario, &prepared)),
-        ..Extras::default()
-    };
-    let run = build::run_scenario_with(&request, &super::drivers(), &mut |_| {}, extras)?;
-    let record = run.record;
-    let mut camera = run
-        .camera
-        .context("the run handed back no camera (RunRequest::keep_camera)")?;
-    let moment = last.kept.pop().unwrap_or_default();
-    let (tick, ego) = match (
-        moment.actors.first().map(|_| moment.tick),
-        moment.actors.first(),
-    ) {
-        (Some(t), Some(e)) => (t, EgoPose::from(e)),
-        _ => {
-            // --at 0 (or a run that ended before its first tick): the start.
-            let p = prepared
-                .route
-                .points
-                .first()
-                .with_context(|| format!("route {} has no points", prepared.route.id))?;
-            (
-                0,
-                EgoPose {
-                    position: p.position,
-                    heading: p.heading,
-                },
-            )
-        }
-    };
-    let reached_s = tick as f64 * tick_s;
-    ensure!(
-        tick >= ticks,
-        "--at {}: the run ended at {reached_s:.2} s ({}), before that moment; give --at {reached_s:.2} or less",
-        a.at,
-        record
-            .result
-            .termination
-            .map_or("route completed", |t| t.name())
-    );
-    let (rgb, class) = match a.top_down {
-        Some(px) => camera.render_top_down(&ego, &moment.actors, &moment.lights, px, px, 60.0)?,
-        None => camera.render_rig(&ego, &moment.actors, &moment.lights, a.scale)?,
-    };
-    let img = if a.labels {
-        let mut img = RgbImage::default();
-        class.to_label_rgb(&mut img);
-        img
-    } else {
-        rgb.clone()
-    };
-    save_png(&img, out).with_context(|| format!("writing {}", out.display()))?;
+    let m = render_moment(&request, &super::drivers())?;
+    save_png(&m.image, out).with_context(|| format!("writing {}", out.display()))?;
     println!(
-        "wrote {} ({}x{}) at {reached_s:.2} s: ego at ({:.1}, {:.1}) heading {:.0} deg, {:.1} m/s",
+        "wrote {} ({}x{}) at {:.2} s: ego at ({:.1}, {:.1}) heading {:.0} deg, {:.1} m/s",
         out.display(),
-        img.width,
-        img.height,
-        ego.position.x,
-        ego.position.y,
-        ego.heading.to_degrees(),
-        moment.actors.first().map_or(0.0, |e| e.speed_mps),
+        m.image.width,
+        m.image.height,
+        m.reached_s,
+        m.ego.position.x,
+        m.ego.position.y,
+        m.ego.heading.to_degrees(),
+        m.speed_mps,
     );
     println!(
         "driver        {}   resolution {}",
-        record.result.provenance.driver, record.result.settings.resolution
+        m.record.result.provenance.driver, m.record.result.settings.resolution
     );
-    match light_ahead(&prepared, &ego, &moment.lights) {
+    match m.light_ahead {
         Some((d, state)) => println!("light ahead   {d:.1} m, {state:?}"),
-        None => println!("light ahead   no stop line on the route within 60 m"),
+        None => println!("light ahead   no stop line on the route within {LIGHT_AHEAD_RANGE_M} m"),
     }
-    println!("camera        {}", camera.backend());
+    println!("camera        {}", m.backend);
     Ok(())
-}
-
-/// The next stop line of the route within 60 m ahead of the ego, as the
-/// rule book has it (the route's stop lines, the ego's distance along the
-/// route from its nearest route point): distance along the route from the
-/// ego's centre (metres) and the light's state.
-fn light_ahead(
-    prepared: &runner::Prepared,
-    ego: &EgoPose,
-    states: &[LightState],
-) -> Option<(f32, LightState)> {
-    let route = &prepared.route;
-    let (index, _) = rules::nearest_route_point(route, ego.ground(), 0, route.points.len())?;
-    let ego_s = rules::route_s_at(route, index, ego.ground());
-    let stops = rules::StopLines::new(&prepared.town).on_route(route);
-    let (stop, d) = stops.light_ahead(ego_s, 60.0)?;
-    Some((d, rules::light_state(states, stop.light)))
 }
 
 /// `bench render --scenario`: rig fps along a scenario's route, one pose

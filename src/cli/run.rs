@@ -9,7 +9,6 @@ use anyhow::Context;
 use clap::Args;
 use sim::build::{self, RunRequest};
 use sim::observe::RunProgress;
-use sim::record::RunRecord;
 use sim::recorder::RecordOptions;
 use sim::runner::Overrides;
 
@@ -187,16 +186,11 @@ pub struct DriverFlags {
 impl DriverFlags {
     /// The driver these flags name, if any.
     pub fn driver(&self) -> Option<sim::scenario::DriverSpec> {
-        use sim::scenario::{DriverKind, DriverSpec};
+        use sim::scenario::DriverSpec;
         if self.expert {
             Some(DriverSpec::default())
         } else {
-            self.checkpoint.as_ref().map(|c| DriverSpec {
-                kind: DriverKind::Policy,
-                checkpoint: Some(c.clone()),
-                device: None,
-                trigger: None,
-            })
+            self.checkpoint.clone().map(DriverSpec::policy)
         }
     }
 }
@@ -235,7 +229,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<()> {
         eprintln!("warning: {w}");
     }
     let record = done.record;
-    print_result(&record);
+    print!("{}", record.table());
     if let Some(path) = &a.json {
         sim::record::write_atomically(path, &record)
             .with_context(|| format!("writing {}", path.display()))?;
@@ -253,54 +247,4 @@ pub fn run(a: RunArgs) -> anyhow::Result<()> {
         );
     }
     Ok(())
-}
-
-/// Prints a run's result as a small table.
-pub fn print_result(record: &RunRecord) {
-    let r = &record.result;
-    let p = &record.perf;
-    println!(
-        "scenario      {} ({})",
-        r.provenance.scenario, r.provenance.route
-    );
-    println!(
-        "driver        {}   resolution {}",
-        r.provenance.driver, r.settings.resolution
-    );
-    println!(
-        "delay         {} ms (max latency in force {} ms)",
-        r.settings.delay_ms, r.max_latency_ms
-    );
-    println!(
-        "traffic       {} vehicles, {} pedestrians (asked {}, {}), seed {}",
-        r.traffic.vehicles,
-        r.traffic.pedestrians,
-        r.settings.vehicles,
-        r.settings.pedestrians,
-        r.settings.seed
-    );
-    println!(
-        "result        {}  completion {:.1} % of {:.0} m  driving score {:.1}",
-        if r.success { "SUCCESS" } else { "FAILURE" },
-        r.completion_pct,
-        r.route_length_m,
-        r.driving_score
-    );
-    println!(
-        "outside lanes {:.1} % of the route (on a sidewalk or against the lane)",
-        r.outside_lane_pct
-    );
-    if let Some(t) = r.termination {
-        println!("ended by      {}", t.name());
-    }
-    println!("infractions");
-    for (kind, n) in &r.counts {
-        if !kind.terminates() || *n > 0 {
-            println!("  {:<22} {n}", kind.name());
-        }
-    }
-    println!(
-        "time          {:.1} s simulated in {:.2} s wall ({:.0}x real time): traffic {:.2} s, render {:.2} s, driver {:.2} s, other {:.2} s",
-        r.sim_time_s, p.wall_s, p.real_time_factor, p.traffic_s, p.render_s, p.driver_s, p.other_s
-    );
 }

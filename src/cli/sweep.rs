@@ -71,42 +71,6 @@ pub struct SweepRunArgs {
     pub driver: super::run::DriverFlags,
 }
 
-pub(crate) fn parse_density(text: &str) -> anyhow::Result<(u32, u32)> {
-    let (v, p) = text
-        .split_once(':')
-        .with_context(|| format!("--densities {text}: write VEHICLES:PEDESTRIANS, e.g. 20:40"))?;
-    Ok((
-        v.trim()
-            .parse()
-            .with_context(|| format!("--densities {text}: VEHICLES must be a number"))?,
-        p.trim()
-            .parse()
-            .with_context(|| format!("--densities {text}: PEDESTRIANS must be a number"))?,
-    ))
-}
-
-fn parse_seeds(text: &str) -> anyhow::Result<Vec<u64>> {
-    if let Some((a, b)) = text.split_once("..") {
-        let (a, b): (u64, u64) = (
-            a.trim()
-                .parse()
-                .with_context(|| format!("--seeds {text}: the range start must be a number"))?,
-            b.trim()
-                .parse()
-                .with_context(|| format!("--seeds {text}: the range end must be a number"))?,
-        );
-        anyhow::ensure!(a < b, "--seeds {text}: the range is empty");
-        return Ok((a..b).collect());
-    }
-    text.split(',')
-        .map(|s| {
-            s.trim()
-                .parse()
-                .with_context(|| format!("--seeds {text}: seeds are numbers"))
-        })
-        .collect()
-}
-
 /// Runs `sweep`.
 pub fn run(a: SweepArgs) -> anyhow::Result<()> {
     match a.command {
@@ -137,32 +101,19 @@ fn run_sweep(a: SweepRunArgs) -> anyhow::Result<()> {
     for s in &a.scenarios {
         sim::scenario::Scenario::from_file(s)?;
     }
-    let opt = |v: Vec<f64>| {
-        if v.is_empty() {
-            vec![None]
-        } else {
-            v.into_iter().map(Some).collect()
-        }
-    };
-    let densities: Vec<Option<(u32, u32)>> = if a.densities.is_empty() {
-        vec![None]
-    } else {
-        a.densities
-            .iter()
-            .map(|d| parse_density(d).map(Some))
-            .collect::<anyhow::Result<_>>()?
-    };
-    let mut plan = SweepPlan::cross(
+    let densities = a
+        .densities
+        .iter()
+        .map(|d| sweep::parse_density(d))
+        .collect::<Result<Vec<_>, _>>()?;
+    let plan = SweepPlan::of_lists(
         &a.scenarios,
-        &opt(a.delays),
-        &opt(a.scales),
+        &a.delays,
+        &a.scales,
         &densities,
-        &parse_seeds(&a.seeds)?,
+        &sweep::parse_seeds(&a.seeds)?,
+        a.driver.driver().as_ref(),
     );
-    let driver = a.driver.driver();
-    for r in &mut plan.runs {
-        r.driver = driver.clone();
-    }
     let (index, count) = match &a.shard {
         Some(s) => sweep::parse_shard(s)?,
         None => (0, 1),

@@ -4,8 +4,10 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
 use std::sync::Arc;
-use world::map::testtown::{FixtureLights, grid};
-use world::traffic::{EgoStart, TrafficConfig, soak, table_one};
+use world::map::testtown::{FixtureLights, grid_of_spec};
+use world::traffic::{
+    EgoStart, TrafficConfig, soak, table_one, table_one_text, table_per_route_text,
+};
 use world::traffic::{LightController, LightTiming};
 use world::{LightIdx, PlannerConfig, RouteFile, plan_route};
 
@@ -82,22 +84,7 @@ fn load_town(t: &TownArgs) -> Result<world::Town> {
                 path.display()
             )
         }),
-        (None, Some(spec)) => {
-            let (nx, ny) = spec
-                .split_once('x')
-                .and_then(|(a, b)| Some((a.parse::<usize>().ok()?, b.parse::<usize>().ok()?)))
-                .with_context(|| format!("--fixture {spec:?}: expected NXxNY, e.g. 4x4"))?;
-            if nx * ny < 2 || nx > 50 || ny > 50 {
-                bail!("--fixture {spec:?}: between 2 and 2500 junctions, at most 50 per side");
-            }
-            if t.block_m < 40.0 || t.block_m > 1000.0 {
-                bail!(
-                    "--block-m {}: must be between 40 and 1000 metres",
-                    t.block_m
-                );
-            }
-            Ok(grid(nx, ny, t.block_m))
-        }
+        (None, Some(spec)) => Ok(grid_of_spec(spec, t.block_m).map_err(anyhow::Error::msg)?),
         (None, None) => bail!("give a town: --map FILE or --fixture [NXxNY]"),
     }
 }
@@ -142,50 +129,7 @@ pub fn run(args: TrafficArgs) -> Result<()> {
                     out.extend((0..n_lights).map(|i| controller.state(LightIdx(i as u32))));
                 }
             });
-            println!(
-                "realised vehicles       {} / {}",
-                r.vehicles.1, r.vehicles.0
-            );
-            println!(
-                "realised pedestrians    {} / {}",
-                r.pedestrians.1, r.pedestrians.0
-            );
-            println!(
-                "simulated               {:.0} s ({} ticks)",
-                r.sim_s, r.ticks
-            );
-            println!("NPC-NPC collisions      {}", r.stats.npc_npc_collisions);
-            println!("red lights run by NPCs  {}", r.stats.npc_red_runs);
-            println!("deadlocks (stuck > 60s) {}", r.stats.deadlocks);
-            println!("pedestrians alive       {}", r.pedestrians_alive);
-            println!(
-                "NPCs into pedestrians   {}",
-                r.stats.npc_pedestrian_collisions
-            );
-            println!(
-                "pedestrians into cars   {}",
-                r.stats.pedestrian_vehicle_bumps
-            );
-            println!("NPC-static contacts     {}", r.stats.npc_static_collisions);
-            println!("NPC respawns            {}", r.stats.respawns);
-            println!("step wall time          {:.2} s", r.step_wall_s);
-            println!(
-                "ticks/s                 {:.0} per wall second of stepping (physics + behaviours, one thread)",
-                r.ticks_per_s
-            );
-            if let Some(cpu) = r.cpu_s.filter(|&c| c > 0.0) {
-                println!(
-                    "ticks per CPU second    {:.0} ({:.2} s of CPU for the soak loop; differs from wall when cores are shared)",
-                    r.ticks as f64 / cpu,
-                    cpu
-                );
-            }
-            if a.incidents {
-                println!("incidents               {} listed", r.incidents.len());
-                for i in &r.incidents {
-                    println!("  {i}");
-                }
-            }
+            print!("{}", r.text(a.incidents));
         }
         TrafficCommand::Table(a) => {
             let town = Arc::new(load_town(&a.town)?);
@@ -201,21 +145,7 @@ pub fn run(args: TrafficArgs) -> Result<()> {
                 &densities,
                 &seeds,
             );
-            println!("Table I on {} ({} resets per density)", town.name, a.resets);
-            println!(
-                "{:>12} {:>16} {:>16}",
-                "requested", "vehicles", "pedestrians"
-            );
-            for r in rows {
-                println!(
-                    "{:>12} {:>9.1} +- {:<4.1} {:>9.1} +- {:<4.1}",
-                    format!("({}, {})", r.requested.0, r.requested.1),
-                    r.vehicles.mean,
-                    r.vehicles.sd,
-                    r.pedestrians.mean,
-                    r.pedestrians.sd
-                );
-            }
+            print!("{}", table_one_text(&town.name, seeds.len(), &rows));
         }
     }
     Ok(())
@@ -244,26 +174,9 @@ fn table_per_route(
             seeds,
         ));
     }
-    println!(
-        "Table I on {} ({} resets per density; vehicles, pedestrians)",
-        town.name,
-        seeds.len()
+    print!(
+        "{}",
+        table_per_route_text(&town.name, seeds.len(), ids, &columns)
     );
-    print!("{:>10}", "target");
-    for id in ids {
-        print!(" | route {id:<22}");
-    }
-    println!();
-    for (row, d) in densities.iter().enumerate() {
-        print!("{:>10}", format!("({}, {})", d.0, d.1));
-        for col in &columns {
-            let r = &col[row];
-            print!(
-                " | {:>4.1} +- {:<3.1}  {:>4.1} +- {:<3.1}",
-                r.vehicles.mean, r.vehicles.sd, r.pedestrians.mean, r.pedestrians.sd
-            );
-        }
-        println!();
-    }
     Ok(())
 }

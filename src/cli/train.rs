@@ -4,6 +4,7 @@
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
+use experiments::loss_plot::{loss_curves, loss_title};
 use experiments::pipeline::{self, Group, TrainPlan};
 use policy::device::{self, DeviceKind};
 use policy::train::publish::{LOSSES_PLOT_FILE, publish, published_checkpoint};
@@ -11,8 +12,6 @@ use policy::train::stage::{LOSSES_FILE, run_stage};
 use policy::train::synthetic::{SmokeRun, train_on_toy_batch};
 use policy::train::{Preset, RecipeChanges, StageRequest};
 use std::path::{Path, PathBuf};
-
-use super::plot;
 
 /// `mrdrive train ...`
 #[derive(Debug, Args)]
@@ -137,16 +136,6 @@ fn request_of(args: &TrainArgs, stage: &str) -> StageRequest {
     }
 }
 
-/// The title of a training run's loss plot: the model's name, and the stage when the
-/// name is another (`ra5 (stage ra)`).
-fn loss_title(name: &str, stage: &str) -> String {
-    if name == stage {
-        name.to_string()
-    } else {
-        format!("{name} (stage {stage})")
-    }
-}
-
 /// Runs `mrdrive train`.
 pub fn run_train(args: TrainArgs) -> Result<()> {
     if args.synthetic {
@@ -204,7 +193,7 @@ pub fn run_train(args: TrainArgs) -> Result<()> {
         );
         bar.set_message(losses_now.clone());
         if u.checkpointed {
-            if let Err(e) = plot::loss_curves(&losses, &png, &loss_title(&name, &spec.name)) {
+            if let Err(e) = loss_curves(&losses, &png, &loss_title(&name, &spec.name)) {
                 bar.println(format!("warning: {}: could not plot: {e:#}", png.display()));
             }
             let line = format!(
@@ -220,7 +209,7 @@ pub fn run_train(args: TrainArgs) -> Result<()> {
         }
     })?;
     bar.finish_and_clear();
-    plot::loss_curves(&losses, &png, &loss_title(&name, &spec.name))?;
+    loss_curves(&losses, &png, &loss_title(&name, &spec.name))?;
     publish(&run_dir, &args.out, &name)?;
     println!(
         "stage {}: done ({} steps now, {:.0} s of training in all); checkpoint {}",
@@ -272,51 +261,12 @@ fn run_synthetic(args: &TrainArgs) -> Result<()> {
         lr: args.lr.unwrap_or(1e-3),
         seed: args.seed.unwrap_or(0),
     };
-    println!(
-        "synthetic multi-resolution training: {} scales {:?}, batch {}, {} steps (one fixed toy batch)",
-        run.config.depth.name(),
-        run.config.scales,
-        run.batch,
-        run.steps
-    );
+    println!("{}", run.describe());
     let dev = device::open(args.device)?.autodiff();
-    let outcome = train_on_toy_batch(&run, &dev, |r| {
-        let per: Vec<String> = r
-            .per_scale
-            .iter()
-            .zip(&run.config.scales)
-            .map(|(l, s)| format!("{s}x {l:.4}"))
-            .collect();
-        println!(
-            "step {:>4}  loss {:.4}  ({})",
-            r.step,
-            r.loss,
-            per.join(", ")
-        );
-    })?;
-    println!(
-        "loss {:.4} -> {:.4} ({})",
-        outcome.first_loss,
-        outcome.last_loss,
-        if outcome.fell() {
-            "falling"
-        } else {
-            "NOT falling"
-        }
-    );
+    let outcome = train_on_toy_batch(&run, &dev, |r| println!("{}", run.step_line(r)))?;
+    println!("{outcome}");
     if !outcome.fell() {
         bail!("the loss did not fall on the toy batch");
     }
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_loss_plot_names_the_model_then_its_stage() {
-        assert_eq!(loss_title("ra5", "ra"), "ra5 (stage ra)");
-        assert_eq!(loss_title("ra", "ra"), "ra");
-    }
 }

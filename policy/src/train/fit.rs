@@ -118,3 +118,50 @@ pub fn fit(
         })
         .collect()
 }
+
+/// The groups as a Markdown table, shares in percent (`mrdrive policy fit`).
+pub fn markdown(groups: &[FitGroup]) -> String {
+    use std::fmt::Write;
+    let mut out = String::from(
+        "| frames | n | KL (nats) | argmax agrees | target brakes | net brakes | brake disagrees |\n\
+         | --- | --- | --- | --- | --- | --- | --- |\n",
+    );
+    for g in groups {
+        let _ = writeln!(
+            out,
+            "| {} | {} | {:.3} | {:.1} % | {:.1} % | {:.1} % | {:.1} % |",
+            g.name,
+            g.n,
+            g.kl,
+            100.0 * g.argmax_agree,
+            100.0 * g.target_brakes,
+            100.0 * g.net_brakes,
+            100.0 * g.brake_disagree
+        );
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_table_has_a_row_per_group_in_percent() {
+        let g = FitGroup {
+            name: "moving, turn".into(),
+            n: 12,
+            kl: 0.25,
+            argmax_agree: 0.5,
+            target_brakes: 0.125,
+            net_brakes: 0.0,
+            brake_disagree: 0.125,
+        };
+        assert_eq!(
+            markdown(&[g]),
+            "| frames | n | KL (nats) | argmax agrees | target brakes | net brakes | brake disagrees |\n\
+             | --- | --- | --- | --- | --- | --- | --- |\n\
+             | moving, turn | 12 | 0.250 | 50.0 % | 12.5 % | 0.0 % | 12.5 % |\n"
+        );
+    }
+}

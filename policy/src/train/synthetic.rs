@@ -96,6 +96,35 @@ pub struct SmokeRun {
     pub seed: u64,
 }
 
+impl SmokeRun {
+    /// What the run does, in one line (`mrdrive train --synthetic`).
+    pub fn describe(&self) -> String {
+        format!(
+            "synthetic multi-resolution training: {} scales {:?}, batch {}, {} steps (one fixed toy batch)",
+            self.config.depth.name(),
+            self.config.scales,
+            self.batch,
+            self.steps
+        )
+    }
+
+    /// A step's losses in one line: the mean, then each scale's.
+    pub fn step_line(&self, r: &StepReport) -> String {
+        let per: Vec<String> = r
+            .per_scale
+            .iter()
+            .zip(&self.config.scales)
+            .map(|(l, s)| format!("{s}x {l:.4}"))
+            .collect();
+        format!(
+            "step {:>4}  loss {:.4}  ({})",
+            r.step,
+            r.loss,
+            per.join(", ")
+        )
+    }
+}
+
 /// The losses at the ends of a smoke run.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SmokeOutcome {
@@ -109,6 +138,23 @@ impl SmokeOutcome {
     /// Whether the loss fell (and stayed a number).
     pub fn fell(&self) -> bool {
         self.last_loss.is_finite() && self.last_loss < self.first_loss
+    }
+}
+
+impl std::fmt::Display for SmokeOutcome {
+    /// `loss FIRST -> LAST (falling)`, or `(NOT falling)`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "loss {:.4} -> {:.4} ({})",
+            self.first_loss,
+            self.last_loss,
+            if self.fell() {
+                "falling"
+            } else {
+                "NOT falling"
+            }
+        )
     }
 }
 
@@ -180,10 +226,22 @@ mod tests {
             lr: 1e-3,
             seed: 0,
         };
+        assert_eq!(
+            run.describe(),
+            "synthetic multi-resolution training: resnet18 scales [0.75, 1.0], batch 2, 4 steps (one fixed toy batch)"
+        );
         let mut steps = Vec::new();
-        let outcome = train_on_toy_batch(&run, &device, |r| steps.push(r.step)).unwrap();
+        let mut lines = Vec::new();
+        let outcome = train_on_toy_batch(&run, &device, |r| {
+            steps.push(r.step);
+            lines.push(run.step_line(r));
+        })
+        .unwrap();
         assert_eq!(steps, vec![0, 1, 2, 3]);
+        assert!(lines[3].starts_with("step    3  loss "), "{lines:?}");
+        assert!(lines[3].contains("(0.75x "), "{lines:?}");
         assert!(outcome.fell(), "{outcome:?}");
+        assert!(outcome.to_string().ends_with(" (falling)"), "{outcome}");
         let none = SmokeRun { steps: 0, ..run };
         let e = train_on_toy_batch(&none, &device, |_| {}).unwrap_err();
         assert!(e.to_string().contains("--steps"), "{e}");

@@ -72,6 +72,73 @@ impl LogSummary {
         let text = self.metadata.get("result")?.get("json")?;
         serde_json::from_str(text).ok()
     }
+
+    /// The summary as text, one topic a line (`mrdrive log summary`); `name`
+    /// names the log in its first line.
+    pub fn report(&self, name: &str) -> String {
+        use std::fmt::Write;
+        let mut out = String::new();
+        let total: u64 = self.topics.iter().map(|t| t.messages).sum();
+        let _ = writeln!(out, "log           {name}");
+        let _ = writeln!(
+            out,
+            "duration      {:.3} s of sim time, {total} messages on {} topics",
+            self.duration_s(),
+            self.topics.len()
+        );
+        let _ = writeln!(out, "topics");
+        for t in &self.topics {
+            let _ = writeln!(out, "  {:<22} {:<26} {:>7}", t.topic, t.schema, t.messages);
+        }
+        let _ = writeln!(out, "infractions   {}", self.infractions.len());
+        for i in &self.infractions {
+            let _ = writeln!(
+                out,
+                "  {:>8.2} s  {:<22} at ({:.1}, {:.1})  {}",
+                i.time_s,
+                i.kind.name(),
+                i.position[0],
+                i.position[1],
+                i.detail
+            );
+        }
+        match self.result() {
+            Some(r) => {
+                let number = |k: &str| r.get(k).and_then(Value::as_f64);
+                let _ = writeln!(
+                    out,
+                    "result        {}  completion {}  driving score {}  ended by {}",
+                    match r.get("success").and_then(Value::as_bool) {
+                        Some(true) => "SUCCESS",
+                        Some(false) => "FAILURE",
+                        None => "(no success field)",
+                    },
+                    number("completion_pct").map_or("?".into(), |c| format!("{c:.1} %")),
+                    number("driving_score").map_or("?".into(), |c| format!("{c:.1}")),
+                    r.get("termination")
+                        .and_then(Value::as_str)
+                        .unwrap_or("the route's end or the tick limit"),
+                );
+                if let Some(Value::Object(counts)) = r.get("counts") {
+                    let counts: Vec<String> = counts
+                        .iter()
+                        .filter(|(_, v)| v.as_u64() != Some(0))
+                        .map(|(k, v)| format!("{k} {v}"))
+                        .collect();
+                    let counts = if counts.is_empty() {
+                        "none".to_string()
+                    } else {
+                        counts.join(", ")
+                    };
+                    let _ = writeln!(out, "counts        {counts}");
+                }
+            }
+            None => {
+                let _ = writeln!(out, "result        (no result metadata)");
+            }
+        }
+        out
+    }
 }
 
 /// The largest record (or decompressed chunk) a log may hold (bytes): far
@@ -188,6 +255,18 @@ mod tests {
         assert_eq!(s.infractions.len(), 1);
         assert_eq!(s.infractions[0].kind, InfractionKind::RedLight);
         assert_eq!(s.infractions[0].tick, 7);
+        let report = s.report("mem.mcap");
+        assert!(report.starts_with("log           mem.mcap\n"), "{report}");
+        assert!(
+            report.contains("duration      0.975 s of sim time"),
+            "{report}"
+        );
+        assert!(report.contains("infractions   1\n"), "{report}");
+        // The fixture's result has a completion but no success field.
+        assert!(
+            report.contains("result        (no success field)  completion 100.0 %"),
+            "{report}"
+        );
     }
 
     #[test]

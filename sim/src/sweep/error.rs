@@ -17,6 +17,19 @@ pub enum SweepError {
         /// What is wrong with it.
         problem: &'static str,
     },
+    /// `--seeds` or `--densities` is not a list the sweep can run.
+    #[error("--{flag} {text}: {problem}")]
+    Axis {
+        /// The flag, without its dashes.
+        flag: &'static str,
+        /// What was given.
+        text: String,
+        /// What is wrong with it and how to write it.
+        problem: &'static str,
+        /// The number that did not parse.
+        #[source]
+        source: Option<std::num::ParseIntError>,
+    },
     /// A file or folder could not be read, written or created.
     #[error("cannot {action} {path}")]
     Io {

@@ -10,7 +10,8 @@
 //! i, so n machines (a Slurm array, a Kubernetes Indexed Job) share one
 //! sweep; [`merge`] joins their folders and checks that no run is missing.
 //!
-//! - [`plan`]: the runs ([`RunSpec`], [`SweepPlan`]) and shards.
+//! - [`plan`]: the runs ([`RunSpec`], [`SweepPlan`]), shards, and the seed and
+//!   density lists of the command line.
 //! - [`folder`]: the folder layout ([`SweepDir`]) and reading its records.
 //! - [`execute`]: running the runs that are not done yet.
 //! - [`merge`]: joining shard folders.
@@ -30,7 +31,7 @@ pub use error::SweepError;
 pub use execute::{SweepOutcome, execute, run_spec};
 pub use folder::{SweepDir, read_records};
 pub use merge::merge;
-pub use plan::{RunSpec, SweepPlan, parse_shard};
+pub use plan::{RunSpec, SweepPlan, parse_density, parse_seeds, parse_shard};
 pub use tables::{GroupKey, SummaryRow, Tables, mean_sd, summarise, write_tables};
 
 #[cfg(test)]

@@ -94,6 +94,37 @@ impl SweepPlan {
         Self { runs }
     }
 
+    /// The cross product of the lists a command line gives (`mrdrive sweep`):
+    /// an empty list of delays, scales or densities keeps each scenario's;
+    /// `driver`, when given, drives every run over the scenarios' own.
+    pub fn of_lists(
+        scenarios: &[PathBuf],
+        delays_ms: &[f64],
+        scales: &[f64],
+        densities: &[(u32, u32)],
+        seeds: &[u64],
+        driver: Option<&crate::scenario::DriverSpec>,
+    ) -> Self {
+        fn or_scenarios<T: Copy>(v: &[T]) -> Vec<Option<T>> {
+            if v.is_empty() {
+                vec![None]
+            } else {
+                v.iter().copied().map(Some).collect()
+            }
+        }
+        let mut plan = Self::cross(
+            scenarios,
+            &or_scenarios(delays_ms),
+            &or_scenarios(scales),
+            &or_scenarios(densities),
+            seeds,
+        );
+        for r in &mut plan.runs {
+            r.driver = driver.cloned();
+        }
+        plan
+    }
+
     /// The runs of shard `index` of `count` (every `count`-th run from `index`).
     pub fn shard(&self, index: usize, count: usize) -> Vec<&RunSpec> {
         self.runs
@@ -120,6 +151,58 @@ pub fn parse_shard(text: &str) -> Result<(usize, usize), SweepError> {
     Ok((i, n))
 }
 
+/// Parses `--seeds`: numbers, comma-separated, or a range `A..B` (B excluded).
+pub fn parse_seeds(text: &str) -> Result<Vec<u64>, SweepError> {
+    let bad = |problem, source| SweepError::Axis {
+        flag: "seeds",
+        text: text.to_string(),
+        problem,
+        source,
+    };
+    if let Some((a, b)) = text.split_once("..") {
+        let a: u64 = a
+            .trim()
+            .parse()
+            .map_err(|e| bad("the range start must be a number", Some(e)))?;
+        let b: u64 = b
+            .trim()
+            .parse()
+            .map_err(|e| bad("the range end must be a number", Some(e)))?;
+        if a >= b {
+            return Err(bad("the range is empty", None));
+        }
+        return Ok((a..b).collect());
+    }
+    text.split(',')
+        .map(|s| {
+            s.trim()
+                .parse()
+                .map_err(|e| bad("seeds are numbers", Some(e)))
+        })
+        .collect()
+}
+
+/// Parses one traffic density of `--densities`: `VEHICLES:PEDESTRIANS`.
+pub fn parse_density(text: &str) -> Result<(u32, u32), SweepError> {
+    let bad = |problem, source| SweepError::Axis {
+        flag: "densities",
+        text: text.to_string(),
+        problem,
+        source,
+    };
+    let (v, p) = text
+        .split_once(':')
+        .ok_or_else(|| bad("write VEHICLES:PEDESTRIANS, e.g. 20:40", None))?;
+    Ok((
+        v.trim()
+            .parse()
+            .map_err(|e| bad("VEHICLES must be a number", Some(e)))?,
+        p.trim()
+            .parse()
+            .map_err(|e| bad("PEDESTRIANS must be a number", Some(e)))?,
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::fixtures::plan;
@@ -131,6 +214,27 @@ mod tests {
         assert_eq!(p.runs.len(), 2 * 2 * 2 * 2 * 2);
         let keys: std::collections::BTreeSet<String> = p.runs.iter().map(RunSpec::key).collect();
         assert_eq!(keys.len(), p.runs.len());
+    }
+
+    #[test]
+    fn empty_lists_keep_the_scenarios_settings() {
+        let expert = crate::scenario::DriverSpec::default();
+        let p = SweepPlan::of_lists(
+            &["a.toml".into()],
+            &[],
+            &[0.75, 1.0],
+            &[],
+            &[0, 1],
+            Some(&expert),
+        );
+        assert_eq!(p.runs.len(), 4);
+        assert!(
+            p.runs
+                .iter()
+                .all(|r| r.delay_ms.is_none() && r.density.is_none())
+        );
+        assert!(p.runs.iter().all(|r| r.driver.as_ref() == Some(&expert)));
+        assert_eq!((p.runs[1].scale, p.runs[1].seed), (Some(0.75), 1));
     }
 
     #[test]
@@ -148,6 +252,23 @@ mod tests {
         let e = parse_shard("4/4").unwrap_err().to_string();
         assert!(e.contains("--shard 4/4") && e.contains("below"), "{e}");
         assert!(parse_shard("x").is_err());
+    }
+
+    #[test]
+    fn seeds_are_a_list_or_a_range_and_densities_two_numbers() {
+        assert_eq!(parse_seeds("3").unwrap(), vec![3]);
+        assert_eq!(parse_seeds("0, 2,5").unwrap(), vec![0, 2, 5]);
+        assert_eq!(parse_seeds("2..5").unwrap(), vec![2, 3, 4]);
+        let e = parse_seeds("5..5").unwrap_err().to_string();
+        assert_eq!(e, "--seeds 5..5: the range is empty");
+        let e = parse_seeds("1,x").unwrap_err();
+        assert_eq!(e.to_string(), "--seeds 1,x: seeds are numbers");
+        assert!(std::error::Error::source(&e).is_some());
+        assert_eq!(parse_density(" 20 : 40").unwrap(), (20, 40));
+        let e = parse_density("20").unwrap_err().to_string();
+        assert_eq!(e, "--densities 20: write VEHICLES:PEDESTRIANS, e.g. 20:40");
+        let e = parse_density("20:many").unwrap_err().to_string();
+        assert_eq!(e, "--densities 20:many: PEDESTRIANS must be a number");
     }
 
     #[test]

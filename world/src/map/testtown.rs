@@ -93,6 +93,27 @@ fn bezier(p0: Vec2, d0: Vec2, p3: Vec2, d3: Vec2) -> Vec<Vec2> {
     resample(&dense, 1.0)
 }
 
+/// The grid town a command line names: `spec` is `NXxNY` junctions (e.g.
+/// `4x4`, 2 to 2,500 junctions, at most 50 a side), `block_m` metres apart
+/// (40-1,000). The error says which value is wrong and how to write it.
+pub fn grid_of_spec(spec: &str, block_m: f32) -> Result<Town, String> {
+    let (nx, ny) = spec
+        .split_once('x')
+        .and_then(|(a, b)| Some((a.parse::<usize>().ok()?, b.parse::<usize>().ok()?)))
+        .ok_or_else(|| format!("--fixture {spec:?}: expected NXxNY, e.g. 4x4"))?;
+    if nx * ny < 2 || nx > 50 || ny > 50 {
+        return Err(format!(
+            "--fixture {spec:?}: between 2 and 2500 junctions, at most 50 per side"
+        ));
+    }
+    if !(40.0..=1000.0).contains(&block_m) {
+        return Err(format!(
+            "--block-m {block_m}: must be between 40 and 1000 metres"
+        ));
+    }
+    Ok(grid(nx, ny, block_m))
+}
+
 /// A grid town of `nx * ny` junctions `block_m` apart (see the module docs).
 pub fn grid(nx: usize, ny: usize, block_m: f32) -> Town {
     assert!(nx >= 1 && ny >= 1 && nx * ny >= 2 && block_m > 2.0 * JUNCTION_HALF_M + 10.0);
@@ -368,6 +389,27 @@ impl FixtureLights {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_grid_spec_is_nx_by_ny_in_bounds() {
+        assert_eq!(grid_of_spec("3x2", 80.0).unwrap().junctions.len(), 6);
+        assert!(
+            grid_of_spec("3", 80.0)
+                .unwrap_err()
+                .contains("expected NXxNY")
+        );
+        assert!(
+            grid_of_spec("1x1", 80.0)
+                .unwrap_err()
+                .contains("between 2 and 2500")
+        );
+        assert!(grid_of_spec("51x2", 80.0).is_err());
+        assert!(
+            grid_of_spec("2x2", 30.0)
+                .unwrap_err()
+                .contains("--block-m 30")
+        );
+    }
 
     #[test]
     fn grid_lane_graph_is_connected_and_dense() {

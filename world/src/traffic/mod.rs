@@ -41,7 +41,9 @@ mod views;
 pub use incidents::{Incident, IncidentActor, IncidentKind, IncidentLane};
 pub use light_controller::{LightController, LightTiming};
 pub use reservations::Reservations;
-pub use soak::{MeanSd, SoakReport, TableOneRow, soak, table_one};
+pub use soak::{
+    MeanSd, SoakReport, TableOneRow, soak, table_one, table_one_text, table_per_route_text,
+};
 pub use stats::TrafficStats;
 
 use std::sync::Arc;

@@ -37,6 +37,71 @@ pub struct SoakReport {
     pub incidents: Vec<Incident>,
 }
 
+impl SoakReport {
+    /// The report as `mrdrive traffic soak` prints it, one figure a line;
+    /// with `incidents`, the incidents listed after it.
+    pub fn text(&self, incidents: bool) -> String {
+        use std::fmt::Write;
+        let mut out = String::new();
+        let s = &self.stats;
+        let lines: [(&str, String); 12] = [
+            (
+                "realised vehicles",
+                format!("{} / {}", self.vehicles.1, self.vehicles.0),
+            ),
+            (
+                "realised pedestrians",
+                format!("{} / {}", self.pedestrians.1, self.pedestrians.0),
+            ),
+            (
+                "simulated",
+                format!("{:.0} s ({} ticks)", self.sim_s, self.ticks),
+            ),
+            ("NPC-NPC collisions", s.npc_npc_collisions.to_string()),
+            ("red lights run by NPCs", s.npc_red_runs.to_string()),
+            ("deadlocks (stuck > 60s)", s.deadlocks.to_string()),
+            ("pedestrians alive", self.pedestrians_alive.to_string()),
+            (
+                "NPCs into pedestrians",
+                s.npc_pedestrian_collisions.to_string(),
+            ),
+            (
+                "pedestrians into cars",
+                s.pedestrian_vehicle_bumps.to_string(),
+            ),
+            ("NPC-static contacts", s.npc_static_collisions.to_string()),
+            ("NPC respawns", s.respawns.to_string()),
+            ("step wall time", format!("{:.2} s", self.step_wall_s)),
+        ];
+        for (name, value) in lines {
+            let _ = writeln!(out, "{name:<23} {value}");
+        }
+        let _ = writeln!(
+            out,
+            "ticks/s                 {:.0} per wall second of stepping (physics + behaviours, one thread)",
+            self.ticks_per_s
+        );
+        if let Some(cpu) = self.cpu_s.filter(|&c| c > 0.0) {
+            let _ = writeln!(
+                out,
+                "ticks per CPU second    {:.0} ({cpu:.2} s of CPU for the soak loop; differs from wall when cores are shared)",
+                self.ticks as f64 / cpu
+            );
+        }
+        if incidents {
+            let _ = writeln!(
+                out,
+                "incidents               {} listed",
+                self.incidents.len()
+            );
+            for i in &self.incidents {
+                let _ = writeln!(out, "  {i}");
+            }
+        }
+        out
+    }
+}
+
 /// Runs `minutes` of simulated time; `lights(tick, out)` fills the light states for a tick.
 pub fn soak(
     town: Arc<Town>,
@@ -151,6 +216,64 @@ pub fn table_one(
         .collect()
 }
 
+/// Table I as text: a row per density, realised counts as mean +- sd.
+pub fn table_one_text(town: &str, resets: usize, rows: &[TableOneRow]) -> String {
+    use std::fmt::Write;
+    let mut out = format!("Table I on {town} ({resets} resets per density)\n");
+    let _ = writeln!(
+        out,
+        "{:>12} {:>16} {:>16}",
+        "requested", "vehicles", "pedestrians"
+    );
+    for r in rows {
+        let _ = writeln!(
+            out,
+            "{:>12} {:>9.1} +- {:<4.1} {:>9.1} +- {:<4.1}",
+            format!("({}, {})", r.requested.0, r.requested.1),
+            r.vehicles.mean,
+            r.vehicles.sd,
+            r.pedestrians.mean,
+            r.pedestrians.sd
+        );
+    }
+    out
+}
+
+/// Table I as the paper lays it out: a column per route (`columns[k]` is
+/// route `ids[k]`'s rows, the ego at its start), a row per density.
+pub fn table_per_route_text(
+    town: &str,
+    resets: usize,
+    ids: &[String],
+    columns: &[Vec<TableOneRow>],
+) -> String {
+    use std::fmt::Write;
+    let mut out =
+        format!("Table I on {town} ({resets} resets per density; vehicles, pedestrians)\n");
+    let _ = write!(out, "{:>10}", "target");
+    for id in ids {
+        let _ = write!(out, " | route {id:<22}");
+    }
+    out.push('\n');
+    for (row, first) in columns.first().into_iter().flatten().enumerate() {
+        let _ = write!(
+            out,
+            "{:>10}",
+            format!("({}, {})", first.requested.0, first.requested.1)
+        );
+        for col in columns {
+            let r = &col[row];
+            let _ = write!(
+                out,
+                " | {:>4.1} +- {:<3.1}  {:>4.1} +- {:<3.1}",
+                r.vehicles.mean, r.vehicles.sd, r.pedestrians.mean, r.pedestrians.sd
+            );
+        }
+        out.push('\n');
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -161,5 +284,32 @@ mod tests {
         assert!((m.mean - 5.0).abs() < 1e-12);
         assert!((m.sd - (32.0f64 / 7.0).sqrt()).abs() < 1e-12);
         assert_eq!(MeanSd::of(&[3.0]).sd, 0.0);
+    }
+
+    #[test]
+    fn the_tables_have_a_row_per_density() {
+        let row = |v: usize, mean: f64| TableOneRow {
+            requested: (v, 2 * v),
+            vehicles: MeanSd { mean, sd: 0.5 },
+            pedestrians: MeanSd {
+                mean: 2.0 * mean,
+                sd: 1.0,
+            },
+            resets: 3,
+        };
+        let rows = vec![row(0, 0.0), row(5, 4.5)];
+        let one = table_one_text("T", 3, &rows);
+        assert_eq!(
+            one.lines().nth(3).unwrap(),
+            "     (5, 10)       4.5 +- 0.5        9.0 +- 1.0 "
+        );
+        let per = table_per_route_text("T", 3, &["0".into(), "1".into()], &[rows.clone(), rows]);
+        let lines: Vec<&str> = per.lines().collect();
+        assert_eq!(lines.len(), 4, "{per}");
+        assert!(
+            lines[1].ends_with("| route 1                     "),
+            "{per}"
+        );
+        assert_eq!(lines[3].matches("4.5 +- 0.5").count(), 2, "{per}");
     }
 }

@@ -39,9 +39,9 @@ pub(super) struct Session<'a> {
     pub(super) set: Arc<TrainSet>,
     /// The trainer: the student, the teacher and Adam's moments.
     pub(super) trainer: MultiResTrainer,
-    /// Steps done before this session.
+    /// Steps done before this process started (by earlier runs of the stage it resumes).
     pub(super) done: usize,
-    /// Training wall time before this session (seconds, over every session).
+    /// Training wall time before this process started (seconds, summed over every earlier run of the stage).
     pub(super) wall_before_s: f64,
     /// The trainer state's folder.
     pub(super) state_dir: PathBuf,

@@ -43,6 +43,96 @@ pub struct LoadReport {
     pub warnings: Vec<String>,
 }
 
+impl LoadReport {
+    /// What `mrdrive map info` prints about a map loaded as `town`, in
+    /// `load_ms` milliseconds: its counts, lane length (metres), bounds, the
+    /// lane graph's connectivity and the first 20 warnings.
+    pub fn summary(&self, town: &Town, load_ms: f64) -> String {
+        use std::fmt::Write;
+        let in_junction = town.lanes.iter().filter(|l| l.junction.is_some()).count();
+        let stop_lines: usize = town.lights.iter().map(|l| l.stop_lines.len()).sum();
+        let from_map = town.crosswalks.iter().filter(|c| c.from_map).count();
+        let (lo, hi) = town.bounds;
+        let mut out = String::new();
+        let lines = [
+            ("map", self.file.display().to_string()),
+            ("town", town.name.clone()),
+            ("roads", self.roads.to_string()),
+            ("lanes (all types)", self.lanes.to_string()),
+            (
+                "drivable lanes",
+                format!("{} ({in_junction} in junctions)", town.lanes.len()),
+            ),
+            ("junctions", town.junctions.len().to_string()),
+            (
+                "traffic lights",
+                format!(
+                    "{}{}",
+                    town.lights.len(),
+                    if self.generated_lights {
+                        " (generated)"
+                    } else {
+                        ""
+                    }
+                ),
+            ),
+            ("stop lines", stop_lines.to_string()),
+            (
+                "drivable lane length",
+                format!("{:.1} m", town.total_lane_length_m()),
+            ),
+            ("lane markings", town.markings.len().to_string()),
+            ("sidewalks", town.sidewalks.len().to_string()),
+            (
+                "crosswalks",
+                format!(
+                    "{} ({from_map} from the map, {} generated)",
+                    town.crosswalks.len(),
+                    town.crosswalks.len() - from_map
+                ),
+            ),
+            ("buildings", town.buildings.len().to_string()),
+            (
+                "road surface",
+                format!("{} triangles", town.road_surface.indices.len() / 3),
+            ),
+            (
+                "bounds",
+                format!(
+                    "({:.1}, {:.1}) to ({:.1}, {:.1}) m, {:.1} m x {:.1} m",
+                    lo.x,
+                    lo.y,
+                    hi.x,
+                    hi.y,
+                    hi.x - lo.x,
+                    hi.y - lo.y
+                ),
+            ),
+            (
+                "lane graph strongly connected",
+                if town.is_strongly_connected() {
+                    "yes"
+                } else {
+                    "no"
+                }
+                .to_string(),
+            ),
+            ("load time", format!("{load_ms:.1} ms")),
+            ("warnings", self.warnings.len().to_string()),
+        ];
+        for (name, value) in lines {
+            let _ = writeln!(out, "{name}: {value}");
+        }
+        for w in self.warnings.iter().take(20) {
+            let _ = writeln!(out, "  - {w}");
+        }
+        if self.warnings.len() > 20 {
+            let _ = writeln!(out, "  ... and {} more", self.warnings.len() - 20);
+        }
+        out
+    }
+}
+
 impl Town {
     /// Loads an OpenDRIVE file with default [`LoadOptions`].
     pub fn from_xodr_file(path: impl AsRef<Path>) -> Result<Town, MapError> {

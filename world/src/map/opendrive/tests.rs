@@ -90,6 +90,17 @@ fn the_report_counts_what_the_file_holds() {
     assert!(report.lanes >= 3, "{report:?}");
     assert!(!report.generated_lights);
     assert_eq!(report.file, PathBuf::from("<tiny>"));
+    // `mrdrive map info`'s text: a line a figure, the counts above.
+    let text = report.summary(&town, 1.5);
+    assert!(
+        text.starts_with("map: <tiny>\ntown: tiny\nroads: 1\n"),
+        "{text}"
+    );
+    assert!(
+        text.contains("\ndrivable lanes: 3 (0 in junctions)\n"),
+        "{text}"
+    );
+    assert!(text.contains("\nload time: 1.5 ms\n"), "{text}");
 }
 
 #[test]

@@ -1,13 +1,58 @@
-//! Figures written by the command line (plotters): a training stage's loss curves.
+//! A training run's loss curves (`runs/NAME/losses.csv`, written by
+//! `policy::train::stage`) as a PNG: what `mrdrive train` redraws at each
+//! checkpoint and `mrdrive policy losses` draws from a shipped CSV.
 
-use anyhow::{Context, Result, bail};
+use std::path::{Path, PathBuf};
+
 use plotters::prelude::*;
-use std::path::Path;
+
+/// Why a loss plot could not be drawn.
+#[derive(Debug, thiserror::Error)]
+pub enum LossPlotError {
+    /// The CSV could not be read.
+    #[error("{}: {error}", path.display())]
+    Read {
+        /// The losses CSV.
+        path: PathBuf,
+        /// Why.
+        error: std::io::Error,
+    },
+    /// The CSV has a header and no step yet.
+    #[error("{}: no rows to plot yet", path.display())]
+    Empty {
+        /// The losses CSV.
+        path: PathBuf,
+    },
+    /// plotters could not draw the chart.
+    #[error("{0}")]
+    Draw(String),
+    /// The PNG could not be written.
+    #[error("{}: could not write: {problem}", path.display())]
+    Write {
+        /// The PNG.
+        path: PathBuf,
+        /// What plotters said.
+        problem: String,
+    },
+}
+
+/// The title of a training run's loss plot: the model's name, and the stage when the
+/// name is another (`ra5 (stage ra)`).
+pub fn loss_title(name: &str, stage: &str) -> String {
+    if name == stage {
+        name.to_string()
+    } else {
+        format!("{name} (stage {stage})")
+    }
+}
 
 /// Plots the columns `loss`, `act`, `seg`, `kd` and `feat` of a stage's `losses.csv`
 /// against the step (log scale, each smoothed over 50 steps) into `png`.
-pub fn loss_curves(csv: &Path, png: &Path, title: &str) -> Result<()> {
-    let text = std::fs::read_to_string(csv).with_context(|| format!("{}", csv.display()))?;
+pub fn loss_curves(csv: &Path, png: &Path, title: &str) -> Result<(), LossPlotError> {
+    let text = std::fs::read_to_string(csv).map_err(|error| LossPlotError::Read {
+        path: csv.to_path_buf(),
+        error,
+    })?;
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();
     let wanted = ["loss", "act", "seg", "kd", "feat"];
@@ -25,7 +70,9 @@ pub fn loss_curves(csv: &Path, png: &Path, title: &str) -> Result<()> {
         })
         .collect();
     if rows.is_empty() {
-        bail!("{}: no rows to plot yet", csv.display());
+        return Err(LossPlotError::Empty {
+            path: csv.to_path_buf(),
+        });
     }
     let series: Vec<(&str, Vec<(f64, f64)>)> = cols
         .iter()
@@ -38,9 +85,10 @@ pub fn loss_curves(csv: &Path, png: &Path, title: &str) -> Result<()> {
         .flat_map(|(_, p)| p.iter().map(|q| q.1))
         .filter(|v| *v > 0.0 && v.is_finite())
         .fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)));
-    experiments::figures::register_fonts();
+    crate::figures::register_fonts();
     let root = BitMapBackend::new(png, (900, 500)).into_drawing_area();
-    root.fill(&WHITE)?;
+    let draw = |e: DrawingAreaErrorKind<_>| LossPlotError::Draw(e.to_string());
+    root.fill(&WHITE).map_err(draw)?;
     let mut chart = ChartBuilder::on(&root)
         .caption(
             format!("{title}: training losses (mean of 50 steps)"),
@@ -49,7 +97,8 @@ pub fn loss_curves(csv: &Path, png: &Path, title: &str) -> Result<()> {
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(60)
-        .build_cartesian_2d(0f64..x_max, (lo * 0.8..hi * 1.25).log_scale())?;
+        .build_cartesian_2d(0f64..x_max, (lo * 0.8..hi * 1.25).log_scale())
+        .map_err(draw)?;
     chart
         .configure_mesh()
         .x_desc("step")
@@ -57,14 +106,16 @@ pub fn loss_curves(csv: &Path, png: &Path, title: &str) -> Result<()> {
         .x_label_formatter(&|x| format!("{x:.0}"))
         .y_label_formatter(&|y| format!("{y:.3}"))
         .light_line_style(WHITE)
-        .draw()?;
+        .draw()
+        .map_err(draw)?;
     for (k, (name, pts)) in series.into_iter().enumerate() {
         let colour = Palette99::pick(k).to_rgba();
         chart
             .draw_series(LineSeries::new(
                 pts.into_iter().filter(|p| p.1 > 0.0),
                 colour.stroke_width(2),
-            ))?
+            ))
+            .map_err(draw)?
             .label(name)
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour));
     }
@@ -72,9 +123,12 @@ pub fn loss_curves(csv: &Path, png: &Path, title: &str) -> Result<()> {
         .configure_series_labels()
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
-        .draw()?;
-    root.present()
-        .with_context(|| format!("{}: could not write", png.display()))?;
+        .draw()
+        .map_err(draw)?;
+    root.present().map_err(|e| LossPlotError::Write {
+        path: png.to_path_buf(),
+        problem: e.to_string(),
+    })?;
     Ok(())
 }
 
@@ -121,5 +175,11 @@ mod tests {
                 .to_string()
                 .contains("no rows")
         );
+    }
+
+    #[test]
+    fn the_loss_plot_names_the_model_then_its_stage() {
+        assert_eq!(loss_title("ra5", "ra"), "ra5 (stage ra)");
+        assert_eq!(loss_title("ra", "ra"), "ra");
     }
 }
