@@ -24,6 +24,7 @@
 
 use crate::agents::vehicle::{VehicleControl, VehicleParams, VehicleState};
 use crate::map::town::{LaneIdx, LightIdx, LightState, Town};
+use crate::road::geometry::curvature;
 use crate::road::lane_path::LanePath;
 use crate::rules::ahead::{ActorView, nearest_ahead, walker_horizon_s};
 use crate::rules::{self, RuleBook};
@@ -65,7 +66,7 @@ impl Default for NpcParams {
             comfort_decel_mps2: 3.0,
             stop_gap_m: 0.5,
             pedestrian_gap_m: 4.0,
-            max_lateral_accel_mps2: 2.5,
+            max_lateral_accel_mps2: rules::pursuit::CURVE_LATERAL_ACCEL_MPS2,
             speed_factor: 1.0,
             stuck_ticks: 40,
             corridor_margin_m: 0.4,
@@ -101,19 +102,36 @@ pub struct Npc {
 }
 
 /// Makes sure the path reaches `ahead_m` beyond the position, choosing random successors.
+///
+/// A successor that leads nowhere (no successors of its own: a connecting
+/// lane the map links to no exit, a road that ends) is driven around: it is
+/// chosen only when no other successor is left. On a map without such lanes
+/// the choices, and the random stream, are as they were.
 pub fn extend_path(town: &Town, path: &mut LanePath, rng: &mut ChaCha8Rng, ahead_m: f32) {
+    let leads_on = |l: LaneIdx| !town.lanes[l.0 as usize].successors.is_empty();
     while path.remaining_m(town) < ahead_m {
         let last = *path.lanes.back().expect("path has a lane");
         let succ = &town.lanes[last.0 as usize].successors;
         if succ.is_empty() {
             return;
         }
-        let k = if succ.len() == 1 {
-            0
+        let on = succ.iter().filter(|&&l| leads_on(l)).count();
+        let next = if on == succ.len() || on == 0 {
+            let k = if succ.len() == 1 {
+                0
+            } else {
+                rng.random_range(0..succ.len())
+            };
+            succ[k]
         } else {
-            rng.random_range(0..succ.len())
+            let k = if on == 1 { 0 } else { rng.random_range(0..on) };
+            *succ
+                .iter()
+                .filter(|&&l| leads_on(l))
+                .nth(k)
+                .expect("k < on")
         };
-        path.lanes.push_back(succ[k]);
+        path.lanes.push_back(next);
     }
 }
 
@@ -283,36 +301,7 @@ pub fn decide(
     }
 }
 
-/// Steer that follows the NPC's path: pure pursuit from the rear axle.
-///
-/// The rear axle moves along the heading (the body centre does not: it
-/// slips by the side-slip angle in a turn), so pursuing from the rear axle
-/// keeps the rear wheels on the lane through tight junction turns instead of
-/// cutting across the inside curb. The pursued curvature is the rear axle's;
-/// it is converted to the body centre's for [`VehicleParams::steer_for_curvature`].
+/// Steer that follows the NPC's path ([`rules::pursuit::pursuit_steer`]).
 pub fn pursuit_steer(town: &Town, vp: &VehicleParams, npc: &Npc) -> f32 {
-    let forward = Vec2::from_angle(npc.state.yaw);
-    let rear = npc.state.position - forward * vp.rear_wb_m;
-    let ld = rules::pursuit_lookahead_m(npc.state.speed_mps);
-    let (target, _, _) = npc.path.point_ahead(town, ld - vp.rear_wb_m);
-    let rel = target - rear;
-    let (dx, dy) = (rel.dot(forward), forward.perp_dot(rel));
-    let d2 = (dx * dx + dy * dy).max(1e-3);
-    let kappa_rear = 2.0 * dy / d2;
-    // Rear axle curvature tan(delta) / L; body centre: sin(beta) / l_r with tan(beta) = l_r * kappa_rear.
-    let kappa_centre = (vp.rear_wb_m * kappa_rear).atan().sin() / vp.rear_wb_m;
-    vp.steer_for_curvature(kappa_centre)
-}
-
-/// Curvature of the circle through three points (1 / metres, unsigned).
-fn curvature(a: Vec2, b: Vec2, c: Vec2) -> f32 {
-    let ab = (b - a).length();
-    let bc = (c - b).length();
-    let ca = (a - c).length();
-    let cross = (b - a).perp_dot(c - a).abs();
-    if ab * bc * ca < 1e-9 {
-        0.0
-    } else {
-        2.0 * cross / (ab * bc * ca)
-    }
+    rules::pursuit::pursuit_steer(town, vp, &npc.state, &npc.path)
 }

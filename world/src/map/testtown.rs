@@ -272,6 +272,120 @@ pub fn grid(nx: usize, ny: usize, block_m: f32) -> Town {
     }
 }
 
+/// Lane width of [`t_junction`] (metres; Town02's lanes).
+pub const T_LANE_WIDTH_M: f32 = 4.0;
+/// Half the side of [`t_junction`]'s junction area (metres).
+pub const T_JUNCTION_HALF_M: f32 = 9.0;
+/// Length of each arm of [`t_junction`] (metres).
+pub const T_ARM_M: f32 = 60.0;
+
+/// A connecting lane from `p0` (heading `din`) to `p3` (heading `dout`)
+/// as CARLA's junctions draw them: straight, an arc of `radius_m` tangent to
+/// both headings, straight again (1 m points). A straight lane when the
+/// headings agree.
+fn corner_lane(p0: Vec2, din: Vec2, p3: Vec2, dout: Vec2, radius_m: f32) -> Vec<Vec2> {
+    let turn = din.perp_dot(dout);
+    if turn.abs() < 1e-3 {
+        return resample(&[p0, p3], 1.0);
+    }
+    // The corner where the two straight lines meet: p0 + din * a = p3 - dout * b.
+    let a = (p3 - p0).perp_dot(dout) / din.perp_dot(dout);
+    let corner = p0 + din * a;
+    let (t1, t2) = (corner - din * radius_m, corner + dout * radius_m);
+    let normal = if turn > 0.0 { din.perp() } else { -din.perp() };
+    let centre = t1 + normal * radius_m;
+    let (a1, a2) = ((t1 - centre).to_angle(), (t2 - centre).to_angle());
+    let sweep = crate::road::geometry::wrap_angle(a2 - a1);
+    let mut dense = vec![p0];
+    dense.extend(
+        (0..=64).map(|i| centre + Vec2::from_angle(a1 + sweep * i as f32 / 64.0) * radius_m),
+    );
+    dense.push(p3);
+    resample(&dense, 1.0)
+}
+
+/// An unsignalled T-junction in the shape of CARLA's Town02 junctions: arms
+/// west, east and north of the origin, [`T_ARM_M`] long, one
+/// [`T_LANE_WIDTH_M`] lane per direction (right-hand traffic), the junction
+/// area [`T_JUNCTION_HALF_M`] to each side of the origin. Its six connecting
+/// lanes are straight, arc, straight ([`corner_lane`]): the two straights
+/// west-east, the left turns (west to north, north to east) on arcs that leave
+/// 4 m of straight at each end, the right turns (north to west, east to north)
+/// on arcs of `right_turn_radius_m` (Town02's are about 3.5 m, tighter than
+/// the Model 3's 5.5 m turning radius). No lights, sidewalks or buildings.
+///
+/// Lanes: 0 west arm eastbound, 1 west arm westbound, 2 east arm eastbound,
+/// 3 east arm westbound, 4 north arm northbound, 5 north arm southbound, then
+/// the connecting lanes 6 west-east, 7 east-west, 8 west-north (left),
+/// 9 north-west (right), 10 north-east (left), 11 east-north (right).
+pub fn t_junction(right_turn_radius_m: f32) -> Town {
+    let (h, w, arm) = (T_JUNCTION_HALF_M, T_LANE_WIDTH_M * 0.5, T_ARM_M);
+    let v = Vec2::new;
+    let plain = |a: Vec2, b: Vec2, road: &str, od: i32| {
+        let mut l = make_lane(&resample(&[a, b], 1.0), None, road.to_string(), od);
+        l.width = vec![T_LANE_WIDTH_M; l.centerline.len()];
+        l
+    };
+    let mut lanes = vec![
+        plain(v(-h - arm, -w), v(-h, -w), "west", -1),
+        plain(v(-h, w), v(-h - arm, w), "west", 1),
+        plain(v(h, -w), v(h + arm, -w), "east", -1),
+        plain(v(h + arm, w), v(h, w), "east", 1),
+        plain(v(w, h), v(w, h + arm), "north", -1),
+        plain(v(-w, h + arm), v(-w, h), "north", 1),
+    ];
+    let left_r = h + w - 4.0;
+    // (from lane, to lane, radius)
+    let links = [
+        (0usize, 2usize, 0.0f32),
+        (3, 1, 0.0),
+        (0, 4, left_r),
+        (5, 1, right_turn_radius_m),
+        (5, 2, left_r),
+        (3, 4, right_turn_radius_m),
+    ];
+    for (k, &(from, to, r)) in links.iter().enumerate() {
+        let end = |l: &DriveLane, last: bool| {
+            let c = &l.centerline;
+            let (p, q) = if last {
+                (c[c.len() - 2], c[c.len() - 1])
+            } else {
+                (c[0], c[1])
+            };
+            (
+                if last { q } else { p }.truncate(),
+                (q - p).truncate().normalize(),
+            )
+        };
+        let (p0, din) = end(&lanes[from], true);
+        let (p3, dout) = end(&lanes[to], false);
+        let mut l = make_lane(
+            &corner_lane(p0, din, p3, dout, r),
+            Some(JunctionIdx(0)),
+            format!("T{k}"),
+            -1,
+        );
+        l.width = vec![T_LANE_WIDTH_M; l.centerline.len()];
+        l.predecessors.push(LaneIdx(from as u32));
+        l.successors.push(LaneIdx(to as u32));
+        let idx = LaneIdx(lanes.len() as u32);
+        lanes.push(l);
+        lanes[from].successors.push(idx);
+        lanes[to].predecessors.push(idx);
+    }
+    Town {
+        name: "fixture-t-junction".into(),
+        lanes,
+        junctions: vec![Junction {
+            od_id: "T".into(),
+            outline: vec![v(-h, -h), v(h, -h), v(h, h), v(-h, h)],
+            lights: Vec::new(),
+        }],
+        bounds: (v(-h - arm, -h), v(h + arm, h + arm)),
+        ..Town::empty("fixture-t-junction")
+    }
+}
+
 /// A plain lane along the polyline `points` (ground plane, metres), for
 /// hand-made towns in tests: 3.5 m wide, the fixture's speed limit, no
 /// junction, no neighbours; set other fields with struct update syntax.

@@ -323,6 +323,19 @@ pub fn wrap_angle(a: f32) -> f32 {
     a
 }
 
+/// Curvature of the circle through three points (1 / metres, unsigned).
+pub fn curvature(a: Vec2, b: Vec2, c: Vec2) -> f32 {
+    let ab = (b - a).length();
+    let bc = (c - b).length();
+    let ca = (a - c).length();
+    let cross = (b - a).perp_dot(c - a).abs();
+    if ab * bc * ca < 1e-9 {
+        0.0
+    } else {
+        2.0 * cross / (ab * bc * ca)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,15 +1,50 @@
 //! Junction conflicts: which connecting lanes of a junction may not be
 //! driven at the same time.
 //!
-//! Two connecting lanes of one junction conflict when their centrelines come
-//! within [`CONFLICT_M`] of each other anywhere (crossing paths, and paths
-//! that merge into one exit). The NPCs' junction reservations grant a lane
-//! only while no conflicting lane is held.
+//! Two connecting lanes of one junction conflict when
+//!
+//! - their centrelines come within [`CONFLICT_M`] of each other anywhere
+//!   (crossing paths, paths that merge into one exit or leave one entry), or
+//! - the bodies of two cars driving them come within [`CLEARANCE_M`] of each
+//!   other: each lane is driven once as an NPC drives it ([`sweep`]: pure
+//!   pursuit from the rear axle, [`VehicleState::step`], at the speed its
+//!   sharpest curve allows), from its entry until the car's rear has left
+//!   it, and the car's footprints along the two drives are compared.
+//!
+//! The second test is CARLA's Traffic Manager's: its collision stage checks
+//! the bounding box swept along each vehicle's path (the "geodesic
+//! boundary", `collision_stage.cpp`), not the path. A turn sharper than a car
+//! can steer swings its body out of its lane: Town02's right turns have about
+//! 3.5 m of radius against the Model 3's 5.5 m, so the turning car's front
+//! reaches into the lane beside its exit, where the left turn from that
+//! road starts, 4 m from its centreline. The centrelines never come within
+//! 3 m there; the bodies touch.
+//!
+//! The NPCs' junction reservations grant a lane only while no conflicting
+//! lane is held ([`crate::traffic::Reservations`]).
 
+use glam::Vec2;
+
+use crate::agents::vehicle::{VehicleControl, VehicleParams, VehicleState};
 use crate::map::town::{LaneIdx, Town};
+use crate::physics::DT_S;
+use crate::road::geometry::curvature;
+use crate::road::lane_path::LanePath;
+use crate::rules::pursuit::pursuit_steer;
 
 /// Distance between two centrelines below which connecting lanes conflict (metres).
 pub const CONFLICT_M: f32 = 3.0;
+
+/// Gap between the bodies of two cars on two connecting lanes below which
+/// the lanes conflict (metres): what a car's tracking may differ from the
+/// sweep's (it enters faster or slower, brakes in the turn).
+pub const CLEARANCE_M: f32 = 0.25;
+
+/// The slower of the two speeds a lane is swept at (metres per second).
+const CREEP_MPS: f32 = 1.0;
+
+/// Spacing of the footprints kept along a sweep (metres of travel).
+const SWEEP_STEP_M: f32 = 0.5;
 
 /// For each lane of a town, the connecting lanes of its junction it conflicts with.
 #[derive(Debug, Clone, Default)]
@@ -17,9 +52,36 @@ pub struct JunctionConflicts {
     by_lane: Vec<Vec<LaneIdx>>,
 }
 
+/// Where a car's body is while it drives one connecting lane: its centre
+/// and unit heading every [`SWEEP_STEP_M`] of travel, and the box they lie in.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sweep {
+    /// Body centres and unit headings, in driving order (metres).
+    pub poses: Vec<(Vec2, Vec2)>,
+    /// The lowest corner of the box the centres lie in (metres).
+    pub lo: Vec2,
+    /// The highest corner of that box (metres).
+    pub hi: Vec2,
+}
+
 impl JunctionConflicts {
-    /// Finds the conflicts of every junction of a town.
+    /// Finds the conflicts of every junction of a town for the default car
+    /// (every vehicle of a run shares one model) and the NPCs' default curve speed.
     pub fn new(town: &Town) -> JunctionConflicts {
+        Self::for_vehicle(
+            town,
+            &VehicleParams::default(),
+            crate::rules::pursuit::CURVE_LATERAL_ACCEL_MPS2,
+        )
+    }
+
+    /// Finds the conflicts of every junction of a town for a car of `vp`
+    /// that takes curves at up to `lateral_accel_mps2` (metres per second squared).
+    pub fn for_vehicle(
+        town: &Town,
+        vp: &VehicleParams,
+        lateral_accel_mps2: f32,
+    ) -> JunctionConflicts {
         let mut by_lane = vec![Vec::new(); town.lanes.len()];
         let mut by_junction: std::collections::BTreeMap<u32, Vec<usize>> = Default::default();
         for (i, l) in town.lanes.iter().enumerate() {
@@ -27,10 +89,17 @@ impl JunctionConflicts {
                 by_junction.entry(j.0).or_default().push(i);
             }
         }
+        let half = vp.half_extents() + Vec2::splat(CLEARANCE_M * 0.5);
         for lanes in by_junction.values() {
+            let sweeps: Vec<Sweep> = lanes
+                .iter()
+                .map(|&l| lane_sweep(town, vp, lateral_accel_mps2, LaneIdx(l as u32)))
+                .collect();
             for (k, &a) in lanes.iter().enumerate() {
-                for &b in &lanes[k + 1..] {
-                    if centrelines_within(town, a, b, CONFLICT_M) {
+                for (m, &b) in lanes.iter().enumerate().skip(k + 1) {
+                    if centrelines_within(town, a, b, CONFLICT_M)
+                        || sweeps_touch(&sweeps[k], &sweeps[m], half)
+                    {
                         by_lane[a].push(LaneIdx(b as u32));
                         by_lane[b].push(LaneIdx(a as u32));
                     }
@@ -44,6 +113,121 @@ impl JunctionConflicts {
     pub fn of(&self, lane: LaneIdx) -> &[LaneIdx] {
         self.by_lane.get(lane.0 as usize).map_or(&[], |v| &v[..])
     }
+}
+
+/// The speeds a lane is swept at: creeping (a car that starts from the
+/// entry) and the speed an NPC takes its sharpest curve at (the lane's
+/// limit, or where that curve asks `lateral_accel_mps2`; metres per second).
+pub fn sweep_speeds_mps(town: &Town, lane: LaneIdx, lateral_accel_mps2: f32) -> [f32; 2] {
+    let l = town.lane(lane);
+    let pts: Vec<Vec2> = l.centerline.iter().map(|p| p.truncate()).collect();
+    let k_max = pts
+        .windows(3)
+        .map(|w| curvature(w[0], w[1], w[2]))
+        .fold(0.0f32, f32::max);
+    let v_curve = if k_max > 1e-4 {
+        (lateral_accel_mps2 / k_max).sqrt()
+    } else {
+        f32::INFINITY
+    };
+    [CREEP_MPS, l.speed_limit_mps.min(v_curve).max(CREEP_MPS)]
+}
+
+/// Where a car's body is while it drives `lane` at either of its
+/// [`sweep_speeds_mps`]: the two drives of [`sweep`] together.
+pub fn lane_sweep(
+    town: &Town,
+    vp: &VehicleParams,
+    lateral_accel_mps2: f32,
+    lane: LaneIdx,
+) -> Sweep {
+    let [slow, fast] = sweep_speeds_mps(town, lane, lateral_accel_mps2);
+    let mut a = sweep(town, vp, slow, lane);
+    let b = sweep(town, vp, fast, lane);
+    a.poses.extend(b.poses);
+    a.lo = a.lo.min(b.lo);
+    a.hi = a.hi.max(b.hi);
+    a
+}
+
+/// Drives a car of `vp` through `lane` as an NPC would, at `speed_mps`
+/// throughout: from the lane's start, on its centreline and heading,
+/// steering by [`pursuit_steer`] along the lane and its first successor,
+/// until the car's rear is 1 m past the lane's end (as a reservation is
+/// released) or it has driven three times the lane's length.
+pub fn sweep(town: &Town, vp: &VehicleParams, speed_mps: f32, lane: LaneIdx) -> Sweep {
+    let l = town.lane(lane);
+    let v = speed_mps.max(0.1);
+    let mut path = LanePath::new(lane, 0.0);
+    if let Some(&next) = l.successors.first() {
+        path.lanes.push_back(next);
+    }
+    let (p0, yaw0, _) = l.pose_at(0.0);
+    let mut state = VehicleState::at_rest(p0, yaw0);
+    state.speed_mps = v;
+    let len = l.length_m();
+    let leave_m = vp.length_m * 0.5 + 1.0;
+    let max_ticks = ((3.0 * len + 2.0 * leave_m) / (v * DT_S)).ceil() as usize;
+    let mut poses = vec![(p0, Vec2::from_angle(yaw0))];
+    let mut last = p0;
+    for _ in 0..max_ticks {
+        let steer = pursuit_steer(town, vp, &state, &path);
+        let control = VehicleControl {
+            steer,
+            throttle: 0.0,
+            brake: 0.0,
+        };
+        state.step(vp, control, DT_S);
+        state.speed_mps = v;
+        path.advance_to(town, state.position);
+        if (state.position - last).length() >= SWEEP_STEP_M {
+            poses.push((state.position, Vec2::from_angle(state.yaw)));
+            last = state.position;
+        }
+        let gone = if path.lane() == lane {
+            path.lanes.len() == 1 && path.s_m >= len - 1e-3
+        } else {
+            path.s_m > leave_m
+        };
+        if gone {
+            break;
+        }
+    }
+    poses.push((state.position, Vec2::from_angle(state.yaw)));
+    let mut lo = Vec2::splat(f32::INFINITY);
+    let mut hi = Vec2::splat(f32::NEG_INFINITY);
+    for (p, _) in &poses {
+        lo = lo.min(*p);
+        hi = hi.max(*p);
+    }
+    Sweep { poses, lo, hi }
+}
+
+/// Whether a box of half extents `half` (length, width) somewhere along
+/// `a` overlaps one along `b`.
+fn sweeps_touch(a: &Sweep, b: &Sweep, half: Vec2) -> bool {
+    let reach = half.length() * 2.0;
+    if (a.lo - b.hi).cmpgt(Vec2::splat(reach)).any()
+        || (b.lo - a.hi).cmpgt(Vec2::splat(reach)).any()
+    {
+        return false;
+    }
+    a.poses.iter().any(|&(pa, da)| {
+        b.poses.iter().any(|&(pb, db)| {
+            (pa - pb).length_squared() < reach * reach && boxes_overlap(pa, da, pb, db, half)
+        })
+    })
+}
+
+/// Whether two boxes of half extents `half` (along, across their heading)
+/// at centres `pa`, `pb` with unit headings `da`, `db` overlap (separating axes).
+fn boxes_overlap(pa: Vec2, da: Vec2, pb: Vec2, db: Vec2, half: Vec2) -> bool {
+    let d = pb - pa;
+    let extent =
+        |dir: Vec2, axis: Vec2| half.x * dir.dot(axis).abs() + half.y * dir.perp().dot(axis).abs();
+    [da, da.perp(), db, db.perp()]
+        .into_iter()
+        .all(|axis| d.dot(axis).abs() <= extent(da, axis) + extent(db, axis))
 }
 
 fn centrelines_within(town: &Town, a: usize, b: usize, d: f32) -> bool {
@@ -103,5 +287,73 @@ mod tests {
         // Plain lanes conflict with nothing.
         assert!(conflicts.of(LaneIdx(0)).is_empty());
         assert!(conflicts.of(LaneIdx(9999)).is_empty());
+    }
+
+    #[test]
+    fn a_right_turn_too_tight_to_steer_conflicts_with_the_left_turn_beside_its_exit() {
+        // Town02's shape: the right turn north -> west (lane 9) has a 3.5 m
+        // radius; the left turn west -> north (lane 8) starts beside its exit,
+        // 4 m from it. The centrelines stay more than CONFLICT_M apart, but a
+        // car cannot steer that tight and its body swings into the left turn.
+        let t = crate::map::testtown::t_junction(3.5);
+        let (right, left) = (9usize, 8usize);
+        assert!(!centrelines_within(&t, right, left, CONFLICT_M));
+        let vp = VehicleParams::default();
+        let a = lane_sweep(&t, &vp, 2.5, LaneIdx(right as u32));
+        let b = lane_sweep(&t, &vp, 2.5, LaneIdx(left as u32));
+        assert!(sweeps_touch(&a, &b, vp.half_extents()), "the bodies touch");
+        let conflicts = JunctionConflicts::new(&t);
+        assert!(
+            conflicts
+                .of(LaneIdx(right as u32))
+                .contains(&LaneIdx(left as u32))
+        );
+        assert!(
+            conflicts
+                .of(LaneIdx(left as u32))
+                .contains(&LaneIdx(right as u32))
+        );
+        // The two straights, 4 m apart, never do.
+        assert!(!conflicts.of(LaneIdx(6)).contains(&LaneIdx(7)));
+        // A right turn a car can steer stays in its lane: no conflict.
+        let gentle = crate::map::testtown::t_junction(7.0);
+        let conflicts = JunctionConflicts::new(&gentle);
+        assert!(
+            !conflicts
+                .of(LaneIdx(right as u32))
+                .contains(&LaneIdx(left as u32))
+        );
+    }
+
+    #[test]
+    fn a_sweep_follows_its_lane_and_leaves_it() {
+        let t = grid(3, 3, 60.0);
+        let vp = VehicleParams::default();
+        let lane = (0..t.lanes.len())
+            .find(|&i| t.lanes[i].junction.is_some())
+            .unwrap();
+        let s = lane_sweep(&t, &vp, 2.5, LaneIdx(lane as u32));
+        let l = &t.lanes[lane];
+        let (end, _, _) = l.pose_at(l.length_m());
+        let last = s.poses.last().unwrap().0;
+        // Ends with the rear past the lane's end, every pose near the path.
+        assert!((last - end).length() > vp.length_m * 0.5);
+        let line: Vec<Vec2> = l
+            .centerline
+            .iter()
+            .chain(&t.lanes[l.successors[0].0 as usize].centerline)
+            .map(|q| q.truncate())
+            .collect();
+        for (p, _) in &s.poses {
+            let off = line
+                .windows(2)
+                .map(|w| {
+                    let (a, b) = (w[0], w[1]);
+                    let t = ((*p - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
+                    (*p - a.lerp(b, t)).length()
+                })
+                .fold(f32::INFINITY, f32::min);
+            assert!(off < 0.5, "sweep {off} m off the lane at {p}");
+        }
     }
 }

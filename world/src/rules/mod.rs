@@ -8,9 +8,9 @@
 //! | [`lights`] | whether a light's state makes a vehicle stop before its line (red, and yellow with one slack) |
 //! | [`crossing`] | the point of a vehicle that crosses a stop line |
 //! | [`route`] | the distance along a route of a pose, the route's point at a distance, the route point reached, the path ahead |
-//! | [`pursuit`] | the pure-pursuit lookahead |
+//! | [`pursuit`] | the pure-pursuit lookahead, and the NPCs' steer along a lane path |
 //! | [`lanes`] | the lane under a point (heading agreement, one width lookup), the nearest lane, how a car stands to the lanes (inside, outside, against them), and [`LaneGrid`] |
-//! | [`conflicts`] | which connecting lanes of a junction conflict |
+//! | [`conflicts`] | which connecting lanes of a junction conflict: centrelines within 3 m, or the bodies of two cars driving them (each lane swept as an NPC drives it) within 0.25 m |
 //! | [`ahead`] | what is ahead along a path: the nearest actor whose footprint reaches into a corridor (a walking pedestrian's also where it will be within 2 s), and its distance along the path |
 //! | [`sidewalks`] | the sidewalk under a point, its height and the direction of its kerb |
 //!

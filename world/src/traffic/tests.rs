@@ -4,6 +4,7 @@ use std::sync::Arc;
 
 use glam::Vec2;
 
+use super::incidents::INCIDENTS_PER_KIND;
 use super::*;
 use crate::agents::{ActorKind, VehicleControl, VehicleParams, VehicleState};
 use crate::map::testtown::{FixtureLights, grid};
@@ -346,6 +347,28 @@ fn a_stuck_npc_is_respawned_after_40_ticks() {
     assert!(r > h + 40 && r < h + 60, "hit at {h}, respawned at {r}");
     assert!((tr.npcs()[0].state.position - Vec2::new(27.0, -1.75)).length() > 3.0);
     assert_eq!(tr.stats().npc_static_collisions, 1);
+    // Both are listed: the contact at its tick on lane 0, then the respawn.
+    let kinds: Vec<IncidentKind> = tr.incidents().iter().map(|i| i.kind).collect();
+    assert!(
+        matches!(
+            kinds[..],
+            [IncidentKind::NpcStatic(_), IncidentKind::Respawn]
+        ),
+        "{kinds:?}"
+    );
+    let hit = &tr.incidents()[0];
+    assert_eq!(hit.tick, u64::from(h));
+    assert!(hit.a.lane.as_ref().is_some_and(|l| l.lane == LaneIdx(0)));
+    assert!(hit.to_string().starts_with(&format!("tick {h} (")), "{hit}");
+    // The list keeps the first INCIDENTS_PER_KIND of each kind, so a long soak's
+    // memory stays flat.
+    let id = tr.npcs()[0].id;
+    for _ in 0..2 * INCIDENTS_PER_KIND {
+        tr.note_npc(IncidentKind::Deadlock, id);
+    }
+    let listed = |k: IncidentKind| tr.incidents().iter().filter(|i| i.kind == k).count();
+    assert_eq!(listed(IncidentKind::Deadlock), INCIDENTS_PER_KIND);
+    assert_eq!(listed(IncidentKind::Respawn), 1);
 }
 
 #[test]
@@ -602,4 +625,48 @@ fn walkers_are_sent_across_the_road_ahead_of_a_driving_ego() {
     let (none, quiet) = drive_with_crossings(0.0, 30.0);
     assert!(none.is_empty());
     assert_eq!(quiet.stats().walkers_sent, 0);
+}
+
+#[test]
+fn npcs_do_not_collide_where_a_tight_right_turn_swings_wide() {
+    // Town02's seeds 1 and 2 (60 min, 20 + 40): a right turner's body swung
+    // out of its 3.5 m-radius turn into the left turn from the road it
+    // exits to, whose centreline is 4 m away. The two held both connecting
+    // lanes at once. Each pair of starts here made the two collide when
+    // only centrelines decided conflicts.
+    let t = Arc::new(crate::map::testtown::t_junction(3.5));
+    let (north_in, right, west_out) = (LaneIdx(5), LaneIdx(9), LaneIdx(1));
+    let (west_in, left, north_out) = (LaneIdx(0), LaneIdx(8), LaneIdx(4));
+    for (sa, sb) in [
+        (45.0, 30.0),
+        (50.0, 30.0),
+        (50.0, 35.0),
+        (55.0, 40.0),
+        (55.0, 45.0),
+    ] {
+        let mut tr = Traffic::new(t.clone(), cfg(2, 0, 1), None);
+        let mut a = LanePath::new(north_in, sa);
+        a.lanes.extend([right, west_out]);
+        let mut b = LanePath::new(west_in, sb);
+        b.lanes.extend([left, north_out]);
+        tr.place_npc(0, a);
+        tr.place_npc(1, b);
+        let through = |tr: &Traffic| {
+            let (a, b) = (&tr.npcs()[0].path, &tr.npcs()[1].path);
+            a.lane() == west_out && b.lane() == north_out && a.s_m > 10.0 && b.s_m > 10.0
+        };
+        for _ in 0..(40 * 20) {
+            tr.step(&[]);
+            if through(&tr) {
+                break;
+            }
+        }
+        assert_eq!(
+            tr.stats().npc_npc_collisions,
+            0,
+            "starts {sa} m / {sb} m: {:?}",
+            tr.incidents()
+        );
+        assert!(through(&tr), "starts {sa} m / {sb} m: not both through");
+    }
 }

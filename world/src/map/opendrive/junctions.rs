@@ -1,5 +1,16 @@
 //! Junctions: one per OpenDRIVE junction id, and each one's outline (the
 //! map's junction area, or the convex hull of its lanes' edges).
+//!
+//! A junction that roads with driving lanes lead into but that has no
+//! connecting driving lane (no `<connection>`, or connections whose roads
+//! hold no driving lane) cannot be crossed or arbitrated: the lanes into it
+//! end there. The map is refused with the junction's id and the fix
+//! ([`Builder::reject_junctions_without_lanes`]) rather than loaded with dead
+//! ends that traffic would pile up at. Crossings and virtual junctions have
+//! no connecting roads by design and are left alone. A connecting lane that
+//! leads to no exit (or from no entry) is loaded, named in the load report's
+//! warnings with the fix ([`Builder::warn_dangling_junction_lanes`]), and
+//! driven around by the NPCs (`crate::agents::npc::extend_path`).
 
 use std::collections::BTreeMap;
 
@@ -7,7 +18,7 @@ use glam::Vec2;
 use xodr::{LaneType, Layer};
 
 use super::{Builder, edge_points};
-use crate::map::{Junction, JunctionIdx};
+use crate::map::{Junction, JunctionIdx, MapError};
 use crate::road::geometry::{convex_hull, signed_area};
 
 impl Builder<'_> {
@@ -33,6 +44,95 @@ impl Builder<'_> {
                     lights: Vec::new(),
                 });
             }
+        }
+    }
+
+    /// Refuses a junction that roads with driving lanes link into (a
+    /// `<link>`'s `<predecessor>` or `<successor>` with
+    /// `elementType="junction"`) but that has no connecting driving lane,
+    /// naming the junction, the roads and the fix. Call after
+    /// [`Builder::lanes`]; `xml` is the document (the importer keeps no road
+    /// links).
+    pub(super) fn reject_junctions_without_lanes(&self, xml: &str) -> Result<(), MapError> {
+        let Ok(doc) = roxmltree::Document::parse(xml) else {
+            return Ok(()); // the importer read it; nothing more to learn here
+        };
+        let net = self.ctx.net;
+        let by_design: Vec<&str> = net
+            .crossings()
+            .iter()
+            .map(|c| c.od_id.as_str())
+            .chain(net.virtual_junctions().iter().map(|v| v.od_id.as_str()))
+            .collect();
+        // Junction id -> the roads with driving lanes that link into it.
+        let mut into: BTreeMap<String, Vec<String>> = BTreeMap::new();
+        for road in doc.descendants().filter(|n| n.has_tag_name("road")) {
+            let Some(road_id) = road.attribute("id") else {
+                continue;
+            };
+            if !self.town.lanes.iter().any(|l| l.road_id == road_id) {
+                continue;
+            }
+            let links = road
+                .children()
+                .filter(|n| n.has_tag_name("link"))
+                .flat_map(|l| l.children())
+                .filter(|n| n.has_tag_name("predecessor") || n.has_tag_name("successor"));
+            for link in links {
+                if link.attribute("elementType") == Some("junction")
+                    && let Some(j) = link.attribute("elementId")
+                    && !by_design.contains(&j)
+                {
+                    into.entry(j.to_string())
+                        .or_default()
+                        .push(road_id.to_string());
+                }
+            }
+        }
+        for (j, roads) in into {
+            let idx = self.junction_of.get(&j).copied();
+            if idx.is_some_and(|ji| self.town.lanes.iter().any(|l| l.junction == Some(ji))) {
+                continue;
+            }
+            let declared = if idx.is_some() {
+                "has no connecting driving lane"
+            } else {
+                "is not declared (no <junction> with that id)"
+            };
+            return Err(MapError::Invalid {
+                file: self.ctx.file.clone(),
+                what: format!(
+                    "junction {j} {declared}, so the lanes of road {} that lead into it end there and traffic cannot cross it",
+                    roads.join(", road ")
+                ),
+                location: format!(r#"junction id="{j}""#),
+                fix: format!(
+                    "give junction {j} a <connection incomingRoad=\"...\" connectingRoad=\"...\" contactPoint=\"start\"> with a <laneLink from=\"...\" to=\"...\"/> for each way through it, each connecting road marked junction=\"{j}\" with a driving lane; or remove the junction and link the roads to each other directly"
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    /// A warning for each connecting lane that leads to no exit or comes
+    /// from no entry: NPCs drive around it, but a route through it is cut.
+    pub(super) fn warn_dangling_junction_lanes(&self, warnings: &mut Vec<String>) {
+        for l in &self.town.lanes {
+            let Some(j) = l.junction else { continue };
+            let (to, from) = (l.successors.is_empty(), l.predecessors.is_empty());
+            if !to && !from {
+                continue;
+            }
+            let j_id = &self.town.junctions[j.0 as usize].od_id;
+            let what = match (to, from) {
+                (true, true) => "leads from no lane and to no lane",
+                (true, false) => "leads to no lane (traffic drives around it)",
+                _ => "is reached from no lane (traffic never uses it)",
+            };
+            warnings.push(format!(
+                "junction {j_id}: connecting road {} lane {} {what}; fix: give road {} a <predecessor> and <successor> (elementType=\"road\") and its lane a <link>, and list it in junction {j_id}'s <connection>s",
+                l.road_id, l.od_lane, l.road_id
+            ));
         }
     }
 

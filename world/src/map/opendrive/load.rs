@@ -227,11 +227,13 @@ fn load_impl(
     };
     b.junctions();
     b.lanes();
+    b.reject_junctions_without_lanes(xml)?;
     b.markings();
     b.sidewalks();
     b.objects();
     b.junction_outlines();
     let mut report = report;
+    b.warn_dangling_junction_lanes(&mut report.warnings);
     b.lights(opts, &mut report);
     b.generated_crosswalks();
     b.surface();

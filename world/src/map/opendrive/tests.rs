@@ -475,3 +475,158 @@ fn a_missing_file_names_its_path() {
         "{err}"
     );
 }
+
+/// Two roads along +x, 0-100 m and 120-220 m, each with one driving lane a
+/// way, both linked to junction 9 at the gap; `@CONNECTING@` is what fills
+/// the gap (the junction's connecting road), `@CONNECTIONS@` the junction's
+/// `<connection>`s.
+const TWO_ROADS_AND_A_JUNCTION: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
+<OpenDRIVE>
+    <header revMajor="1" revMinor="4" name="gap" version="1"/>
+    <road name="west" length="100" id="1" junction="-1">
+        <link><successor elementType="junction" elementId="9"/></link>
+        <planView><geometry s="0" x="0" y="0" hdg="0" length="100"><line/></geometry></planView>
+        <lanes><laneSection s="0">
+            <left><lane id="1" type="driving" level="false"><width sOffset="0" a="3.5" b="0" c="0" d="0"/></lane></left>
+            <center><lane id="0" type="none" level="false"/></center>
+            <right><lane id="-1" type="driving" level="false"><width sOffset="0" a="3.5" b="0" c="0" d="0"/></lane></right>
+        </laneSection></lanes>
+    </road>
+    <road name="east" length="100" id="2" junction="-1">
+        <link><predecessor elementType="junction" elementId="9"/></link>
+        <planView><geometry s="0" x="120" y="0" hdg="0" length="100"><line/></geometry></planView>
+        <lanes><laneSection s="0">
+            <left><lane id="1" type="driving" level="false"><width sOffset="0" a="3.5" b="0" c="0" d="0"/></lane></left>
+            <center><lane id="0" type="none" level="false"/></center>
+            <right><lane id="-1" type="driving" level="false"><width sOffset="0" a="3.5" b="0" c="0" d="0"/></lane></right>
+        </laneSection></lanes>
+    </road>
+    @CONNECTING@
+    <junction id="9" name="gap">@CONNECTIONS@</junction>
+</OpenDRIVE>
+"#;
+
+const CONNECTING_ROAD: &str = r#"<road name="through" length="20" id="3" junction="9">
+        <link>
+            <predecessor elementType="road" elementId="1" contactPoint="end"/>
+            <successor elementType="road" elementId="2" contactPoint="start"/>
+        </link>
+        <planView><geometry s="0" x="100" y="0" hdg="0" length="20"><line/></geometry></planView>
+        <lanes><laneSection s="0">
+            <left><lane id="1" type="driving" level="false"><width sOffset="0" a="3.5" b="0" c="0" d="0"/>
+                <link><predecessor id="1"/><successor id="1"/></link></lane></left>
+            <center><lane id="0" type="none" level="false"/></center>
+            <right><lane id="-1" type="driving" level="false"><width sOffset="0" a="3.5" b="0" c="0" d="0"/>
+                <link><predecessor id="-1"/><successor id="-1"/></link></lane></right>
+        </laneSection></lanes>
+    </road>"#;
+
+const CONNECTIONS: &str = r#"
+        <connection id="0" incomingRoad="1" connectingRoad="3" contactPoint="start"><laneLink from="-1" to="-1"/></connection>
+        <connection id="1" incomingRoad="2" connectingRoad="3" contactPoint="end"><laneLink from="1" to="1"/></connection>
+    "#;
+
+#[test]
+fn a_junction_without_connecting_lanes_is_refused_with_its_id_and_the_fix() {
+    // Junction 9 is declared and both roads lead into it, but nothing
+    // connects them: no lane into it could go on, and traffic would pile up
+    // at the lane ends.
+    let bad = TWO_ROADS_AND_A_JUNCTION
+        .replace("@CONNECTING@", "")
+        .replace("@CONNECTIONS@", "");
+    let err = load_xodr_str(&bad, "gap", &LoadOptions::default()).unwrap_err();
+    let MapError::Invalid {
+        what,
+        location,
+        fix,
+        ..
+    } = &err
+    else {
+        panic!("{err}");
+    };
+    assert_eq!(location, r#"junction id="9""#);
+    assert!(
+        what.contains("junction 9 has no connecting driving lane"),
+        "{what}"
+    );
+    assert!(what.contains("road 1, road 2"), "{what}");
+    assert!(
+        fix.contains("<connection") && fix.contains("<laneLink"),
+        "{fix}"
+    );
+    // A road that links to a junction the file never declares: the same.
+    let undeclared = bad.replace(r#"<junction id="9" name="gap"></junction>"#, "");
+    let err = load_xodr_str(&undeclared, "gap", &LoadOptions::default()).unwrap_err();
+    assert!(
+        err.to_string().contains("junction 9 is not declared"),
+        "{err}"
+    );
+    // With its connecting road and connections it loads, and the lanes go through.
+    let good = TWO_ROADS_AND_A_JUNCTION
+        .replace("@CONNECTING@", CONNECTING_ROAD)
+        .replace("@CONNECTIONS@", CONNECTIONS);
+    let (town, _) = load_xodr_str(&good, "gap", &LoadOptions::default()).unwrap();
+    let through: Vec<&crate::map::DriveLane> =
+        town.lanes.iter().filter(|l| l.junction.is_some()).collect();
+    assert_eq!(through.len(), 2);
+    for l in &town.lanes {
+        let end_x = l.centerline.last().unwrap().x;
+        let leads_into_gap =
+            l.junction.is_none() && ((end_x - 100.0).abs() < 0.1 || (end_x - 120.0).abs() < 0.1);
+        if leads_into_gap {
+            assert!(!l.successors.is_empty(), "lane of road {} ends", l.road_id);
+        }
+    }
+}
+
+#[test]
+fn a_connecting_lane_to_nowhere_is_named_and_driven_around() {
+    // Junction 9 joins the two roads (road 3), but also holds road 4, a right
+    // turn off road 1 that the file links to no road: a lane into it would
+    // end inside the junction, holding it for good.
+    let dangling = r#"<road name="nowhere" length="15" id="4" junction="9">
+        <link><predecessor elementType="road" elementId="1" contactPoint="end"/></link>
+        <planView><geometry s="0" x="100" y="0" hdg="0" length="15"><arc curvature="-0.1"/></geometry></planView>
+        <lanes><laneSection s="0">
+            <center><lane id="0" type="none" level="false"/></center>
+            <right><lane id="-1" type="driving" level="false"><width sOffset="0" a="3.5" b="0" c="0" d="0"/>
+                <link><predecessor id="-1"/></link></lane></right>
+        </laneSection></lanes>
+    </road>"#;
+    let xml = TWO_ROADS_AND_A_JUNCTION
+        .replace("@CONNECTING@", &format!("{CONNECTING_ROAD}\n    {dangling}"))
+        .replace(
+            "@CONNECTIONS@",
+            &format!(
+                r#"{CONNECTIONS}<connection id="2" incomingRoad="1" connectingRoad="4" contactPoint="start"><laneLink from="-1" to="-1"/></connection>"#
+            ),
+        );
+    let (town, report) = load_xodr_str(&xml, "gap", &LoadOptions::default()).unwrap();
+    let warning = report
+        .warnings
+        .iter()
+        .find(|w| w.contains("junction 9: connecting road 4 lane -1 leads to no lane"))
+        .unwrap_or_else(|| panic!("{:?}", report.warnings));
+    assert!(warning.contains("fix:"), "{warning}");
+    let lane_of = |road: &str, od: i32| {
+        LaneIdx(
+            town.lanes
+                .iter()
+                .position(|l| l.road_id == road && l.od_lane == od)
+                .unwrap() as u32,
+        )
+    };
+    let (west, through, nowhere) = (lane_of("1", -1), lane_of("3", -1), lane_of("4", -1));
+    let succ = &town.lanes[west.0 as usize].successors;
+    assert!(
+        succ.contains(&through) && succ.contains(&nowhere),
+        "{succ:?}"
+    );
+    // NPCs choose their way at random, but never the lane to nowhere.
+    for seed in 0..50 {
+        let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(seed);
+        let mut path = crate::road::LanePath::new(west, 50.0);
+        crate::agents::npc::extend_path(&town, &mut path, &mut rng, 80.0);
+        assert_eq!(path.lanes.get(1), Some(&through), "seed {seed}");
+    }
+}
