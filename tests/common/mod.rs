@@ -17,6 +17,9 @@ pub fn root() -> PathBuf {
 pub fn mrdrive() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_mrdrive"));
     c.current_dir(root());
+    // As a user's shell has it: .cargo/config.toml sets it for test processes,
+    // and the binary must set it for itself (tests/first_run.rs checks that it does).
+    c.env_remove("NODEVICE_SELECT");
     c
 }
 
