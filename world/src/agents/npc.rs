@@ -236,7 +236,7 @@ pub fn decide(
         let (a, b, c) = (pts[i - 1], pts[i], pts[i + 1]);
         let k = curvature(a, b, c);
         if k > 1e-3 {
-            let vc = (p.max_lateral_accel_mps2 / k).sqrt();
+            let vc = rules::pursuit::curve_speed_mps(k, p.max_lateral_accel_mps2);
             // Allow braking toward the curve at the comfortable rate.
             let d = (i as f32 - half).max(0.0);
             v0 = v0.min((vc * vc + 2.0 * p.comfort_decel_mps2 * d).sqrt());

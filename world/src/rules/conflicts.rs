@@ -126,7 +126,7 @@ pub fn sweep_speeds_mps(town: &Town, lane: LaneIdx, lateral_accel_mps2: f32) -> 
         .map(|w| curvature(w[0], w[1], w[2]))
         .fold(0.0f32, f32::max);
     let v_curve = if k_max > 1e-4 {
-        (lateral_accel_mps2 / k_max).sqrt()
+        crate::rules::pursuit::curve_speed_mps(k_max, lateral_accel_mps2)
     } else {
         f32::INFINITY
     };

@@ -17,6 +17,13 @@ use crate::road::lane_path::LanePath;
 /// of curvature k is at most sqrt(a / k). The junction-lane sweeps use it too.
 pub const CURVE_LATERAL_ACCEL_MPS2: f32 = 2.5;
 
+/// The speed at which a curve of `curvature_per_m` (1 / metres, > 0) asks
+/// `lateral_accel_mps2` of a car: sqrt(a / k) (metres per second). The NPCs
+/// slow to it before a curve; the junction-lane sweeps drive at it.
+pub fn curve_speed_mps(curvature_per_m: f32, lateral_accel_mps2: f32) -> f32 {
+    (lateral_accel_mps2 / curvature_per_m).sqrt()
+}
+
 /// Lookahead of the pure pursuit, measured along the path from the rear
 /// axle (metres), at a speed (metres per second).
 pub fn pursuit_lookahead_m(speed_mps: f32) -> f32 {

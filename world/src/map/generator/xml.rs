@@ -249,40 +249,43 @@ fn shape(turn: &Turn<'_>) -> String {
     }
 }
 
-/// A turn's connecting road: one driving lane, unmarked.
-fn connecting_road(out: &mut String, turn: &Turn<'_>, ends: &Ends, cid: u32, jid: u32) {
+/// The parts a junction road shares, whatever its lanes: the road element
+/// named `name` with id `id` in junction `jid`, its links to the turn's two
+/// streets, `extra` (e.g. its type), its plan view along the turn, a flat
+/// elevation and an empty lateral profile.
+fn turn_road_head(
+    out: &mut String,
+    turn: &Turn<'_>,
+    ends: &Ends,
+    name: &str,
+    id: u32,
+    jid: u32,
+    extra: &str,
+) {
     let len = turn.length_m;
     let (sx, sy) = turn.start;
     let travel = turn.heading;
     let shape = shape(turn);
-    let Ends {
-        pred_cp,
-        pred_lane,
-        succ_cp,
-        succ_lane,
-    } = *ends;
+    let (pred_cp, succ_cp) = (ends.pred_cp, ends.succ_cp);
     let _ = writeln!(
         out,
-        "    <road name=\"conn{cid}\" length=\"{len:.6}\" id=\"{cid}\" junction=\"{jid}\">"
-    );
-    let _ = writeln!(
-        out,
-        "        <link>\n            <predecessor elementType=\"road\" elementId=\"{}\" contactPoint=\"{pred_cp}\"/>\n            <successor elementType=\"road\" elementId=\"{}\" contactPoint=\"{succ_cp}\"/>\n        </link>",
+        "    <road name=\"{name}\" length=\"{len:.6}\" id=\"{id}\" junction=\"{jid}\">\n        <link>\n            <predecessor elementType=\"road\" elementId=\"{}\" contactPoint=\"{pred_cp}\"/>\n            <successor elementType=\"road\" elementId=\"{}\" contactPoint=\"{succ_cp}\"/>\n        </link>",
         turn.from.street.id, turn.to.street.id
     );
+    out.push_str(extra);
     let _ = writeln!(
         out,
-        "        <type s=\"0\" type=\"town\">\n            <speed max=\"{SPEED_LIMIT_KMH}\" unit=\"km/h\"/>\n        </type>"
+        "        <planView>\n            <geometry s=\"0\" x=\"{sx:.6}\" y=\"{sy:.6}\" hdg=\"{travel:.9}\" length=\"{len:.6}\">\n                {shape}\n            </geometry>\n        </planView>\n        <elevationProfile>\n            <elevation s=\"0\" a=\"0\" b=\"0\" c=\"0\" d=\"0\"/>\n        </elevationProfile>\n        <lateralProfile/>"
     );
-    let _ = writeln!(
-        out,
-        "        <planView>\n            <geometry s=\"0\" x=\"{sx:.6}\" y=\"{sy:.6}\" hdg=\"{travel:.9}\" length=\"{len:.6}\">\n                {shape}\n            </geometry>\n        </planView>"
+}
+
+/// A turn's connecting road: one driving lane, unmarked.
+fn connecting_road(out: &mut String, turn: &Turn<'_>, ends: &Ends, cid: u32, jid: u32) {
+    let (pred_lane, succ_lane) = (ends.pred_lane, ends.succ_lane);
+    let town_type = format!(
+        "        <type s=\"0\" type=\"town\">\n            <speed max=\"{SPEED_LIMIT_KMH}\" unit=\"km/h\"/>\n        </type>\n"
     );
-    let _ = writeln!(
-        out,
-        "        <elevationProfile>\n            <elevation s=\"0\" a=\"0\" b=\"0\" c=\"0\" d=\"0\"/>\n        </elevationProfile>"
-    );
-    let _ = writeln!(out, "        <lateralProfile/>");
+    turn_road_head(out, turn, ends, &format!("conn{cid}"), cid, jid, &town_type);
     let _ = writeln!(
         out,
         "        <lanes>\n            <laneSection s=\"0\">\n                <center>\n                    <lane id=\"0\" type=\"none\" level=\"false\">\n                        <roadMark sOffset=\"0\" type=\"none\" weight=\"standard\" color=\"white\" width=\"0\" laneChange=\"none\"/>\n                    </lane>\n                </center>\n                <right>\n                    <lane id=\"-1\" type=\"driving\" level=\"false\">\n                        <link>\n                            <predecessor id=\"{pred_lane}\"/>\n                            <successor id=\"{succ_lane}\"/>\n                        </link>\n                        <width sOffset=\"0\" a=\"{LANE_WIDTH_M}\" b=\"0\" c=\"0\" d=\"0\"/>\n                        <roadMark sOffset=\"0\" type=\"none\" weight=\"standard\" color=\"white\" width=\"0\" laneChange=\"none\"/>\n                    </lane>\n                </right>\n            </laneSection>\n        </lanes>\n    </road>"
@@ -292,26 +295,8 @@ fn connecting_road(out: &mut String, turn: &Turn<'_>, ends: &Ends, cid: u32, jid
 /// A sidewalk round the corner (or across a missing arm), on the same
 /// reference line as the turn's road, outside a bare 3.5 m strip.
 fn walk_road(out: &mut String, turn: &Turn<'_>, ends: &Ends, wid: u32, jid: u32) {
-    let len = turn.length_m;
-    let (sx, sy) = turn.start;
-    let travel = turn.heading;
-    let shape = shape(turn);
-    let Ends {
-        pred_cp,
-        pred_lane,
-        succ_cp,
-        succ_lane,
-    } = *ends;
-    let (wp, ws) = (2 * pred_lane, 2 * succ_lane);
-    let _ = writeln!(
-        out,
-        "    <road name=\"walk{wid}\" length=\"{len:.6}\" id=\"{wid}\" junction=\"{jid}\">\n        <link>\n            <predecessor elementType=\"road\" elementId=\"{}\" contactPoint=\"{pred_cp}\"/>\n            <successor elementType=\"road\" elementId=\"{}\" contactPoint=\"{succ_cp}\"/>\n        </link>",
-        turn.from.street.id, turn.to.street.id
-    );
-    let _ = writeln!(
-        out,
-        "        <planView>\n            <geometry s=\"0\" x=\"{sx:.6}\" y=\"{sy:.6}\" hdg=\"{travel:.9}\" length=\"{len:.6}\">\n                {shape}\n            </geometry>\n        </planView>\n        <elevationProfile>\n            <elevation s=\"0\" a=\"0\" b=\"0\" c=\"0\" d=\"0\"/>\n        </elevationProfile>\n        <lateralProfile/>"
-    );
+    let (wp, ws) = (2 * ends.pred_lane, 2 * ends.succ_lane);
+    turn_road_head(out, turn, ends, &format!("walk{wid}"), wid, jid, "");
     let _ = writeln!(
         out,
         "        <lanes>\n            <laneSection s=\"0\">\n                <center>\n                    <lane id=\"0\" type=\"none\" level=\"false\"/>\n                </center>\n                <right>\n                    <lane id=\"-1\" type=\"none\" level=\"false\">\n                        <link/>\n                        <width sOffset=\"0\" a=\"{LANE_WIDTH_M}\" b=\"0\" c=\"0\" d=\"0\"/>\n                    </lane>\n                    <lane id=\"-2\" type=\"sidewalk\" level=\"false\">\n                        <link>\n                            <predecessor id=\"{wp}\"/>\n                            <successor id=\"{ws}\"/>\n                        </link>\n                        <width sOffset=\"0\" a=\"{SIDEWALK_WIDTH_M}\" b=\"0\" c=\"0\" d=\"0\"/>\n                        <height sOffset=\"0\" inner=\"{SIDEWALK_HEIGHT_M}\" outer=\"{SIDEWALK_HEIGHT_M}\"/>\n                    </lane>\n                </right>\n            </laneSection>\n        </lanes>\n    </road>"

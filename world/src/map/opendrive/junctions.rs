@@ -64,13 +64,15 @@ impl Builder<'_> {
             .map(|c| c.od_id.as_str())
             .chain(net.virtual_junctions().iter().map(|v| v.od_id.as_str()))
             .collect();
+        let with_lanes: std::collections::BTreeSet<&str> =
+            self.town.lanes.iter().map(|l| l.road_id.as_str()).collect();
         // Junction id -> the roads with driving lanes that link into it.
         let mut into: BTreeMap<String, Vec<String>> = BTreeMap::new();
         for road in doc.descendants().filter(|n| n.has_tag_name("road")) {
             let Some(road_id) = road.attribute("id") else {
                 continue;
             };
-            if !self.town.lanes.iter().any(|l| l.road_id == road_id) {
+            if !with_lanes.contains(road_id) {
                 continue;
             }
             let links = road
