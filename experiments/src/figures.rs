@@ -47,6 +47,19 @@ pub struct Series {
     pub dashed: bool,
 }
 
+/// What the paper reports, drawn behind our points: a shaded box over an x
+/// range and a y range (the paper's Fig. 5 ranges), or, when both ranges are
+/// a single value, a black cross at that point (a Table III row).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Reference {
+    /// Its legend ("the paper's range"); references sharing a label share one entry.
+    pub label: String,
+    /// Low and high x.
+    pub x: (f64, f64),
+    /// Low and high y.
+    pub y: (f64, f64),
+}
+
 /// One panel: axes and series.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Panel {
@@ -60,6 +73,8 @@ pub struct Panel {
     pub series: Vec<Series>,
     /// Fixed y range, or `None` to fit the data.
     pub y_range: Option<(f64, f64)>,
+    /// The paper's values, drawn behind the lines.
+    pub paper: Vec<Reference>,
 }
 
 /// Draws `panels` side by side into `stem.png` (`width` x `height` pixels)
@@ -89,14 +104,18 @@ pub fn plot(stem: &Path, panels: &[Panel], width: u32, height: u32) -> Result<()
     Ok(())
 }
 
-/// Colours that stay apart in print and for most colour-blind readers (Okabe-Ito).
-const COLOURS: [RGBColor; 6] = [
+/// Colours that stay apart in print and for most colour-blind readers
+/// (Okabe-Ito), ordered so that the first five differ in hue and lightness:
+/// blue, vermillion, bluish green, reddish purple, black, then orange and sky
+/// blue (the one close to the first, used only by a seventh line).
+const COLOURS: [RGBColor; 7] = [
     RGBColor(0, 114, 178),
     RGBColor(213, 94, 0),
     RGBColor(0, 158, 115),
     RGBColor(204, 121, 167),
+    RGBColor(0, 0, 0),
+    RGBColor(230, 159, 0),
     RGBColor(86, 180, 233),
-    RGBColor(100, 100, 100),
 ];
 
 fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, panels: &[Panel]) -> Result<(), String> {
@@ -117,6 +136,10 @@ fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &Panel) -> R
         x1 = x1.max(q.x);
         y0 = y0.min(q.lo.min(q.y));
         y1 = y1.max(q.hi.max(q.y));
+    }
+    for r in &p.paper {
+        y0 = y0.min(r.y.0);
+        y1 = y1.max(r.y.1);
     }
     if x0 > x1 {
         (x0, x1, y0, y1) = (0.0, 1.0, 0.0, 1.0);
@@ -146,6 +169,40 @@ fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &Panel) -> R
         .label_style(("sans-serif", 13))
         .draw()
         .map_err(e)?;
+    // The paper's values go first, behind ours: grey boxes and black crosses.
+    let mut labelled = std::collections::BTreeSet::new();
+    for r in &p.paper {
+        let grey = RGBColor(150, 150, 150);
+        let drawn = if r.x.0 == r.x.1 && r.y.0 == r.y.1 {
+            chart
+                .draw_series(std::iter::once(Cross::new(
+                    (r.x.0, r.y.0),
+                    6,
+                    BLACK.stroke_width(2),
+                )))
+                .map_err(e)?
+        } else {
+            chart
+                .draw_series(std::iter::once(Rectangle::new(
+                    [(r.x.0, r.y.0), (r.x.1, r.y.1)],
+                    grey.mix(0.25).filled(),
+                )))
+                .map_err(e)?
+        };
+        if labelled.insert(r.label.clone()) {
+            let point = r.x.0 == r.x.1 && r.y.0 == r.y.1;
+            drawn
+                .label(&r.label)
+                .legend(move |(x, y)| -> DynElement<'static, DB, (i32, i32)> {
+                    if point {
+                        Cross::new((x + 9, y), 5, BLACK.stroke_width(2)).into_dyn()
+                    } else {
+                        Rectangle::new([(x, y - 5), (x + 18, y + 5)], grey.mix(0.25).filled())
+                            .into_dyn()
+                    }
+                });
+        }
+    }
     // Series that share x values are drawn side by side ("dodged") by a
     // small offset, so equal values stay visible; the data is not changed.
     let n = p.series.len() as f64;
@@ -202,8 +259,8 @@ fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &Panel) -> R
     Ok(())
 }
 
-/// The corner of the plot with the fewest points (and error-bar ends) near
-/// it, for the legend; upper left on a tie.
+/// The corner of the plot with the fewest points (error-bar ends and the
+/// paper's values included) near it, for the legend; upper left on a tie.
 fn legend_corner(p: &Panel, (x0, x1): (f64, f64), (y0, y1): (f64, f64)) -> SeriesLabelPosition {
     let near = |left: bool, top: bool| -> usize {
         let (w, h) = ((x1 - x0).max(1e-9), (y1 - y0).max(1e-9));
@@ -211,6 +268,11 @@ fn legend_corner(p: &Panel, (x0, x1): (f64, f64), (y0, y1): (f64, f64)) -> Serie
             .iter()
             .flat_map(|s| s.points.iter())
             .flat_map(|q| [(q.x, q.y), (q.x, q.lo), (q.x, q.hi)])
+            .chain(
+                p.paper
+                    .iter()
+                    .flat_map(|r| [(r.x.0, r.y.0), (r.x.1, r.y.1)]),
+            )
             .filter(|&(x, y)| {
                 let fx = (x - x0) / w;
                 let fy = (y - y0) / h;
@@ -256,6 +318,18 @@ mod tests {
             y_label: "y".into(),
             series: vec![s("a", false), s("b", true)],
             y_range: None,
+            paper: vec![
+                Reference {
+                    label: "the paper's range".into(),
+                    x: (0.0, 50.0),
+                    y: (0.5, 1.5),
+                },
+                Reference {
+                    label: "the paper".into(),
+                    x: (100.0, 100.0),
+                    y: (3.0, 3.0),
+                },
+            ],
         };
         plot(&stem, &[panel.clone(), panel], 1000, 400).unwrap();
         let img = image::open(dir.path().join("fig.png")).unwrap();
@@ -265,6 +339,13 @@ mod tests {
             svg.starts_with("<svg") && svg.contains("D (ms)"),
             "{}",
             &svg[..80]
+        );
+        // The paper's values have their legend entries, once each.
+        assert_eq!(
+            svg.matches("the paper&apos;s range").count()
+                + svg.matches("the paper's range").count(),
+            2,
+            "one per panel"
         );
     }
 }

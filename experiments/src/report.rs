@@ -3,13 +3,17 @@
 //!
 //! Rates (success, runs with a collision) carry Wilson 95 % intervals;
 //! per-run means (red lights, lane crossings) carry seeded percentile
-//! bootstrap 95 % intervals; configurations that share routes, densities and
-//! seeds are compared pair by pair ([`Comparison`]).
+//! bootstrap 95 % intervals that resample whole blocks (a block is the runs of
+//! one route at one density: they share a route, so they are not independent);
+//! configurations that share routes, densities and seeds are compared pair by
+//! pair ([`Comparison`]) with an exact test, whose p-value the page adjusts
+//! for the other tests it shows ([`resolve_holm`]).
 
 use std::path::Path;
 
 use sim::monitors::InfractionKind::{LaneCrossing, RedLight};
-use sim::sweep::stats::{Paired, Z95, bootstrap_mean, paired, wilson};
+use sim::sweep::exact::holm;
+use sim::sweep::stats::{Paired, Z95, block_bootstrap_mean, paired_in_blocks, wilson};
 use sim::sweep::tables::mean_sd;
 
 use crate::PaperError;
@@ -33,11 +37,11 @@ pub struct Stats {
     pub red_total: u32,
     /// Red lights per run: mean, sd.
     pub red: (f64, f64),
-    /// Its bootstrap 95 % interval.
+    /// Its bootstrap 95 % interval (resampling route-and-density blocks).
     pub red_ci: (f64, f64),
     /// Lane crossings per run: mean, sd.
     pub lane: (f64, f64),
-    /// Its bootstrap 95 % interval.
+    /// Its bootstrap 95 % interval (resampling route-and-density blocks).
     pub lane_ci: (f64, f64),
     /// Route completion (percent): mean, sd.
     pub completion: (f64, f64),
@@ -66,6 +70,7 @@ impl Stats {
             .iter()
             .map(|r| r.record.result.completion_pct)
             .collect();
+        let blocks = blocks_of(runs.iter().map(|r| r.block_key()));
         let high_key = crate::units::scale_label(high);
         let share: Vec<f64> = runs
             .iter()
@@ -89,9 +94,9 @@ impl Stats {
                 .count(),
             red_total: runs.iter().map(|r| r.record.result.count(RedLight)).sum(),
             red: mean_sd(&red),
-            red_ci: bootstrap_mean(&red, RESAMPLES, BOOTSTRAP_SEED),
+            red_ci: block_bootstrap_mean(&red, &blocks, RESAMPLES, BOOTSTRAP_SEED),
             lane: mean_sd(&lane),
-            lane_ci: bootstrap_mean(&lane, RESAMPLES, BOOTSTRAP_SEED),
+            lane_ci: block_bootstrap_mean(&lane, &blocks, RESAMPLES, BOOTSTRAP_SEED),
             completion: mean_sd(&completion),
             high_share_pct: 100.0 * mean_sd(&share).0,
             max_latency_ms: runs
@@ -120,6 +125,18 @@ impl Stats {
     pub fn collision_ci(&self) -> (f64, f64) {
         wilson_pct(self.collided, self.n)
     }
+}
+
+/// Numbers blocks by their keys in the order they first appear.
+fn blocks_of<K: PartialEq>(keys: impl Iterator<Item = K>) -> Vec<usize> {
+    let mut seen: Vec<K> = Vec::new();
+    keys.map(|k| {
+        seen.iter().position(|s| *s == k).unwrap_or_else(|| {
+            seen.push(k);
+            seen.len() - 1
+        })
+    })
+    .collect()
 }
 
 fn pct(k: usize, n: usize) -> f64 {
@@ -162,7 +179,9 @@ pub fn mean_ci_cell((m, _): (f64, f64), (lo, hi): (f64, f64), n: usize) -> Strin
     }
 }
 
-/// Configuration `b` against `a` on the runs they share (route, density, seed).
+/// Configuration `b` against `a` on the runs they share (route, density, seed),
+/// each difference with its exact p-value and an interval that resamples
+/// route-and-density blocks.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Comparison {
     /// Red lights per run, b - a.
@@ -173,6 +192,8 @@ pub struct Comparison {
     pub collided: Paired,
     /// Succeeded (0/1) per run, b - a.
     pub success: Paired,
+    /// The distinct routes the pairs were driven on.
+    pub routes: usize,
 }
 
 impl Comparison {
@@ -190,33 +211,108 @@ impl Comparison {
                 pairs.iter().map(|(_, y)| f(y)).collect(),
             )
         };
+        let blocks = blocks_of(pairs.iter().map(|(x, _)| x.block_key()));
         let cmp = |f: &dyn Fn(&Run) -> f64| {
             let (xa, xb) = col(f);
-            paired(&xa, &xb, RESAMPLES, BOOTSTRAP_SEED)
+            paired_in_blocks(&xa, &xb, &blocks, RESAMPLES, BOOTSTRAP_SEED)
         };
         Comparison {
             red: cmp(&|r| f64::from(r.record.result.count(RedLight))),
             lane: cmp(&|r| f64::from(r.record.result.count(LaneCrossing))),
             collided: cmp(&|r| f64::from(u8::from(r.record.result.collisions() > 0))),
             success: cmp(&|r| f64::from(u8::from(r.record.result.success))),
+            routes: blocks_of(pairs.iter().map(|(x, _)| x.route.clone()))
+                .into_iter()
+                .max()
+                .map_or(0, |m| m + 1),
         }
     }
 }
 
-/// "+0.42 [0.17, 0.67] (12 pairs; 5 up, 0 down)": a paired difference.
+/// "+0.42 [+0.17, +0.67] (12 pairs in 4 blocks; 5 up, 0 down; p = 0.062⟦…⟧)": a
+/// paired difference, its block-bootstrap interval and its exact p-value, with a
+/// mark that [`resolve_holm`] turns into the page-wide Holm-adjusted p (and a
+/// `*` where that is below 0.05) and CSV files drop.
 pub fn paired_cell(p: &Paired) -> String {
     if p.n == 0 {
         return "–".into();
     }
     let (up, down, _) = p.better_worse_same;
     format!(
-        "{:+.2} [{:+.2}, {:+.2}]{} ({} pairs; {up} up, {down} down)",
+        "{:+.2} [{:+.2}, {:+.2}] ({} pairs in {}; {up} up, {down} down; p {}{HOLM_OPEN}{:e}{HOLM_CLOSE})",
         p.mean_diff,
         p.ci.0,
         p.ci.1,
-        if p.significant() { " *" } else { "" },
-        p.n
+        p.n,
+        blocks_text(p.blocks),
+        p_text(p.p),
+        p.p,
     )
+}
+
+/// "1 block", "12 blocks".
+pub fn blocks_text(n: usize) -> String {
+    format!("{n} block{}", if n == 1 { "" } else { "s" })
+}
+
+/// A p-value as the page writes it after "p", to two significant digits:
+/// "= 0.25", "= 0.031", "= 0.0044", or "< 0.001".
+pub fn p_text(p: f64) -> String {
+    match p {
+        p if p < 0.001 => "< 0.001".into(),
+        p if p < 0.01 => format!("= {p:.4}"),
+        p if p < 0.1 => format!("= {p:.3}"),
+        p => format!("= {p:.2}"),
+    }
+}
+
+const HOLM_OPEN: char = '⟦';
+const HOLM_CLOSE: char = '⟧';
+
+/// Replaces every mark [`paired_cell`] left in `text` with the Holm-adjusted
+/// p-value of its test within the family of all the marked tests (", Holm p = 0.62",
+/// or ", Holm p = 0.004 *" below 0.05); returns the text and the family's size. A
+/// test shown twice counts twice, which can only make the adjustment stricter.
+pub fn resolve_holm(text: &str) -> (String, usize) {
+    let raw: Vec<f64> = marks(text).map(|(_, p)| p).collect();
+    let adjusted = holm(&raw);
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text;
+    for q in &adjusted {
+        let (start, end) = match (rest.find(HOLM_OPEN), rest.find(HOLM_CLOSE)) {
+            (Some(s), Some(e)) => (s, e + HOLM_CLOSE.len_utf8()),
+            _ => break,
+        };
+        out += &rest[..start];
+        out += &format!(
+            ", Holm p {}{}",
+            p_text(*q),
+            if *q < 0.05 { " *" } else { "" }
+        );
+        rest = &rest[end..];
+    }
+    out += rest;
+    (out, raw.len())
+}
+
+/// Drops the Holm marks from a cell (for CSV files, which give the raw p).
+pub fn strip_holm(cell: &str) -> String {
+    let mut out = String::with_capacity(cell.len());
+    let mut rest = cell;
+    while let (Some(s), Some(e)) = (rest.find(HOLM_OPEN), rest.find(HOLM_CLOSE)) {
+        out += &rest[..s];
+        rest = &rest[e + HOLM_CLOSE.len_utf8()..];
+    }
+    out + rest
+}
+
+/// The marks in `text`, in order: (byte offset, raw p).
+fn marks(text: &str) -> impl Iterator<Item = (usize, f64)> + '_ {
+    text.match_indices(HOLM_OPEN).filter_map(move |(i, _)| {
+        let body = &text[i + HOLM_OPEN.len_utf8()..];
+        let end = body.find(HOLM_CLOSE)?;
+        body[..end].parse().ok().map(|p| (i, p))
+    })
 }
 
 /// A table: a header and rows of cells, written as Markdown or CSV.
@@ -259,7 +355,7 @@ impl Table {
         let mut w = csv::Writer::from_path(path)?;
         w.write_record(&self.header)?;
         for r in &self.rows {
-            w.write_record(r)?;
+            w.write_record(r.iter().map(|c| strip_holm(c)))?;
         }
         w.flush().map_err(|e| PaperError::io("write", path, e))?;
         Ok(())
@@ -485,11 +581,34 @@ pub(crate) mod tests {
         assert_eq!(c.red.better_worse_same, (2, 0, 0));
         assert_eq!(c.collided.mean_diff, 0.5);
         assert_eq!(c.success.better_worse_same, (0, 0, 2));
-        assert!(
-            paired_cell(&c.red).starts_with("+1.00 [+1.00, +1.00] * (2 pairs; 2 up, 0 down)"),
-            "{}",
-            paired_cell(&c.red)
+        assert_eq!(c.routes, 1);
+        assert_eq!(
+            strip_holm(&paired_cell(&c.red)),
+            "+1.00 [+1.00, +1.00] (2 pairs in 1 block; 2 up, 0 down; p = 0.50)"
         );
+    }
+
+    #[test]
+    fn the_page_adjusts_every_marked_test_by_holm() {
+        let up = |n: usize, of: usize| {
+            let a = vec![0.0; of];
+            let b: Vec<f64> = (0..of).map(|i| f64::from(u8::from(i < n))).collect();
+            paired_in_blocks(&a, &b, &(0..of).collect::<Vec<_>>(), 200, 1)
+        };
+        // 12 of 12 up (p = 2^-11) and 3 of 3 up (p = 0.25): Holm multiplies the smaller by 2.
+        let (strong, weak) = (up(12, 12), up(3, 3));
+        let text = format!("a {}\nb {}\n", paired_cell(&strong), paired_cell(&weak));
+        let (page, family) = resolve_holm(&text);
+        assert_eq!(family, 2);
+        assert_eq!(
+            page,
+            "a +1.00 [+1.00, +1.00] (12 pairs in 12 blocks; 12 up, 0 down; p < 0.001, Holm p < 0.001 *)\n\
+             b +1.00 [+1.00, +1.00] (3 pairs in 3 blocks; 3 up, 0 down; p = 0.25, Holm p = 0.25)\n"
+        );
+        let (page, _) = resolve_holm(&paired_cell(&up(7, 8)));
+        // 7 of 8 up: p = 2 / 2^7 = 0.0156 alone.
+        assert!(page.ends_with("p = 0.016, Holm p = 0.016 *)"), "{page}");
+        assert_eq!(resolve_holm("no tests"), ("no tests".to_string(), 0));
     }
 
     #[test]

@@ -10,6 +10,9 @@ use crate::PaperError;
 use crate::config::PaperConfig;
 use crate::units::Unit;
 
+/// A unit of the comparisons: route stem, density (vehicles, pedestrians), seed.
+pub type PairKey = (String, Option<(u32, u32)>, u64);
+
 /// One finished run.
 #[derive(Debug, Clone)]
 pub struct Run {
@@ -26,8 +29,14 @@ pub struct Run {
 
 impl Run {
     /// What two runs compared pair by pair share: route, density, seed.
-    pub fn pair_key(&self) -> (String, Option<(u32, u32)>, u64) {
+    pub fn pair_key(&self) -> PairKey {
         (self.route.clone(), self.spec.density, self.spec.seed)
+    }
+
+    /// The block its statistics resample: its route and density (the seeds of one
+    /// route and density are the independent draws; routes are few).
+    pub fn block_key(&self) -> (String, Option<(u32, u32)>) {
+        (self.route.clone(), self.spec.density)
     }
 
     /// Its fixed scale (`None` for a switcher or the expert).
@@ -115,6 +124,43 @@ impl Results {
                     .collect()
             })
             .unwrap_or_default()
+    }
+
+    /// The units (route, density, seed) that every policy run on them failed, and
+    /// those runs: they cannot tell one configuration from another. The expert's
+    /// runs do not count (it drives from the map's truth). Empty until a unit has
+    /// runs of at least two configurations.
+    pub fn failed_everywhere(&self) -> Vec<(PairKey, Vec<&Run>)> {
+        let mut by_key: BTreeMap<PairKey, (Vec<&Run>, usize)> = BTreeMap::new();
+        for u in self.units.values() {
+            let mut seen = std::collections::BTreeSet::new();
+            for r in &u.runs {
+                if r.record.result.provenance.driver == "expert" {
+                    continue;
+                }
+                let e = by_key.entry(r.pair_key()).or_default();
+                e.0.push(r);
+                if seen.insert(r.pair_key()) {
+                    e.1 += 1;
+                }
+            }
+        }
+        by_key
+            .into_iter()
+            .filter(|(_, (runs, units))| {
+                *units >= 2 && runs.iter().all(|r| !r.record.result.success)
+            })
+            .map(|(k, (runs, _))| (k, runs))
+            .collect()
+    }
+
+    /// These results without the runs of the units `keys`.
+    pub fn without(&self, keys: &[PairKey]) -> Results {
+        let mut r = self.clone();
+        for u in r.units.values_mut() {
+            u.runs.retain(|run| !keys.contains(&run.pair_key()));
+        }
+        r
     }
 
     /// The distinct values of a provenance field over every finished run.

@@ -27,6 +27,7 @@ pub(super) fn safety_panels(lines: &[(String, Vec<(f64, Stats)>)], x_label: &str
         y_label: y_label.into(),
         series: series(f),
         y_range,
+        paper: Vec::new(),
     };
     [
         panel(

@@ -119,6 +119,7 @@ pub(super) fn fig34(
             y_label: format!("{unit} (mean, 95 % CI)"),
             series,
             y_range: None,
+            paper: Vec::new(),
         }],
         800,
         500,
@@ -129,7 +130,8 @@ pub(super) fn fig34(
         "the paper: lane invasions barely change with the scale"
     };
     Ok(format!(
-        "## {}: {} against scale ({claim})\n\n![{id}]({id}.png)\n\n{}\nFiles: `{id}.png`, `{id}.svg`, `{id}.csv`.\n",
+        "## {}: {} against scale ({claim})\n\n![{id}]({id}.png)\n\nThe paper's figure gives \
+         no values in its text, so none are drawn beside ours.\n\n{}\nFiles: `{id}.png`, `{id}.svg`, `{id}.csv`.\n",
         if red { "Fig. 3" } else { "Fig. 4" },
         what,
         t.markdown()

@@ -5,7 +5,7 @@ use super::reference;
 use super::writer::Writer;
 use crate::PaperError;
 use crate::config::PaperConfig;
-use crate::figures::{Panel, Series};
+use crate::figures::{Panel, Reference, Series};
 use crate::report::{Cells, Stats, Table};
 use crate::results::Results;
 use crate::units::{Driver, Unit};
@@ -82,12 +82,26 @@ pub(super) fn fig5(
         t.push(r);
     }
     w.cells("fig5.csv", &cells)?;
-    let panel = |title: &str, y: &str, series| Panel {
+    // The paper's ranges, shaded: up to 100 ms and at 200 ms.
+    let ranges = |pick: fn(reference::Ranges) -> (f64, f64)| {
+        [
+            ((0.0, 100.0), pick(reference::FIG5_UP_TO_100)),
+            ((190.0, 210.0), pick(reference::FIG5_AT_200)),
+        ]
+        .map(|(x, y)| Reference {
+            label: "the paper's range (its text, §IV-D)".into(),
+            x,
+            y,
+        })
+        .to_vec()
+    };
+    let panel = |title: &str, y: &str, series, paper| Panel {
         title: title.into(),
         x_label: "injected delay D (ms); Tc = max(50, D)".into(),
         y_label: y.into(),
         series,
         y_range: Some((0.0, 105.0)),
+        paper,
     };
     w.plot(
         "fig5",
@@ -96,11 +110,13 @@ pub(super) fn fig5(
                 "Success against delay",
                 "success % (Wilson 95 % CI)",
                 success,
+                ranges(|r| r.0),
             ),
             panel(
                 "Runs with a collision against delay",
                 "collided % (Wilson 95 % CI)",
                 collision,
+                ranges(|r| r.1),
             ),
         ],
         1400,

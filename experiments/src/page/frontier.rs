@@ -3,9 +3,11 @@
 
 use super::beyond::{ra_fixed_lines, safety_panels};
 use super::configs::Config;
+use super::reference;
 use super::writer::Writer;
 use crate::PaperError;
 use crate::config::PaperConfig;
+use crate::figures::Reference;
 use crate::report::{Cells, Table, mean_ci_cell, rate_cell};
 use crate::results::Results;
 use crate::units::{Unit, selector_name};
@@ -56,18 +58,29 @@ pub(super) fn frontier(
         }
     }
     w.cells("frontier.csv", &cells)?;
-    w.plot(
-        "frontier",
-        &safety_panels(&lines, "worst-case latency (ms)"),
-        1500,
-        480,
-    )?;
+    let mut panels = safety_panels(&lines, "worst-case latency (ms)");
+    // The paper's Table III beside ours: fixed 0.75x at the low latency, the
+    // switcher and fixed 1.0x at the high one.
+    for ((high, low), rows) in reference::TABLE3 {
+        for ((success, collided, _, _, red), x) in rows.into_iter().zip([low, high, high]) {
+            let values = [success, collided, f64::from(red) / reference::TABLE3_RUNS];
+            for (panel, y) in panels.iter_mut().zip(values) {
+                panel.paper.push(Reference {
+                    label: "the paper (Table III, 12 runs)".into(),
+                    x: (x, x),
+                    y: (y, y),
+                });
+            }
+        }
+    }
+    w.plot("frontier", &panels, 1500, 480)?;
     Ok(format!(
         "## Beyond the paper: the latency/safety frontier\n\n\
          One point per fixed scale at each injected delay (its worst-case latency is D) and per \
          switcher at each envelope (its worst case is the high scale's latency). A switcher is worth \
          having where its point sits above (success) or below (collisions, red lights) both fixed \
-         lines at the same latency.\n\n![frontier](frontier.png)\n\n{}\nFiles: `frontier.png`, `frontier.svg`, `frontier.csv`.\n",
+         lines at the same latency. Black crosses are the paper's Table III (its fixed 0.75x at \
+         the low latency, its switcher and fixed 1.0x at the high one).\n\n![frontier](frontier.png)\n\n{}\nFiles: `frontier.png`, `frontier.svg`, `frontier.csv`.\n",
         t.markdown()
     ))
 }

@@ -31,7 +31,7 @@ use crate::PaperError;
 use crate::config::PaperConfig;
 use crate::experiment::Experiment;
 use crate::options::{RunOptions, WallLog};
-use crate::report::Table;
+use crate::report::{Table, resolve_holm};
 use crate::results::Results;
 
 /// Writes every table, figure and the page; returns the files written.
@@ -55,12 +55,15 @@ pub fn write_all(
         jitter::jitter(cfg, results, &mut w)?,
         scales::scales(cfg, results, &mut w)?,
     ];
-    let page = header(cfg, opts, results) + &shapes::shapes(cfg, results) + &sections.join("\n");
+    // The sections' paired tests form one family for Holm's correction; the
+    // shapes' tests, which decide the verdicts, form their own (see `shapes`).
+    let (sections, family) = resolve_holm(&sections.join("\n"));
+    let page = header(cfg, opts, results, family) + &shapes::shapes(cfg, results) + &sections;
     w.text("README.md", &page)?;
     Ok(w.written)
 }
 
-fn header(cfg: &PaperConfig, opts: &RunOptions, results: &Results) -> String {
+fn header(cfg: &PaperConfig, opts: &RunOptions, results: &Results, family: usize) -> String {
     let wall = WallLog::read(&opts.out);
     let builds = results.provenance(|p| &p.build);
     let backends = results.backends();
@@ -129,7 +132,7 @@ fn header(cfg: &PaperConfig, opts: &RunOptions, results: &Results) -> String {
         if builds.is_empty() {
             "none yet".into()
         } else {
-            builds.into_iter().collect::<Vec<_>>().join(", ")
+            builds.iter().cloned().collect::<Vec<_>>().join(", ")
         },
         if backends.is_empty() {
             "none yet".into()
@@ -151,21 +154,48 @@ fn header(cfg: &PaperConfig, opts: &RunOptions, results: &Results) -> String {
         );
     }
     let records: usize = results.units.values().map(|u| u.runs.len()).sum();
+    let unnamed = results.cpus().get("not recorded").copied().unwrap_or(0);
+    if builds.len() > 1 || unnamed > 0 {
+        s += &format!(
+            "**Provenance**: the study's rules ask for one build for every record and a CPU \
+             named by every record; these records come from {} build(s), and {unnamed} name no \
+             CPU. Rerun into a fresh folder with one build to meet them.\n\n",
+            builds.len()
+        );
+    }
+    let record_wall_s: f64 = results
+        .units
+        .values()
+        .flat_map(|u| &u.runs)
+        .map(|r| r.record.perf.wall_s)
+        .sum();
     s += &format!(
         "**Wall time**: {:.2} h in sweeps over {} invocation(s), which timed {} runs for the {} \
          recorded here ({} at a time; runs of an invocation stopped by hand were never timed, \
          and a run made again was timed again), on the machines that made them (the CPUs \
-         above; `docs/bench.md` names the one it was measured on).\n\n",
+         above; `docs/bench.md` names the one it was measured on). The records' own wall \
+         times, one per run, sum to {:.2} h over all {records} runs (run time only, one run at \
+         a time).\n\n",
         wall.sweep_s / 3600.0,
         wall.invocations,
         wall.runs,
         records,
-        wall.jobs
+        wall.jobs,
+        record_wall_s / 3600.0,
     );
-    s += "**Statistics**: rates carry Wilson 95 % intervals `[low, high]`; per-run means carry \
-          seeded bootstrap 95 % intervals; `paired` cells compare two configurations run by run on \
-          the same route, density and seed (mean difference b - a, its bootstrap 95 % interval, \
-          `*` where it excludes 0, and how many pairs went up or down).\n\n";
+    s += &format!(
+        "**Statistics**: rates carry Wilson 95 % intervals `[low, high]` (which treat runs as \
+         independent); per-run means carry seeded bootstrap 95 % intervals that resample whole \
+         blocks, a block being the runs of one route at one density (runs on one route are not \
+         independent draws); `paired` cells compare two configurations run by run on the same \
+         route, density and seed: the mean difference b - a, its block-bootstrap 95 % interval, \
+         how many pairs and blocks, how many pairs went up or down, the exact two-sided p-value \
+         (a sign-flip permutation test of the differences, which for 0/1 outcomes is the exact \
+         McNemar test) and that p adjusted by Holm's method across all {family} paired tests in \
+         the tables below, `*` where the adjusted p is below 0.05. The tables' own verdict \
+         columns read the raw p and are descriptive; the paper's claims are judged in the next \
+         section by the rules fixed there, with their own family of tests.\n\n"
+    );
     let mut t = Table::new(&["experiment", "runs finished / planned"]);
     for e in Experiment::ALL {
         let (done, planned) = results.progress(cfg, &e.units(cfg));

@@ -45,6 +45,14 @@ pub const TABLE3: [((f64, f64), [Table3Row; 3]); 2] = [
         ],
     ),
 ];
+/// Table III's runs per configuration.
+pub const TABLE3_RUNS: f64 = 12.0;
+/// A range of success and one of collisions, low and high (percent).
+pub type Ranges = ((f64, f64), (f64, f64));
+/// Fig. 5 up to D = 100 ms: success 91.65-100 %, collisions 0-25 % (percent).
+pub const FIG5_UP_TO_100: Ranges = ((91.65, 100.0), (0.0, 25.0));
+/// Fig. 5 at D = 200 ms: success 0-8.35 %, collisions 83-100 % (percent).
+pub const FIG5_AT_200: Ranges = ((0.0, 8.35), (83.0, 100.0));
 /// Fig. 5 in words (§IV-D).
 pub const FIG5: &str = "with D <= 100 ms success stays at 91.65-100 % and collisions at 0-25 %; \
     at D = 150 ms collisions jump and success begins to drop; at D = 200 ms success is 0-8.35 % \

@@ -20,6 +20,7 @@
 //! - [`error`]: what can go wrong ([`SweepError`]).
 
 pub mod error;
+pub mod exact;
 pub mod execute;
 pub mod folder;
 pub mod merge;

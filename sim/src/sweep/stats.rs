@@ -1,6 +1,8 @@
 //! Statistics the paper does not give: 95 % intervals for rates (Wilson) and means
-//! (bootstrap), and a paired comparison of two configurations that share seeds.
-//! Every resampling is seeded, so a table is the same each time it is made.
+//! (bootstrap, over runs or over blocks of runs that share a route), and a paired
+//! comparison of two configurations that share seeds, with its exact p-value
+//! ([`super::exact`]). Every resampling is seeded, so a table is the same each time
+//! it is made.
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -41,6 +43,52 @@ pub fn bootstrap_mean(values: &[f64], resamples: usize, seed: u64) -> (f64, f64)
     (at(0.025), at(0.975))
 }
 
+/// A percentile bootstrap 95 % interval of the mean of `values` that resamples
+/// whole blocks: `blocks[i]` names the block of `values[i]` (runs on one route and
+/// density, say), and each resample draws as many blocks as there are, with
+/// replacement, and takes the mean over every value they hold. Runs in one block
+/// are not independent (one route decides much of what happens on it), so this
+/// interval is wider than [`bootstrap_mean`]'s when blocks differ, and equal to it
+/// when every value is its own block. (mean, mean) for fewer than two blocks.
+pub fn block_bootstrap_mean(
+    values: &[f64],
+    blocks: &[usize],
+    resamples: usize,
+    seed: u64,
+) -> (f64, f64) {
+    let n = values.len().min(blocks.len());
+    let mean = values[..n].iter().sum::<f64>() / n.max(1) as f64;
+    // (sum, count) per block, in the order blocks first appear.
+    let mut ids: Vec<usize> = Vec::new();
+    let mut sums: Vec<(f64, usize)> = Vec::new();
+    for (&v, &b) in values.iter().zip(blocks) {
+        let i = ids.iter().position(|&x| x == b).unwrap_or_else(|| {
+            ids.push(b);
+            sums.push((0.0, 0));
+            ids.len() - 1
+        });
+        sums[i].0 += v;
+        sums[i].1 += 1;
+    }
+    let k = sums.len();
+    if k < 2 || resamples == 0 {
+        return (mean, mean);
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut means: Vec<f64> = (0..resamples)
+        .map(|_| {
+            let (s, c) = (0..k).fold((0.0, 0), |(s, c), _| {
+                let (bs, bc) = sums[rng.random_range(0..k)];
+                (s + bs, c + bc)
+            });
+            s / c as f64
+        })
+        .collect();
+    means.sort_by(f64::total_cmp);
+    let at = |q: f64| means[((q * (resamples - 1) as f64).round() as usize).min(resamples - 1)];
+    (at(0.025), at(0.975))
+}
+
 /// Two configurations compared on the same seeds (run i of `a` and of `b` share
 /// their seed, route and traffic).
 #[derive(Debug, Clone, PartialEq)]
@@ -49,34 +97,71 @@ pub struct Paired {
     pub n: usize,
     /// Mean of b - a.
     pub mean_diff: f64,
-    /// Bootstrap 95 % interval of the mean difference (pairs resampled together).
+    /// Bootstrap 95 % interval of the mean difference, resampling whole blocks of
+    /// pairs ([`block_bootstrap_mean`]; each pair its own block in [`paired`]).
     pub ci: (f64, f64),
     /// Pairs where b > a, b < a, b = a.
     pub better_worse_same: (usize, usize, usize),
+    /// The exact two-sided p-value of "no difference": the sign-flip test of the
+    /// differences, which for 0/1 outcomes is the exact McNemar test.
+    pub p: f64,
+    /// How many independent blocks the interval rests on.
+    pub blocks: usize,
+    /// The differences b - a, pair by pair.
+    pub diffs: Vec<f64>,
 }
 
 impl Paired {
-    /// Whether the interval excludes 0: a difference the seeds cannot explain away.
+    /// Whether the exact test finds a difference at the 5 % level, before any
+    /// correction for the other tests of its family.
     pub fn significant(&self) -> bool {
-        self.ci.0 > 0.0 || self.ci.1 < 0.0
+        self.p < 0.05
+    }
+
+    /// The exact p-value of "the mean difference lies within ±`margin`" (TOST):
+    /// below 0.05, the two are shown alike within the margin.
+    pub fn equivalence_p(&self, margin: f64) -> f64 {
+        super::exact::equivalence_p(&self.diffs, margin)
     }
 }
 
-/// Compares `b` with `a` pair by pair (the shorter length is used).
+/// Compares `b` with `a` pair by pair (the shorter length is used), each pair
+/// its own block.
 pub fn paired(a: &[f64], b: &[f64], resamples: usize, seed: u64) -> Paired {
+    let blocks: Vec<usize> = (0..a.len().min(b.len())).collect();
+    paired_in_blocks(a, b, &blocks, resamples, seed)
+}
+
+/// Compares `b` with `a` pair by pair; `blocks[i]` names the block of pair i
+/// (its route and density, say), and the interval resamples whole blocks.
+pub fn paired_in_blocks(
+    a: &[f64],
+    b: &[f64],
+    blocks: &[usize],
+    resamples: usize,
+    seed: u64,
+) -> Paired {
     let d: Vec<f64> = a.iter().zip(b).map(|(x, y)| y - x).collect();
-    let n = d.len();
+    let n = d.len().min(blocks.len());
+    let d = d[..n].to_vec();
+    let blocks = &blocks[..n];
     let mean_diff = d.iter().sum::<f64>() / n.max(1) as f64;
     let count = |f: &dyn Fn(f64) -> bool| d.iter().filter(|&&x| f(x)).count();
+    let mut distinct = blocks.to_vec();
+    distinct.sort_unstable();
+    distinct.dedup();
     Paired {
         n,
         mean_diff,
-        ci: bootstrap_mean(&d, resamples, seed),
+        ci: block_bootstrap_mean(&d, blocks, resamples, seed),
         better_worse_same: (
             count(&|x| x > 0.0),
             count(&|x| x < 0.0),
             count(&|x| x == 0.0),
         ),
+        p: super::exact::sign_flip_p(&d, super::exact::Alternative::TwoSided),
+        blocks: distinct.len(),
+        diffs: d,
     }
 }
 
@@ -132,5 +217,34 @@ mod tests {
         assert!(ib.0 < ia.1);
         let same = paired(&a, &a, 2000, 3);
         assert!(!same.significant());
+        assert_eq!(same.p, 1.0);
+        // 12 of 12 up: p = 2 / 2^12 exactly.
+        assert_eq!(p.p, 2.0 / 4096.0);
+    }
+
+    #[test]
+    fn blocks_of_one_give_the_plain_bootstrap_and_real_blocks_widen_it() {
+        let v: Vec<f64> = (0..36).map(|i| f64::from((i * 7) % 5)).collect();
+        let singletons: Vec<usize> = (0..36).collect();
+        assert_eq!(
+            block_bootstrap_mean(&v, &singletons, 2000, 9),
+            bootstrap_mean(&v, 2000, 9)
+        );
+        // Four blocks whose runs agree inside and differ between: the interval is
+        // that of four values, far wider than 36 independent runs would give.
+        let blocks: Vec<usize> = (0..36).map(|i| i / 9).collect();
+        let v: Vec<f64> = blocks.iter().map(|&b| [0.0, 1.0, 0.0, 3.0][b]).collect();
+        let (lo, hi) = block_bootstrap_mean(&v, &blocks, 2000, 9);
+        let (plo, phi) = bootstrap_mean(&v, 2000, 9);
+        assert!(hi - lo > 1.8 * (phi - plo), "{lo} {hi} vs {plo} {phi}");
+        assert!(lo <= 0.25 && hi >= 1.75, "{lo} {hi}");
+        let p = paired_in_blocks(&vec![0.0; 36], &v, &blocks, 2000, 9);
+        assert_eq!((p.blocks, p.n), (4, 36));
+        assert_eq!(p.ci, (lo, hi));
+        // One block: no interval to give.
+        assert_eq!(
+            block_bootstrap_mean(&[1.0, 2.0], &[5, 5], 100, 1),
+            (1.5, 1.5)
+        );
     }
 }
