@@ -738,6 +738,23 @@ mod tests {
     use super::*;
 
     #[test]
+    fn no_dataset_drives_the_held_out_towns() {
+        // The study's held-out routes (experiments::PaperConfig::held_out) are on
+        // CARLA's Town02 and our held01: no episode of either preset may drive them.
+        for preset in [Preset::Original, Preset::Retarget] {
+            for e in plan(preset, 5000, Path::new("carla"), Path::new("repo")) {
+                let map = e.map.to_string_lossy().into_owned();
+                assert!(
+                    !map.ends_with("Town02.xodr") && !map.ends_with("held01.xodr"),
+                    "{} episode {} drives {map}",
+                    preset.name(),
+                    e.id
+                );
+            }
+        }
+    }
+
+    #[test]
     fn a_scenario_plan_drives_its_route_once_per_seed_and_density() {
         let text = "[map]\nfile = \"maps/gen02.xodr\"\ngenerate_lights = true\n\
                     [route]\nfile = \"routes/gen02.toml\"\nid = 1\n\

@@ -169,6 +169,27 @@ impl PaperConfig {
         }
     }
 
+    /// The study on routes no training run drove: eight random routes on
+    /// CARLA's Town02 (no dataset of ours drives Town02) and four on held01, a
+    /// generated town held out of every dataset (`scenarios/heldout/`, routes
+    /// written by `mrdrive routes --random` with seeds 0-7 and 0-3). With the
+    /// paper's four, the switcher's claim rests on 16 routes. Everything else
+    /// is [`PaperConfig::full`]'s; `mrdrive paper --held-out` runs Fig. 3 and
+    /// Table III on them.
+    pub fn held_out() -> Self {
+        let route = |town: &str, stem: &str, seed: u32| Route {
+            scenario: PathBuf::from(format!("scenarios/heldout/{stem}_random{seed}.toml")),
+            town: town.to_string(),
+            route: format!("random {seed}"),
+        };
+        let mut routes: Vec<Route> = (0..8).map(|s| route("Town02", "town02", s)).collect();
+        routes.extend((0..4).map(|s| route("held01", "held01", s)));
+        PaperConfig {
+            routes,
+            ..Self::full()
+        }
+    }
+
     /// The switchers of Table III and the frontier: the paper's oracle, the
     /// map lookahead, with a trigger the learned one, and the lookahead that
     /// switches up before the braking point.
@@ -212,5 +233,49 @@ impl PaperConfig {
                 .file_stem()
                 .is_some_and(|s| s.to_string_lossy() == base)
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use sim::scenario::Scenario;
+    use world::{LoadOptions, PlannerConfig, RouteFile, load_xodr_file, plan_route};
+
+    /// Plans `scenario`'s route on its map: its length (metres).
+    fn planned_length_m(scenario: &Scenario) -> f64 {
+        let (town, _) = load_xodr_file(&scenario.map.file, &LoadOptions::default()).unwrap();
+        let file = RouteFile::load(&scenario.route.file).unwrap();
+        let route = file.route(&scenario.route.id).unwrap();
+        f64::from(
+            plan_route(&town, route, &PlannerConfig::default())
+                .unwrap()
+                .length_m,
+        )
+    }
+
+    #[test]
+    fn the_held_out_routes_load_and_plan_on_towns_no_dataset_drives() {
+        let root = world::testdata::workspace_root();
+        let cfg = PaperConfig::held_out();
+        assert_eq!(cfg.routes.len(), 12);
+        assert_eq!(cfg.towns(), ["Town02", "held01"]);
+        let carla = world::testdata::carla_dir(
+            "the_held_out_routes_load_and_plan_on_towns_no_dataset_drives",
+        );
+        for r in &cfg.routes {
+            let s = Scenario::from_file(&root.join(&r.scenario)).unwrap();
+            assert_eq!(cfg.route_of(&r.scenario), Some(r));
+            // Town02's file lives in ../shared/carla: planned when it is there.
+            if r.town == "Town02" && carla.is_none() {
+                continue;
+            }
+            let length = planned_length_m(&s);
+            assert!(
+                (300.0..900.0).contains(&length),
+                "{}: {length} m",
+                r.scenario.display()
+            );
+        }
     }
 }

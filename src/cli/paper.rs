@@ -15,6 +15,11 @@ pub struct PaperArgs {
     /// A smoke test of every table and figure (one route, one seed, runs capped at 8 s): minutes.
     #[arg(long)]
     pub quick: bool,
+    /// The study on 12 routes no training run drove (8 random Town02 routes, 4 on
+    /// the held-out generated town held01): Fig. 3 and Table III unless --only
+    /// says otherwise; default folder docs/paper-heldout.
+    #[arg(long, conflicts_with = "quick")]
+    pub held_out: bool,
     /// Only these experiments, comma-separated: table1, table2, fig3, fig4, fig5, table3, frontier, jitter, scales.
     #[arg(long, default_value = "")]
     pub only: String,
@@ -56,11 +61,18 @@ impl Progress for Bar {
 pub fn run(a: PaperArgs) -> anyhow::Result<()> {
     let (cfg, label, default_out) = if a.quick {
         (PaperConfig::quick(), "quick", "out/paper-quick")
+    } else if a.held_out {
+        (PaperConfig::held_out(), "held-out", "docs/paper-heldout")
     } else {
         (PaperConfig::full(), "full", "docs/paper")
     };
     let out = a.out.unwrap_or_else(|| PathBuf::from(default_out));
-    let experiments = Experiment::parse_list(&a.only)?;
+    let only = if a.held_out && a.only.is_empty() {
+        "fig3,table3"
+    } else {
+        a.only.as_str()
+    };
+    let experiments = Experiment::parse_list(only)?;
     let opts = RunOptions {
         out: out.clone(),
         jobs: a.jobs,

@@ -75,10 +75,10 @@ fn header(cfg: &PaperConfig, opts: &RunOptions, results: &Results, family: usize
          checkpoints `{}`, `{}`, `{}`, `{}`{}.{} Every table and figure below is rewritten from \
          the run records in `sweeps/` beside this page each time the command runs; a killed \
          run resumes where it stopped.\n\n",
-        if opts.label == "quick" {
-            " --quick"
-        } else {
-            ""
+        match opts.label.as_str() {
+            "quick" => " --quick",
+            "held-out" => " --held-out",
+            _ => "",
         },
         opts.label,
         cfg.routes.len(),

@@ -88,6 +88,36 @@ impl RouteFile {
     }
 }
 
+impl Route {
+    /// The route as one `[[route]]` table of our TOML form: positions to the
+    /// millimetre, headings to a thousandth of a degree (what [`parse_toml`]
+    /// reads back to within those steps).
+    pub fn toml(&self) -> String {
+        let points: Vec<String> = self
+            .waypoints
+            .iter()
+            .map(|w| match w.yaw_rad {
+                Some(yaw) => format!(
+                    "[{:.3}, {:.3}, {:.3}]",
+                    w.position.x,
+                    w.position.y,
+                    yaw.to_degrees()
+                ),
+                None => format!("[{:.3}, {:.3}]", w.position.x, w.position.y),
+            })
+            .collect();
+        let town = self
+            .town
+            .as_ref()
+            .map_or(String::new(), |t| format!("town = {t:?}\n"));
+        format!(
+            "[[route]]\nid = {:?}\n{town}waypoints = [{}]\n",
+            self.id,
+            points.join(", ")
+        )
+    }
+}
+
 fn parse_err(
     path: &Path,
     what: impl Into<String>,
@@ -241,6 +271,41 @@ pub fn parse_toml(text: &str, path: &Path) -> Result<RouteFile, RouteError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_route_written_as_toml_reads_back() {
+        let route = Route {
+            id: "random-7".into(),
+            town: Some("Town02".into()),
+            waypoints: vec![
+                RouteWaypoint {
+                    position: Vec3::new(12.345_67, -190.5, 0.0),
+                    yaw_rad: Some(-1.234_5),
+                },
+                RouteWaypoint {
+                    position: Vec3::new(80.0, 3.25, 0.0),
+                    yaw_rad: None,
+                },
+            ],
+            source: PathBuf::from("random route, seed 7"),
+        };
+        let text = format!("# two routes\n{}\n{}", route.toml(), route.toml());
+        assert!(
+            text.contains("[[route]]\nid = \"random-7\"\ntown = \"Town02\"\n"),
+            "{text}"
+        );
+        let back = parse_toml(&text, Path::new("r.toml")).unwrap();
+        assert_eq!(back.routes.len(), 2);
+        let r = back.route("random-7").unwrap();
+        assert_eq!(r.town.as_deref(), Some("Town02"));
+        for (a, b) in r.waypoints.iter().zip(&route.waypoints) {
+            assert!((a.position - b.position).length() < 1e-3, "{a:?} {b:?}");
+            match (a.yaw_rad, b.yaw_rad) {
+                (Some(x), Some(y)) => assert!((x - y).abs() < 1e-4, "{x} {y}"),
+                (x, y) => assert_eq!(x, y),
+            }
+        }
+    }
 
     #[test]
     fn carla_xml_flips_y_and_yaw() {
