@@ -88,6 +88,21 @@ pub enum PaperError {
         /// What failed.
         problem: String,
     },
+    /// This build is not the one that made the runs already in the folder.
+    #[error(
+        "{out}: its runs were made by `{existing}`, but this is `{here}`; the study's rule is \
+         one build for every record of the page. Check out the commit that made them (and build) \
+         to go on, write to another --out, or pass --mixed-builds to add runs of this build \
+         anyway (the page then says how many builds it holds)"
+    )]
+    Build {
+        /// The output folder.
+        out: PathBuf,
+        /// A build of its runs.
+        existing: String,
+        /// This binary's.
+        here: String,
+    },
     /// This machine renders with another backend than the runs already in the folder.
     #[error(
         "{out}: its runs were rendered by `{existing}`, but this machine renders with `{here}`; \

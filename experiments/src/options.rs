@@ -23,6 +23,9 @@ pub struct RunOptions {
     pub report_only: bool,
     /// "quick" or "full", written on the page.
     pub label: String,
+    /// Add runs to a folder whose runs another build made (the page then
+    /// warns that it mixes builds); `false` refuses ([`crate::PaperError::Build`]).
+    pub mixed_builds: bool,
     /// Run only the configuration's first this many seeds this time (the
     /// sweep plans still hold every seed; a later call goes on); `None`: all.
     pub seeds: Option<usize>,

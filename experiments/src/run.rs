@@ -45,7 +45,15 @@ pub fn run_paper(
     let units = units_of(&opts.experiments, cfg);
     if !opts.report_only {
         same_backend(cfg, opts, &units)?;
-        let cpus = Results::load(cfg, &opts.out, &units_of(&Experiment::ALL, cfg))?.cpus();
+        let existing = Results::load(cfg, &opts.out, &units_of(&Experiment::ALL, cfg))?;
+        if !opts.mixed_builds {
+            same_build(
+                &existing.provenance(|p| &p.build),
+                &sim::runner::build_id(),
+                &opts.out,
+            )?;
+        }
+        let cpus = existing.cpus();
         if let Some(note) = other_cpus(&cpus, sim::runner::cpu_model().as_deref()) {
             eprintln!("paper: {note}");
         }
@@ -125,6 +133,23 @@ fn other_cpus(
             others.join(", ")
         )
     })
+}
+
+/// Refuses to add runs to a folder holding runs of another build than `here`
+/// (the study's provenance rule: one build for every record of the page).
+fn same_build(
+    builds: &std::collections::BTreeSet<String>,
+    here: &str,
+    out: &std::path::Path,
+) -> Result<(), PaperError> {
+    match builds.iter().find(|b| *b != here) {
+        None => Ok(()),
+        Some(other) => Err(PaperError::Build {
+            out: out.to_path_buf(),
+            existing: other.clone(),
+            here: here.to_string(),
+        }),
+    }
 }
 
 /// Refuses to add policy runs to a folder holding runs rendered by any
@@ -215,6 +240,22 @@ mod tests {
     use super::*;
 
     #[test]
+    fn runs_of_another_build_are_refused_with_the_way_out() {
+        let out = std::path::Path::new("docs/paper");
+        let here = "mrdrive 0.1.0 (abc)";
+        let set = |b: &[&str]| b.iter().map(|s| s.to_string()).collect();
+        assert!(same_build(&set(&[]), here, out).is_ok());
+        assert!(same_build(&set(&[here]), here, out).is_ok());
+        let e = same_build(&set(&[here, "mrdrive 0.1.0 (def)"]), here, out)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("docs/paper") && e.contains("(def)") && e.contains("--mixed-builds"),
+            "{e}"
+        );
+    }
+
+    #[test]
     fn the_wall_log_grows_run_by_run_across_invocations() {
         let tmp = tempfile::tempdir().unwrap();
         let opts = RunOptions {
@@ -222,6 +263,7 @@ mod tests {
             jobs: 2,
             experiments: Vec::new(),
             report_only: false,
+            mixed_builds: false,
             label: "quick".into(),
             seeds: None,
         };

@@ -33,6 +33,10 @@ pub struct PaperArgs {
     /// Write the tables and figures from the runs already finished; run nothing.
     #[arg(long)]
     pub report_only: bool,
+    /// Add runs to a folder whose runs another build (commit) made; without it
+    /// such a folder is refused (the study's rule: one build for every record).
+    #[arg(long)]
+    pub mixed_builds: bool,
     /// Run only the first N seeds this time (the rest stay planned; a later call goes on).
     #[arg(long)]
     pub seeds: Option<usize>,
@@ -78,6 +82,7 @@ pub fn run(a: PaperArgs) -> anyhow::Result<()> {
         jobs: a.jobs,
         experiments,
         report_only: a.report_only,
+        mixed_builds: a.mixed_builds,
         label: label.into(),
         seeds: a.seeds,
     };
