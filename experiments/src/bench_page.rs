@@ -217,15 +217,18 @@ pub fn write_page(exe: &Path, root: &Path, note: &dyn Fn(&str)) -> Result<String
     let carla = root.join("../shared/carla/Town01.xodr").exists();
     let tmp = tempfile_dir()?;
     let shown = |s: &str| s.replace(&tmp.display().to_string(), "out");
+    let mut outputs = Vec::new();
     for b in benchmarks(&tmp, carla) {
         note(&b.title);
         let m = measure(root, exe, &b.args)?;
+        outputs.push(m.output.clone());
         md += &format!("## {}\n\n`mrdrive {}`", b.title, shown(&b.args.join(" ")));
         if let Some(p) = m.peak_mib {
             md += &format!(", peak memory {p:.0} MiB");
         }
         md += &format!("\n\n```text\n{}```\n\n", shown(&m.output));
     }
+    md += &budget(&outputs.join("\n"));
     md += "## Real-time factors\n\n| run | simulated s per wall s |\n| --- | --- |\n";
     for (what, file) in LOOP_RECORDS {
         let rtf = std::fs::read_to_string(tmp.join(file))
@@ -263,6 +266,95 @@ pub fn write_page(exe: &Path, root: &Path, note: &dyn Fn(&str)) -> Result<String
     Ok(md)
 }
 
+/// The first number after `prefix` on the last line of `text` that starts
+/// with it (after the prefix, whitespace-separated fields; `field` picks one).
+fn number_after(text: &str, prefix: &str, field: usize) -> Option<f64> {
+    text.lines()
+        .rev()
+        .find(|l| l.starts_with(prefix))
+        .and_then(|l| l[prefix.len()..].split_whitespace().nth(field))
+        .and_then(|v| v.parse().ok())
+}
+
+/// The per-frame budget of a policy run at 1.0x, from the benchmarks' printed
+/// figures (`outputs`, all of them): each part's cost per 20 Hz camera frame
+/// beside its floor, what the same work would cost with nothing wasted.
+/// Parts whose figures are missing are left out.
+pub fn budget(outputs: &str) -> String {
+    // The rig along Town01 route 0 when it was timed, else along gen01 (the last
+    // render benchmark printed wins, and Town01's comes after gen01's).
+    let render = number_after(outputs, "scenario  scale 1.00", 2);
+    let empty = number_after(outputs, "empty     scale 1.00", 2);
+    let ticks = number_after(outputs, "ticks/s", 0);
+    // The fused row at 1.0x: scale, input, GFLOP/frame, median ms, GFLOP/s, % peak, ms at peak.
+    let arithmetic = outputs
+        .find("network (fused)")
+        .map_or("", |i| &outputs[i..]);
+    let fused = arithmetic
+        .lines()
+        .find(|l| l.split_whitespace().take(2).collect::<Vec<_>>() == ["1", "240x96"])
+        .map(|l| l.split_whitespace().map(str::to_string).collect::<Vec<_>>());
+    let field = |i: usize| fused.as_ref().and_then(|f| f.get(i)?.parse::<f64>().ok());
+    let mut t = String::from(
+        "| part of one frame (1.0x, 20 Hz camera, 40 Hz physics) | ms | its floor | floor ms | measured / floor |\n\
+         | --- | --- | --- | --- | --- |\n",
+    );
+    let mut total = (0.0, 0.0);
+    let mut row = |part: &str, ms: f64, what: &str, floor: f64| {
+        total.0 += ms;
+        total.1 += floor;
+        t += &format!(
+            "| {part} | {ms:.2} | {what} | {floor:.2} | {:.1} |\n",
+            ms / floor
+        );
+    };
+    if let (Some(fps), Some(efps)) = (render, empty) {
+        row(
+            "render: the rig, 2x2 supersampled, read back",
+            1e3 / fps,
+            "the same frames of an empty town (sky, clear, resolve, sRGB, readback)",
+            1e3 / efps,
+        );
+    }
+    if let (Some(ms), Some(floor)) = (field(3), field(6)) {
+        row(
+            &format!(
+                "policy: the fused pass, {} GFLOP",
+                field(2).map_or("?".into(), |g| format!("{g:.3}"))
+            ),
+            ms,
+            "the same arithmetic at the CPU's estimated peak",
+            floor,
+        );
+    }
+    if let Some(tps) = ticks {
+        // Traffic's floor is not known: counted at its measured cost.
+        row(
+            "physics and traffic: 2 ticks (20 vehicles, 40 pedestrians)",
+            2e3 / tps,
+            "(none estimated: counted as measured)",
+            2e3 / tps,
+        );
+    }
+    if total.0 == 0.0 {
+        return String::new();
+    }
+    format!(
+        "## Per-frame budget\n\n\
+         Each part of a policy run's 20 Hz frame at 1.0x, from the figures above, beside its \
+         floor: what the same work costs with nothing wasted. The render's floor is measured \
+         (the pipeline with nothing to draw); the policy's is arithmetic (its multiply-adds at \
+         the estimated peak, which no kernel reaches: an upper bound on what tuning can win).\n\n\
+         {t}| total | {:.2} | | {:.2} | {:.1} |\n\n\
+         Without changing what is drawn or computed, a frame can get at most {:.1}x faster on \
+         this machine: the records stay identical only while the arithmetic and the pictures do.\n\n",
+        total.0,
+        total.1,
+        total.0 / total.1,
+        total.0 / total.1,
+    )
+}
+
 /// A fresh folder for the runs' records.
 fn tempfile_dir() -> Result<PathBuf, String> {
     let tmp = std::env::temp_dir().join(format!("mrdrive-bench-{}", std::process::id()));
@@ -296,6 +388,37 @@ mod tests {
             without[3].args.join(" "),
             "run scenarios/default.toml --expert --quiet --json /tmp/r/expert.json"
         );
+    }
+
+    #[test]
+    fn the_budget_sets_each_part_beside_its_floor() {
+        let outputs = "\
+ticks/s                 10000 per wall second of stepping (physics + behaviours, one thread)
+network                              engine  scale  input WxH  median ms    min ms    max ms  t(.75)/t(1)
+default: resnet18 half 32-256        burn     0.75     180x72       6.30      5.54      7.26
+                                                 1     240x96       9.44      8.31     10.57        0.667
+scenario  scale 1.00  240x96   median   200.0 rig fps  (repeats: 200 200 200)
+scenario  scale 0.75  180x72   median   250.0 rig fps  (repeats: 250 250 250)
+empty     scale 1.00  240x96   median   400.0 rig fps  (repeats: 400 400 400)
+network (fused)                       scale  input WxH  GFLOP/frame  median ms    GFLOP/s   % peak   ms at peak
+default: resnet18 half 32-256          0.75     180x72        0.283       5.19       54.6     32.9         1.71
+                                          1     240x96        0.450       8.00       56.3     33.9         2.50
+";
+        let page = budget(outputs);
+        assert!(
+            page.contains("| render: the rig, 2x2 supersampled, read back | 5.00 |"),
+            "{page}"
+        );
+        assert!(page.contains("the same frames of an empty town (sky, clear, resolve, sRGB, readback) | 2.50 | 2.0 |"), "{page}");
+        assert!(
+            page.contains("| policy: the fused pass, 0.450 GFLOP | 8.00 |"),
+            "{page}"
+        );
+        assert!(page.contains("| 2.50 | 3.2 |"), "{page}");
+        // 5 + 8 + 0.2 ms against 2.5 + 2.5 + 0.2: at most 2.5x.
+        assert!(page.contains("| total | 13.20 | | 5.20 | 2.5 |"), "{page}");
+        assert!(page.contains("at most 2.5x faster"), "{page}");
+        assert_eq!(budget("nothing measured"), "");
     }
 
     #[test]

@@ -98,6 +98,63 @@ pub fn fused_latency(
     })
 }
 
+/// The machine's peak f32 arithmetic for `threads` threads (GFLOP/s), estimated
+/// from a `/proc/cpuinfo` text, with how it was reckoned; `None` without a clock.
+///
+/// Peak = threads x clock x FLOPs per cycle per core, the clock being the one
+/// `/proc/cpuinfo` reports (a virtual machine's nominal clock; boost may go
+/// higher). FLOPs per cycle come from the vector unit the flags show and the
+/// vendors' documents: an Intel core with AVX-512 has two 512-bit FMA units
+/// (Xeon Scalable Gold and Platinum; 64 f32 FLOPs a cycle), an AMD core with
+/// AVX-512 (Zen 4) runs it on two 256-bit FMA pipes (32), a core with AVX2 and
+/// FMA has two 256-bit FMA units (32), anything older is counted at 8. It is an
+/// upper bound: no real kernel issues two FMAs every cycle.
+pub fn cpu_peak_gflops(cpuinfo: &str, threads: usize) -> Option<(f64, String)> {
+    let field = |key: &str| {
+        cpuinfo
+            .lines()
+            .find_map(|l| l.strip_prefix(key)?.trim_start().strip_prefix(':'))
+            .map(str::trim)
+    };
+    let mhz: f64 = field("cpu MHz")?.parse().ok()?;
+    let flags: Vec<&str> = field("flags").unwrap_or("").split_whitespace().collect();
+    let has = |f: &str| flags.contains(&f);
+    let intel = field("vendor_id") == Some("GenuineIntel");
+    let (per_cycle, why) = if has("avx512f") && intel {
+        (64.0, "Intel AVX-512: two 512-bit FMA units")
+    } else if has("avx512f") {
+        (32.0, "AMD AVX-512 (Zen 4): two 256-bit FMA pipes")
+    } else if has("avx2") && has("fma") {
+        (32.0, "AVX2 + FMA: two 256-bit FMA units")
+    } else {
+        (8.0, "no AVX2/FMA: counted at 8")
+    };
+    let peak = threads as f64 * mhz / 1e3 * per_cycle;
+    Some((
+        peak,
+        format!(
+            "{threads} threads x {:.2} GHz x {per_cycle:.0} f32 FLOP/cycle ({why})",
+            mhz / 1e3
+        ),
+    ))
+}
+
+/// The multiply-accumulates of one fused forward pass of `config` at each scale
+/// of its R ([`crate::fused::FusedPolicy::macs`]): (scale, [height, width], MACs).
+pub fn frame_macs(config: &PolicyConfig) -> Vec<(f32, [usize; 2], u64)> {
+    let device = Device::flex();
+    device.seed(0);
+    let fused = crate::fused::FusedPolicy::from_net(&config.init(&device));
+    config
+        .scales
+        .iter()
+        .map(|&r| {
+            let [h, w] = config.input_size(r);
+            (r, [h, w], fused.macs(h, w))
+        })
+        .collect()
+}
+
 /// Times `run(branch)` for every branch of `config`, `warmup` untimed then `repeats` timed
 /// rounds; scales are interleaved (one run of each per round) so that load from other
 /// processes falls on all of them alike.
@@ -368,6 +425,27 @@ pub fn overhead(name: &str, config: &PolicyConfig) -> Overhead {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn the_peak_is_reckoned_from_the_vendor_the_flags_and_the_clock() {
+        let amd =
+            "vendor_id\t: AuthenticAMD\ncpu MHz\t\t: 2596.126\nflags\t\t: fpu avx2 fma avx512f\n";
+        let (p, why) = cpu_peak_gflops(amd, 2).unwrap();
+        assert!((p - 2.0 * 2.596_126 * 32.0).abs() < 1e-9, "{p}");
+        assert!(
+            why.contains("2 threads x 2.60 GHz x 32") && why.contains("Zen 4"),
+            "{why}"
+        );
+        let intel = amd.replace("AuthenticAMD", "GenuineIntel");
+        let peak = |text: &str, threads| cpu_peak_gflops(text, threads).unwrap().0;
+        assert!((peak(&intel, 1) - 2.596_126 * 64.0).abs() < 1e-9);
+        let avx2 = amd.replace(" avx512f", "");
+        assert!((peak(&avx2, 1) - 2.596_126 * 32.0).abs() < 1e-9);
+        let old = "vendor_id\t: GenuineIntel\ncpu MHz\t: 1000\nflags\t: fpu sse2\n";
+        assert_eq!(cpu_peak_gflops(old, 4).unwrap().0, 32.0);
+        assert_eq!(cpu_peak_gflops("vendor_id : x\n", 2), None);
+    }
+
     use super::*;
 
     #[test]

@@ -136,6 +136,17 @@ impl Conv {
         (n + 2 * self.pad - self.k) / self.stride + 1
     }
 
+    /// The multiply-accumulates of one application to an `h x w` input, and
+    /// the output's height and width.
+    fn macs(&self, h: usize, w: usize) -> (u64, usize, usize) {
+        let (ho, wo) = (self.out_len(h), self.out_len(w));
+        (
+            (ho * wo * self.k * self.k * self.cin * self.cout) as u64,
+            ho,
+            wo,
+        )
+    }
+
     /// `epilogue(conv(x))`: the output `[Ho * Wo, cout]` and its size.
     ///
     /// The output rows (pixels) are cut into tiles of [`TILE_ROWS`]; each tile is one im2col
@@ -323,8 +334,13 @@ impl Dense {
 }
 
 /// 3x3 stride-2 max-pool with padding 1 (padding never wins).
+/// The output length of the stem's 3x3, stride-2, pad-1 max pooling.
+fn maxpool_len(n: usize) -> usize {
+    (n + 2 - 3) / 2 + 1
+}
+
 fn maxpool3x3s2(x: &Fmap) -> Fmap {
-    let (ho, wo) = ((x.h + 2 - 3) / 2 + 1, (x.w + 2 - 3) / 2 + 1);
+    let (ho, wo) = (maxpool_len(x.h), maxpool_len(x.w));
     let c = x.c;
     let mut data = vec![f32::NEG_INFINITY; ho * wo * c];
     for oy in 0..ho {
@@ -452,6 +468,31 @@ impl FusedPolicy {
             .collect()
     }
 
+    /// The multiply-accumulates of one forward pass on a `height x width`
+    /// image: every convolution of the backbone and the three dense layers of
+    /// the action head. A frame's arithmetic is twice this in FLOPs; BN (folded
+    /// into each convolution's epilogue), ReLU, pooling and the normalisation
+    /// are a few operations per activation and not counted.
+    pub fn macs(&self, height: usize, width: usize) -> u64 {
+        let (mut total, h, w) = self.stem.conv.macs(height, width);
+        let (mut h, mut w) = (maxpool_len(h), maxpool_len(w));
+        for b in &self.blocks {
+            if let Some(d) = &b.downsample {
+                total += d.conv.macs(h, w).0;
+            }
+            let (m1, h1, w1) = b.conv1.conv.macs(h, w);
+            let (m2, h2, w2) = b.conv2.conv.macs(h1, w1);
+            total += m1 + m2;
+            (h, w) = (h2, w2);
+        }
+        total
+            + self
+                .head
+                .iter()
+                .map(|d| (d.n_in * d.n_out) as u64)
+                .sum::<u64>()
+    }
+
     /// Action logits of an RGB8 image through BN branch `branch` (on rayon's current pool).
     pub fn forward_rgb8(&self, rgb: &[u8], height: usize, width: usize, branch: usize) -> Vec<f32> {
         let x = self.normalize(rgb, height, width);
@@ -465,6 +506,32 @@ mod tests {
     use crate::backbone::Depth;
     use burn::module::{Module, RunningState};
     use burn::tensor::Distribution;
+
+    #[test]
+    fn the_arithmetic_of_a_frame_is_counted_layer_by_layer() {
+        let device = Device::flex();
+        let fused = FusedPolicy::from_net(&PolicyConfig::cpu_default().init(&device));
+        // The CPU default (ResNet-18, widths 32-64-128-256) on a 32 x 32 image, by hand:
+        // stem 7x7/2 to 16x16, pool to 8x8, then 8x8, 4x4, 2x2 and 1x1 per stage.
+        let stem = 16 * 16 * 49 * 3 * 32;
+        let stage1 = 4 * (8 * 8 * 9 * 32 * 32);
+        // A later stage at side n, widths c -> 2c: strided conv, conv, 1x1 projection,
+        // then a second block of two convs.
+        let stage = |n: u64, c: u64| {
+            let px = n * n;
+            px * 9 * c * 2 * c + px * 9 * 4 * c * c + px * c * 2 * c + 2 * px * 9 * 4 * c * c
+        };
+        let backbone = stem + stage1 + stage(4, 32) + stage(2, 64) + stage(1, 128);
+        assert_eq!(backbone, 9_854_976);
+        let head: u64 = fused.head.iter().map(|d| (d.n_in * d.n_out) as u64).sum();
+        assert_eq!(fused.macs(32, 32), backbone + head);
+        // The rig's two scales: 0.75x costs 0.629 of 1.0x, not its area ratio 0.5625,
+        // because strided layers round up (72 rows go 36, 18, 9, 5, 3; 96 go 48, 24,
+        // 12, 6, 3: the last stage has as many rows at both scales).
+        let (full, low) = (fused.macs(96, 240), fused.macs(72, 180));
+        let ratio = low as f64 / full as f64;
+        assert!((ratio - 0.6293).abs() < 1e-4, "{ratio}");
+    }
 
     /// RGB8 bytes of an image `h` x `w` (the shared test pattern).
     fn image(h: usize, w: usize, seed: u8) -> Vec<u8> {

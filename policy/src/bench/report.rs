@@ -58,6 +58,70 @@ pub struct PolicyBench {
     pub quick: bool,
 }
 
+/// The arithmetic of each network's fused pass per scale against the machine's
+/// estimated peak ([`super::cpu_peak_gflops`]): what each frame costs at best.
+/// Times the fused pass again (`repeats` rounds) so the rate is its own.
+fn arithmetic(
+    nets: &[(&str, PolicyConfig)],
+    repeats: usize,
+    threads: usize,
+    out: &mut dyn Write,
+) -> io::Result<()> {
+    let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+    let peak = super::cpu_peak_gflops(&cpuinfo, threads);
+    match &peak {
+        Some((p, why)) => writeln!(out, "estimated peak: {p:.0} GFLOP/s f32 ({why})")?,
+        None => writeln!(out, "estimated peak: unknown (no clock in /proc/cpuinfo)")?,
+    }
+    writeln!(
+        out,
+        "{:<36} {:>6} {:>10} {:>12} {:>10} {:>10} {:>8} {:>12}",
+        "network (fused)",
+        "scale",
+        "input WxH",
+        "GFLOP/frame",
+        "median ms",
+        "GFLOP/s",
+        "% peak",
+        "ms at peak"
+    )?;
+    for (name, cfg) in nets {
+        let macs = super::frame_macs(cfg);
+        let times = super::fused_latency(cfg, 1, repeats);
+        for (i, ((r, [h, w], m), (_, _, l))) in macs.iter().zip(&times).enumerate() {
+            let gflop = 2.0 * *m as f64 / 1e9;
+            let rate = gflop / (l.median_ms / 1e3);
+            let (pct, floor) = peak.as_ref().map_or(("-".into(), "-".into()), |(p, _)| {
+                (
+                    format!("{:.1}", 100.0 * rate / p),
+                    format!("{:.2}", 1e3 * gflop / p),
+                )
+            });
+            writeln!(
+                out,
+                "{:<36} {:>6} {:>10} {:>12.3} {:>10.2} {:>10.1} {:>8} {:>12}",
+                if i == 0 { *name } else { "" },
+                r,
+                format!("{w}x{h}"),
+                gflop,
+                l.median_ms,
+                rate,
+                pct,
+                floor
+            )?;
+        }
+        if let [(_, _, lo), .., (_, _, hi)] = macs.as_slice() {
+            writeln!(
+                out,
+                "{:<36} arithmetic ratio low/high scale {:.3} (the ideal t(low)/t(high); strided layers round up)",
+                "",
+                *lo as f64 / *hi as f64
+            )?;
+        }
+    }
+    Ok(())
+}
+
 /// The system's load average as `/proc/loadavg` has it (empty where there is none).
 fn load_average() -> String {
     std::fs::read_to_string("/proc/loadavg")
@@ -127,8 +191,11 @@ pub fn policy_bench(
     }
     writeln!(
         out,
-        "(ideal t(0.75)/t(1.0) = 0.5625, the area ratio; burn: tensor in, logits read back; fused: the driver's CPU path, RGB8 in, normalisation included)"
+        "(area ratio 0.5625; burn: tensor in, logits read back; fused: the driver's CPU path, RGB8 in, normalisation included)"
     )?;
+    if kind == DeviceKind::Cpu {
+        arithmetic(&nets, repeats, threads, out)?;
+    }
     writeln!(out, "load average after inference: {}", load_average())?;
     if train_steps > 0 {
         let cfg = Preset::Cpu.config(&[0.75, 1.0]);

@@ -301,6 +301,28 @@ pub fn route_report(
     )? {
         let _ = writeln!(s, "{}", speed_line("scenario", &m));
     }
+    // The floor: the same frames of a town with nothing in it (the sky, the
+    // clear, the 2x2 resolve, the sRGB encode and the readback): what a frame
+    // costs before the first triangle is drawn.
+    let mut empty = Town::empty("empty");
+    empty.bounds = town.bounds;
+    let mut floor = Renderer::new(&empty, rig, seed)?;
+    let speeds = bench_poses(
+        &mut floor,
+        &poses,
+        (&[], &[]),
+        &[1.0, 0.75],
+        frames,
+        repeats,
+    )?;
+    for m in &speeds {
+        let _ = writeln!(s, "{}", speed_line("empty", m));
+    }
+    let _ = writeln!(
+        s,
+        "(empty: a town with no road, building, light or actor along the same poses: the \
+         per-frame cost of the pipeline itself)"
+    );
     Ok(s)
 }
 
