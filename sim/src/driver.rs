@@ -53,6 +53,10 @@ pub struct Privileged<'a> {
     pub stops: &'a world::rules::RouteStops,
     /// The nearest actor ahead along the route, if any within range.
     pub ahead: Option<world::rules::Ahead>,
+    /// Where the route enters a junction without lights that the ego must
+    /// wait before (route arc length, metres): a vehicle holds a connecting
+    /// lane that conflicts with the route's ([`world::rules::junction_yield`]).
+    pub junction_yield_s: Option<f32>,
     /// The ego's vehicle model.
     pub vehicle: &'a world::agents::VehicleParams,
 }

@@ -18,6 +18,10 @@
 //!   NPCs use: a corridor around the route) it keeps a gap of 4 m: it stops
 //!   behind a standing one and follows a moving one with a braking profile
 //!   `v = sqrt(2 a d)` plus the leader's speed.
+//! - **Junctions without lights**: while another vehicle holds a connecting
+//!   lane that conflicts with its own ([`rules::junction_yield`], the table
+//!   the NPCs' reservations use), it stops 1 m before the junction, as for a
+//!   stop line; once its front is inside, it goes on.
 //! - **Pedals**: a proportional speed controller asks for an acceleration,
 //!   which the vehicle model's inverse turns into throttle or brake; standing
 //!   at a stop it holds the brake. It drives on by itself once the light turns
@@ -111,6 +115,12 @@ impl Expert {
             if rules::must_stop(state, to_line, v, prm.stop_decel_mps2) && d < 40.0 {
                 stop_at = Some(d);
             }
+        }
+        // A junction without lights whose conflicting lanes another vehicle
+        // holds: wait before it, as for a stop line.
+        if let Some(entry_s) = p.junction_yield_s {
+            let d = entry_s - front_s - prm.stop_margin_m;
+            stop_at = Some(stop_at.map_or(d, |s| s.min(d)));
         }
         // Actors on the route ahead.
         if let Some(a) = p.ahead {
@@ -220,6 +230,9 @@ mod tests {
         stops: RouteStops,
         lights: Vec<LightState>,
         actors: Vec<ActorView>,
+        /// Until when (seconds of the drive) another vehicle holds every lane
+        /// that conflicts with the ego's at a junction without lights.
+        held_until_s: f32,
     }
 
     /// What happened at one tick.
@@ -245,6 +258,23 @@ mod tests {
                 stops,
                 lights,
                 actors: Vec::new(),
+                held_until_s: 0.0,
+            }
+        }
+
+        /// [`Scene::new`] in the grid town without its lights.
+        fn unlit(waypoints: &[(f32, f32, f32)]) -> Scene {
+            let mut town = grid(3, 3, 60.0);
+            town.lights.clear();
+            let route = planned_route(&town, waypoints).unwrap();
+            let stops = StopLines::new(&town).on_route(&route);
+            Scene {
+                town,
+                route,
+                stops,
+                lights: Vec::new(),
+                actors: Vec::new(),
+                held_until_s: 0.0,
             }
         }
 
@@ -263,7 +293,8 @@ mod tests {
             let mut path = Vec::new();
             let mut out = Vec::new();
             for k in 0..(seconds / DT).round() as usize {
-                script(k as f32 * DT, &mut self.actors);
+                let t = k as f32 * DT;
+                script(t, &mut self.actors);
                 index = rules::nearest_route_point(&self.route, state.position, index, 40)
                     .map_or(index, |(i, _)| i);
                 rules::route_ahead(&self.route, index, state.position, AHEAD_RANGE_M, &mut path);
@@ -284,6 +315,9 @@ mod tests {
                     speed_mps: state.speed_mps,
                     color: 0,
                 };
+                let front_s =
+                    rules::route_s_at(&self.route, index, state.position) + vp.length_m / 2.0;
+                let held = t < self.held_until_s;
                 let p = Privileged {
                     town: &self.town,
                     route: &self.route,
@@ -292,6 +326,13 @@ mod tests {
                     lights: &self.lights,
                     stops: &self.stops,
                     ahead,
+                    junction_yield_s: rules::junction_yield(
+                        &self.town,
+                        &self.route,
+                        front_s,
+                        rules::YIELD_RANGE_M,
+                        |_| held,
+                    ),
                     vehicle: &vp,
                 };
                 let control = expert.control(&p);
@@ -341,6 +382,47 @@ mod tests {
         scene.lights.fill(LightState::Green);
         let ticks = scene.drive(20.0, |_, _| {});
         assert!(ticks.iter().any(|t| t.state.position.x > 80.0));
+    }
+
+    #[test]
+    fn it_waits_before_a_junction_without_lights_until_the_conflict_clears() {
+        let mut scene = Scene::unlit(&EAST);
+        assert!(scene.stops.all().is_empty());
+        let entry_x = scene
+            .route
+            .points
+            .iter()
+            .find(|p| scene.town.lane(p.lane).junction.is_some())
+            .unwrap()
+            .position
+            .x;
+        // Held for 12 s: it stops before the junction, its front outside it.
+        scene.held_until_s = 12.0;
+        let ticks = scene.drive(24.0, |_, _| {});
+        let waiting: Vec<&Tick> = ticks[..(12.0 / DT) as usize].iter().collect();
+        let max_front = waiting.iter().map(|t| front_x(t)).fold(f32::MIN, f32::max);
+        assert!(
+            max_front < entry_x,
+            "front reached x = {max_front} (entry {entry_x})"
+        );
+        let stood = waiting.last().unwrap();
+        assert!(stood.state.speed_mps < 0.05, "{:?}", stood.state);
+        assert!(
+            front_x(stood) > entry_x - 2.5,
+            "stopped {} m short",
+            entry_x - front_x(stood)
+        );
+        // Free: it drives through.
+        assert!(ticks.iter().any(|t| t.state.position.x > 80.0));
+        // Never held: it does not stop at all.
+        scene.held_until_s = 0.0;
+        let ticks = scene.drive(15.0, |_, _| {});
+        let slowest_in_junction = ticks
+            .iter()
+            .filter(|t| (entry_x - 5.0..entry_x + 5.0).contains(&front_x(t)))
+            .map(|t| t.state.speed_mps)
+            .fold(f32::MAX, f32::min);
+        assert!(slowest_in_junction > 3.0, "{slowest_in_junction}");
     }
 
     #[test]

@@ -491,6 +491,30 @@ impl Boundary<'_> {
                 )
             })
             .flatten();
+        let junction_yield_s = self
+            .needs
+            .privileged
+            .then(|| {
+                let traffic = &now.world.traffic;
+                let front_s = world::rules::route_s_at(
+                    self.route,
+                    now.route_index,
+                    now.ego.position.truncate(),
+                ) + now.ego.extent.x / 2.0;
+                // The ego holds nothing: any holder of a conflicting lane is another vehicle.
+                world::rules::junction_yield(
+                    self.town,
+                    self.route,
+                    front_s,
+                    world::rules::YIELD_RANGE_M,
+                    |lane| {
+                        !traffic
+                            .reservations()
+                            .free_for(&traffic.rules().conflicts, lane, u32::MAX)
+                    },
+                )
+            })
+            .flatten();
         let privileged = Privileged {
             town: self.town,
             route: self.route,
@@ -499,6 +523,7 @@ impl Boundary<'_> {
             lights: &now.world.light_states,
             stops: self.stops,
             ahead,
+            junction_yield_s,
             vehicle: self.vehicle,
         };
         let obs = Observation {

@@ -13,6 +13,7 @@
 //! | [`conflicts`] | which connecting lanes of a junction conflict: centrelines within 3 m, or the bodies of two cars driving them (each lane swept as an NPC drives it) within 0.25 m |
 //! | [`ahead`] | what is ahead along a path: the nearest actor whose footprint reaches into a corridor (a walking pedestrian's also where it will be within 2 s), and its distance along the path |
 //! | [`sidewalks`] | the sidewalk under a point, its height and the direction of its kerb |
+//! | [`yielding`] | where the ego waits before a junction without lights while a conflicting connecting lane is held (the ego's side of the NPCs' reservations) |
 //!
 //! `docs/rule-book.md` lists where each consumer calls each rule.
 //!
@@ -31,6 +32,7 @@ pub mod pursuit;
 pub mod route;
 pub mod sidewalks;
 pub mod stop_lines;
+pub mod yielding;
 
 pub use ahead::{ActorView, Ahead, nearest_ahead, walker_horizon_s};
 pub use conflicts::JunctionConflicts;
@@ -41,6 +43,7 @@ pub use pursuit::pursuit_lookahead_m;
 pub use route::{nearest_route_point, route_ahead, route_point_at, route_s_at};
 pub use sidewalks::{OnSidewalk, SidewalkGrid};
 pub use stop_lines::{RouteStop, RouteStops, StopLineEntry, StopLines};
+pub use yielding::{YIELD_RANGE_M, junction_signalled, junction_yield};
 
 use crate::map::town::Town;
 

@@ -1,0 +1,190 @@
+//! Yielding at a junction without traffic lights: the ego's side of the
+//! NPCs' first-come-first-served junction reservations
+//! ([`crate::traffic::Reservations`]).
+//!
+//! CARLA's Traffic Manager lets a car into a junction without lights only
+//! while nothing already in the junction is on a conflicting path. The NPCs
+//! do it by reserving their connecting lane before they enter; the ego
+//! reserves nothing, so before such a junction it reads the same table:
+//! while a vehicle holds a lane that conflicts with the ego's next connecting
+//! lane ([`JunctionConflicts`]), it stops before the junction. Once its front
+//! is inside, it drives on: it is then the one already in the junction, and
+//! the NPCs treat its lane as held. At a junction with lights the lights
+//! decide, as before.
+
+use crate::map::town::{JunctionIdx, LaneIdx, Town};
+use crate::route::DenseRoute;
+
+#[cfg(doc)]
+use crate::rules::JunctionConflicts;
+
+/// How far ahead of its front bumper the ego looks for a junction without
+/// lights (metres): more than its stopping distance from cruise speed.
+pub const YIELD_RANGE_M: f32 = 30.0;
+
+/// Whether junction `j` has traffic lights (a light whose controller cycles it).
+pub fn junction_signalled(town: &Town, j: JunctionIdx) -> bool {
+    town.lights.iter().any(|l| l.junction == Some(j))
+}
+
+/// Where the ego must wait before a junction without lights: the route arc
+/// length (metres) at which `route` enters the next junction within `range_m`
+/// ahead of `front_s` (the route arc length of the ego's front bumper), when
+/// `held(lane)` says another vehicle holds a lane that conflicts with the
+/// route's connecting lane there. `None` when the front is already in a
+/// junction (it has entered: it goes on), when the next junction within range
+/// has lights, or when nothing conflicting is held.
+pub fn junction_yield(
+    town: &Town,
+    route: &DenseRoute,
+    front_s: f32,
+    range_m: f32,
+    held: impl Fn(LaneIdx) -> bool,
+) -> Option<f32> {
+    let first = route.points.partition_point(|p| p.route_s < front_s);
+    let mut ahead = route.points[first.min(route.points.len())..]
+        .iter()
+        .take_while(|p| p.route_s - front_s <= range_m);
+    let at_front = route.points.get(first)?;
+    if town.lane(at_front.lane).junction.is_some() {
+        return None;
+    }
+    let entry = ahead.find(|p| town.lane(p.lane).junction.is_some())?;
+    let j = town.lane(entry.lane).junction?;
+    (!junction_signalled(town, j) && held(entry.lane)).then_some(entry.route_s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::map::testtown;
+    use crate::route::{PlannerConfig, Route, RouteWaypoint, plan_route};
+    use glam::Vec3;
+
+    /// A 3 x 3 grid town (junctions 60 m apart) without its lights, and a
+    /// route east along the middle street through the centre junction.
+    fn unlit() -> (Town, DenseRoute) {
+        let mut town = testtown::grid(3, 3, 60.0);
+        town.lights.clear();
+        let point = |x: f32| RouteWaypoint {
+            position: Vec3::new(x, 60.0 - 1.75, 0.0),
+            yaw_rad: Some(0.0),
+        };
+        let route = Route {
+            id: "through".into(),
+            town: None,
+            waypoints: vec![point(10.0), point(110.0)],
+            source: "test".into(),
+        };
+        let dense = plan_route(&town, &route, &PlannerConfig::default()).unwrap();
+        (town, dense)
+    }
+
+    #[test]
+    fn the_ego_waits_before_an_unlit_junction_while_a_conflicting_lane_is_held() {
+        let (town, route) = unlit();
+        let entry = route
+            .points
+            .iter()
+            .find(|p| town.lane(p.lane).junction.is_some())
+            .expect("the route crosses a junction");
+        let (entry_s, entry_lane) = (entry.route_s, entry.lane);
+        let held_crossing = |l: LaneIdx| l == entry_lane;
+        let nothing = |_: LaneIdx| false;
+        // 20 m before the junction, something conflicting is held: wait at the entry.
+        assert_eq!(
+            junction_yield(&town, &route, entry_s - 20.0, YIELD_RANGE_M, held_crossing),
+            Some(entry_s)
+        );
+        // Nothing held: go.
+        assert_eq!(
+            junction_yield(&town, &route, entry_s - 20.0, YIELD_RANGE_M, nothing),
+            None
+        );
+        // Out of range: not yet.
+        assert_eq!(
+            junction_yield(&town, &route, entry_s - 40.0, YIELD_RANGE_M, held_crossing),
+            None
+        );
+        // The front already inside: it has entered and goes on.
+        assert_eq!(
+            junction_yield(&town, &route, entry_s + 1.0, YIELD_RANGE_M, held_crossing),
+            None
+        );
+    }
+
+    #[test]
+    fn lights_decide_at_a_signalled_junction() {
+        let (_, route) = unlit();
+        let lit = testtown::grid(3, 3, 60.0);
+        assert!(!lit.lights.is_empty());
+        let entry = route
+            .points
+            .iter()
+            .find(|p| lit.lane(p.lane).junction.is_some())
+            .unwrap();
+        let j = lit.lane(entry.lane).junction.unwrap();
+        assert!(junction_signalled(&lit, j));
+        assert_eq!(
+            junction_yield(&lit, &route, entry.route_s - 20.0, YIELD_RANGE_M, |_| true),
+            None
+        );
+    }
+}
+
+#[cfg(test)]
+mod towns {
+    use super::*;
+    use crate::map::opendrive::{LoadOptions, load_xodr_file};
+
+    /// For each junction without lights (with at least one connecting lane),
+    /// how many lanes lead into it.
+    fn unlit_junction_approaches(town: &Town) -> Vec<usize> {
+        let mut js: Vec<JunctionIdx> = town.lanes.iter().filter_map(|l| l.junction).collect();
+        js.sort_by_key(|j| j.0);
+        js.dedup();
+        js.into_iter()
+            .filter(|&j| !junction_signalled(town, j))
+            .map(|j| {
+                let mut into: Vec<LaneIdx> = town
+                    .lanes
+                    .iter()
+                    .filter(|l| l.junction == Some(j))
+                    .flat_map(|l| l.predecessors.iter().copied())
+                    .filter(|&p| town.lane(p).junction.is_none())
+                    .collect();
+                into.sort_by_key(|l| l.0);
+                into.dedup();
+                into.len()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_study_towns_yield_only_at_their_corners() {
+        // CARLA's Town01 and Town02 have lights at every junction; our generated
+        // towns leave only their corners (two roads meeting, two lanes in)
+        // unlit. So the expert's yielding changes nothing at a crossing of the
+        // study's towns, only where two turning cars at a corner would touch.
+        let root = crate::testdata::workspace_root();
+        for (name, corners) in [("gen01", 4), ("gen02", 4), ("held01", 4)] {
+            let map = root.join(format!("maps/{name}.xodr"));
+            let (town, _) = load_xodr_file(&map, &LoadOptions::default()).unwrap();
+            let unlit = unlit_junction_approaches(&town);
+            assert_eq!(unlit, vec![2; corners], "{name}");
+        }
+        if let Some(carla) =
+            crate::testdata::carla_dir("the_study_towns_yield_only_at_their_corners")
+        {
+            for name in ["Town01", "Town02"] {
+                let map = carla.join(format!("{name}.xodr"));
+                let (town, _) = load_xodr_file(&map, &LoadOptions::default()).unwrap();
+                assert_eq!(
+                    unlit_junction_approaches(&town),
+                    Vec::<usize>::new(),
+                    "{name}"
+                );
+            }
+        }
+    }
+}
