@@ -93,6 +93,10 @@ pub fn benchmarks(records: &Path, carla: bool) -> Vec<Benchmark> {
                 "5",
             ],
         ),
+        bench(
+            "Render and policy overlapped: what pipelining a run's loop would win",
+            &["bench", "overlap", "--frames", "60", "--repeats", "5"],
+        ),
         run(
             "Closed loop: the expert, no camera (scenarios/default.toml)",
             "scenarios/default.toml",
@@ -385,9 +389,10 @@ mod tests {
             "run scenarios/policy_oracle.toml --quiet --json /tmp/r/ra.json"
         );
         assert_eq!(
-            without[3].args.join(" "),
+            without[4].args.join(" "),
             "run scenarios/default.toml --expert --quiet --json /tmp/r/expert.json"
         );
+        assert_eq!(without[3].args[..2], ["bench", "overlap"]);
     }
 
     #[test]

@@ -12,6 +12,7 @@ use sim::render::image::test_pattern;
 use std::sync::Arc;
 use std::time::Instant;
 
+pub mod overlap;
 pub mod report;
 
 /// Latency statistics of repeated runs (milliseconds).

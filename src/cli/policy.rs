@@ -299,17 +299,48 @@ pub enum BenchCommand {
         #[arg(long, default_value = "cpu")]
         device: DeviceKind,
     },
+    /// A run's frame with its render and its policy pass one after the other
+    /// (as the loop does them) against overlapped (the next frame rendered while
+    /// the policy acts on this one): what pipelining the loop would win here.
+    Overlap {
+        /// Frames per timed round.
+        #[arg(long, default_value_t = 60)]
+        frames: usize,
+        /// Timed rounds per layout (after one warm-up round), interleaved.
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
+    },
 }
 
 /// Runs one policy benchmark.
 pub fn run_bench_command(command: BenchCommand) -> Result<()> {
-    let BenchCommand::Policy {
-        repeats,
-        train_steps,
-        batch,
-        quick,
-        device: kind,
-    } = command;
+    let (repeats, train_steps, batch, quick, kind) = match command {
+        BenchCommand::Policy {
+            repeats,
+            train_steps,
+            batch,
+            quick,
+            device,
+        } => (repeats, train_steps, batch, quick, device),
+        BenchCommand::Overlap { frames, repeats } => {
+            println!(
+                "render then policy, against the policy on frame k while frame k + 1 renders \
+                 (CPU rig, fused default policy, 4 x 4 demo town; {frames} frames, median of {repeats} rounds)"
+            );
+            for scale in [1.0, 0.75] {
+                let o = bench::overlap::overlap(scale, frames, repeats)?;
+                println!(
+                    "scale {scale:.2} {:>4}x{:<4} sequential {:>6.1} fps  overlapped {:>6.1} fps  ratio {:.2}",
+                    o.size.0,
+                    o.size.1,
+                    o.sequential_fps,
+                    o.overlapped_fps,
+                    o.overlapped_fps / o.sequential_fps
+                );
+            }
+            return Ok(());
+        }
+    };
     let dev = device::open(kind)?;
     let b = bench::report::PolicyBench {
         repeats,
