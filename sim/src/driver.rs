@@ -57,6 +57,9 @@ pub struct Privileged<'a> {
     /// wait before (route arc length, metres): a vehicle holds a connecting
     /// lane that conflicts with the route's ([`world::rules::junction_yield`]).
     pub junction_yield_s: Option<f32>,
+    /// Where the route's next lane change starts, while the lane it moves into
+    /// has no room (route arc length, metres; [`world::rules::lane_change_clear`]).
+    pub lane_change_wait_s: Option<f32>,
     /// The ego's vehicle model.
     pub vehicle: &'a world::agents::VehicleParams,
 }

@@ -22,6 +22,10 @@
 //!   lane that conflicts with its own ([`rules::junction_yield`], the table
 //!   the NPCs' reservations use), it stops 1 m before the junction, as for a
 //!   stop line; once its front is inside, it goes on.
+//! - **Lane changes**: the route's `ChangeLaneLeft`/`ChangeLaneRight` points
+//!   move it across by pursuit; while the lane it moves into has no room
+//!   ([`rules::lane_change_clear`]: 5 m ahead, 2 s of the follower's speed
+//!   behind) it waits before the change.
 //! - **Pedals**: a proportional speed controller asks for an acceleration,
 //!   which the vehicle model's inverse turns into throttle or brake; standing
 //!   at a stop it holds the brake. It drives on by itself once the light turns
@@ -118,8 +122,12 @@ impl Expert {
         }
         // A junction without lights whose conflicting lanes another vehicle
         // holds: wait before it, as for a stop line.
-        if let Some(entry_s) = p.junction_yield_s {
-            let d = entry_s - front_s - prm.stop_margin_m;
+        // And before a lane change whose target lane has no room.
+        for wait_s in [p.junction_yield_s, p.lane_change_wait_s]
+            .into_iter()
+            .flatten()
+        {
+            let d = wait_s - front_s - prm.stop_margin_m;
             stop_at = Some(stop_at.map_or(d, |s| s.min(d)));
         }
         // Actors on the route ahead.
@@ -333,6 +341,14 @@ mod tests {
                         rules::YIELD_RANGE_M,
                         |_| held,
                     ),
+                    lane_change_wait_s: rules::lane_change_wait(
+                        &self.town,
+                        &self.route,
+                        front_s,
+                        vp.length_m / 2.0,
+                        0,
+                        &self.actors,
+                    ),
                     vehicle: &vp,
                 };
                 let control = expert.control(&p);
@@ -423,6 +439,66 @@ mod tests {
             .map(|t| t.state.speed_mps)
             .fold(f32::MAX, f32::min);
         assert!(slowest_in_junction > 3.0, "{slowest_in_junction}");
+    }
+
+    #[test]
+    fn it_changes_lanes_only_into_a_gap() {
+        // 100 m in the right lane of a straight two-lane road, then into the left one.
+        let town = world::map::testtown::two_lane_road(300.0);
+        let route = planned_route(
+            &town,
+            &[(10.0, -1.75, 0.0), (100.0, -1.75, 0.0), (290.0, 1.75, 0.0)],
+        )
+        .unwrap();
+        let start_x = route
+            .points
+            .iter()
+            .find(|p| p.command == Command::ChangeLaneLeft)
+            .unwrap()
+            .position
+            .x;
+        let stops = StopLines::new(&town).on_route(&route);
+        let mut scene = Scene {
+            town,
+            route,
+            stops,
+            lights: Vec::new(),
+            actors: Vec::new(),
+            held_until_s: 0.0,
+        };
+        let vp = VehicleParams::default();
+        let blocker = ActorView {
+            id: 1,
+            kind: ActorKind::Vehicle,
+            position: Vec2::new(start_x - 2.0, 1.75),
+            yaw: 0.0,
+            speed_mps: 0.0,
+            half_length_m: vp.length_m / 2.0,
+            half_width_m: vp.width_m / 2.0,
+        };
+        // A car stands in the target lane where the change starts, for the first 30 s.
+        let ticks = scene.drive(60.0, |t, actors| {
+            actors.clear();
+            if t < 30.0 {
+                actors.push(blocker);
+            }
+        });
+        let before: Vec<&Tick> = ticks[..(30.0 / DT) as usize].iter().collect();
+        // While it stands there, the ego stays in its lane, before the change.
+        let max_front = before.iter().map(|t| front_x(t)).fold(f32::MIN, f32::max);
+        assert!(
+            max_front < start_x,
+            "front reached x = {max_front} (change at {start_x})"
+        );
+        assert!(before.iter().all(|t| t.state.position.y < -1.0));
+        // Once it has gone, the ego moves across and drives on in the left lane.
+        let last = ticks.last().unwrap();
+        assert!(last.state.position.x > start_x + 30.0, "{:?}", last.state);
+        assert!(
+            (last.state.position.y - 1.75).abs() < 0.5,
+            "{:?}",
+            last.state
+        );
     }
 
     #[test]

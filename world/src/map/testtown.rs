@@ -393,6 +393,23 @@ pub fn lane_through(points: &[Vec2]) -> DriveLane {
     make_lane(points, None, "hand".to_string(), -1)
 }
 
+/// A straight road `length_m` long along +x with two lanes in the same
+/// direction, for lane-change tests: lane 0 on the right (centre y = -1.75),
+/// lane 1 on its left (y = 1.75), each the other's neighbour. No junction,
+/// light or sidewalk.
+pub fn two_lane_road(length_m: f32) -> Town {
+    let line = |y: f32| resample(&[Vec2::new(0.0, y), Vec2::new(length_m, y)], 1.0);
+    let mut right = make_lane(&line(-LANE_WIDTH_M / 2.0), None, "0".into(), -1);
+    let mut left = make_lane(&line(LANE_WIDTH_M / 2.0), None, "0".into(), -2);
+    right.left = Some(LaneIdx(1));
+    left.right = Some(LaneIdx(0));
+    Town {
+        lanes: vec![right, left],
+        bounds: (Vec2::new(0.0, -10.0), Vec2::new(length_m, 10.0)),
+        ..Town::empty("fixture-two-lane-road")
+    }
+}
+
 /// The route a planner gives through `waypoints` (x, y in metres, heading
 /// in radians) on `town`, for tests and scripted scenes.
 pub fn planned_route(

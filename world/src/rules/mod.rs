@@ -13,6 +13,7 @@
 //! | [`conflicts`] | which connecting lanes of a junction conflict: centrelines within 3 m, or the bodies of two cars driving them (each lane swept as an NPC drives it) within 0.25 m |
 //! | [`ahead`] | what is ahead along a path: the nearest actor whose footprint reaches into a corridor (a walking pedestrian's also where it will be within 2 s), and its distance along the path |
 //! | [`sidewalks`] | the sidewalk under a point, its height and the direction of its kerb |
+//! | [`lane_change`] | where a route's next lane change starts and into which lane, and whether that lane has room (5 m ahead, 2 s of the follower's speed behind) |
 //! | [`yielding`] | where the ego waits before a junction without lights while a conflicting connecting lane is held (the ego's side of the NPCs' reservations) |
 //!
 //! `docs/rule-book.md` lists where each consumer calls each rule.
@@ -26,6 +27,7 @@
 pub mod ahead;
 pub mod conflicts;
 pub mod crossing;
+pub mod lane_change;
 pub mod lanes;
 pub mod lights;
 pub mod pursuit;
@@ -37,6 +39,7 @@ pub mod yielding;
 pub use ahead::{ActorView, Ahead, nearest_ahead, walker_horizon_s};
 pub use conflicts::JunctionConflicts;
 pub use crossing::{crossing_offset_m, crossing_point};
+pub use lane_change::{CHANGE_RANGE_M, lane_change_ahead, lane_change_clear, lane_change_wait};
 pub use lanes::{LaneGrid, LaneStanding, heading_agrees, nearest_lane, project_on_lane};
 pub use lights::{YELLOW_SLACK_M, light_state, must_stop};
 pub use pursuit::pursuit_lookahead_m;

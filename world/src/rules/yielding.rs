@@ -31,7 +31,7 @@ pub fn junction_signalled(town: &Town, j: JunctionIdx) -> bool {
 /// length (metres) at which `route` enters the next junction within `range_m`
 /// ahead of `front_s` (the route arc length of the ego's front bumper), when
 /// `held(lane)` says another vehicle holds a lane that conflicts with the
-/// route's connecting lane there. `None` when the front is already in a
+/// route's connecting lane there. `None` once the front has passed into a
 /// junction (it has entered: it goes on), when the next junction within range
 /// has lights, or when nothing conflicting is held.
 pub fn junction_yield(
@@ -45,8 +45,12 @@ pub fn junction_yield(
     let mut ahead = route.points[first.min(route.points.len())..]
         .iter()
         .take_while(|p| p.route_s - front_s <= range_m);
-    let at_front = route.points.get(first)?;
-    if town.lane(at_front.lane).junction.is_some() {
+    // The point at or just behind the front: on a junction lane there, it has entered.
+    let behind = route.points.partition_point(|p| p.route_s <= front_s);
+    if behind
+        .checked_sub(1)
+        .is_some_and(|i| town.lane(route.points[i].lane).junction.is_some())
+    {
         return None;
     }
     let entry = ahead.find(|p| town.lane(p.lane).junction.is_some())?;
