@@ -13,7 +13,7 @@ use std::path::Path;
 
 use sim::monitors::InfractionKind::{LaneCrossing, RedLight};
 use sim::sweep::exact::holm;
-use sim::sweep::stats::{Paired, Z95, block_bootstrap_mean, paired_in_blocks, wilson};
+use sim::sweep::stats::{Paired, Z95, block_bootstrap_mean, block_ids, paired_in_blocks, wilson};
 use sim::sweep::tables::mean_sd;
 
 use crate::PaperError;
@@ -70,7 +70,7 @@ impl Stats {
             .iter()
             .map(|r| r.record.result.completion_pct)
             .collect();
-        let blocks = blocks_of(runs.iter().map(|r| r.block_key()));
+        let blocks = block_ids(runs.iter().map(|r| r.block_key()));
         let high_key = crate::units::scale_label(high);
         let share: Vec<f64> = runs
             .iter()
@@ -125,18 +125,6 @@ impl Stats {
     pub fn collision_ci(&self) -> (f64, f64) {
         wilson_pct(self.collided, self.n)
     }
-}
-
-/// Numbers blocks by their keys in the order they first appear.
-fn blocks_of<K: PartialEq>(keys: impl Iterator<Item = K>) -> Vec<usize> {
-    let mut seen: Vec<K> = Vec::new();
-    keys.map(|k| {
-        seen.iter().position(|s| *s == k).unwrap_or_else(|| {
-            seen.push(k);
-            seen.len() - 1
-        })
-    })
-    .collect()
 }
 
 fn pct(k: usize, n: usize) -> f64 {
@@ -211,7 +199,7 @@ impl Comparison {
                 pairs.iter().map(|(_, y)| f(y)).collect(),
             )
         };
-        let blocks = blocks_of(pairs.iter().map(|(x, _)| x.block_key()));
+        let blocks = block_ids(pairs.iter().map(|(x, _)| x.block_key()));
         let cmp = |f: &dyn Fn(&Run) -> f64| {
             let (xa, xb) = col(f);
             paired_in_blocks(&xa, &xb, &blocks, RESAMPLES, BOOTSTRAP_SEED)
@@ -221,7 +209,7 @@ impl Comparison {
             lane: cmp(&|r| f64::from(r.record.result.count(LaneCrossing))),
             collided: cmp(&|r| f64::from(u8::from(r.record.result.collisions() > 0))),
             success: cmp(&|r| f64::from(u8::from(r.record.result.success))),
-            routes: blocks_of(pairs.iter().map(|(x, _)| x.route.clone()))
+            routes: block_ids(pairs.iter().map(|(x, _)| x.route.clone()))
                 .into_iter()
                 .max()
                 .map_or(0, |m| m + 1),

@@ -36,6 +36,29 @@ use world::rules;
 
 use crate::driver::{Driver, DriverNeeds, Observation, Privileged, VehicleControl};
 
+/// Where a car driving `route` must wait, as the runner hands it to the
+/// expert: before a junction without lights while `held(lane)` says another
+/// vehicle holds a lane conflicting with the route's
+/// ([`Privileged::junction_yield_s`]), and before a lane change while the
+/// target lane has no room among `actors` ([`Privileged::lane_change_wait_s`]);
+/// `ego` is the car, `route_index` the route point it has reached.
+pub fn waits(
+    town: &world::Town,
+    route: &world::route::DenseRoute,
+    route_index: usize,
+    ego: &world::ActorSnapshot,
+    held: impl Fn(world::LaneIdx) -> bool,
+    actors: &[rules::ActorView],
+) -> (Option<f32>, Option<f32>) {
+    let position = ego.position.truncate();
+    let half_length = ego.extent.x / 2.0;
+    let front_s = rules::route_s_at(route, route_index, position) + half_length;
+    (
+        rules::junction_yield(town, route, front_s, rules::YIELD_RANGE_M, held),
+        rules::lane_change_wait(town, route, front_s, half_length, ego.id, actors),
+    )
+}
+
 /// The expert's tuning.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ExpertParams {
@@ -257,30 +280,26 @@ mod tests {
         /// through `waypoints` (x, y, heading).
         fn new(waypoints: &[(f32, f32, f32)], light: LightState) -> Scene {
             let town = grid(3, 3, 60.0);
-            let route = planned_route(&town, waypoints).unwrap();
-            let stops = StopLines::new(&town).on_route(&route);
             let lights = vec![light; town.lights.len()];
-            Scene {
-                town,
-                route,
-                stops,
-                lights,
-                actors: Vec::new(),
-                held_until_s: 0.0,
-            }
+            Scene::on(town, waypoints, lights)
         }
 
         /// [`Scene::new`] in the grid town without its lights.
         fn unlit(waypoints: &[(f32, f32, f32)]) -> Scene {
             let mut town = grid(3, 3, 60.0);
             town.lights.clear();
+            Scene::on(town, waypoints, Vec::new())
+        }
+
+        /// A route through `waypoints` (x, y, heading) in `town`, its lights in `lights`.
+        fn on(town: Town, waypoints: &[(f32, f32, f32)], lights: Vec<LightState>) -> Scene {
             let route = planned_route(&town, waypoints).unwrap();
             let stops = StopLines::new(&town).on_route(&route);
             Scene {
                 town,
                 route,
                 stops,
-                lights: Vec::new(),
+                lights,
                 actors: Vec::new(),
                 held_until_s: 0.0,
             }
@@ -323,9 +342,9 @@ mod tests {
                     speed_mps: state.speed_mps,
                     color: 0,
                 };
-                let front_s =
-                    rules::route_s_at(&self.route, index, state.position) + vp.length_m / 2.0;
                 let held = t < self.held_until_s;
+                let (junction_yield_s, lane_change_wait_s) =
+                    waits(&self.town, &self.route, index, &ego, |_| held, &self.actors);
                 let p = Privileged {
                     town: &self.town,
                     route: &self.route,
@@ -334,21 +353,8 @@ mod tests {
                     lights: &self.lights,
                     stops: &self.stops,
                     ahead,
-                    junction_yield_s: rules::junction_yield(
-                        &self.town,
-                        &self.route,
-                        front_s,
-                        rules::YIELD_RANGE_M,
-                        |_| held,
-                    ),
-                    lane_change_wait_s: rules::lane_change_wait(
-                        &self.town,
-                        &self.route,
-                        front_s,
-                        vp.length_m / 2.0,
-                        0,
-                        &self.actors,
-                    ),
+                    junction_yield_s,
+                    lane_change_wait_s,
                     vehicle: &vp,
                 };
                 let control = expert.control(&p);
@@ -444,28 +450,19 @@ mod tests {
     #[test]
     fn it_changes_lanes_only_into_a_gap() {
         // 100 m in the right lane of a straight two-lane road, then into the left one.
-        let town = world::map::testtown::two_lane_road(300.0);
-        let route = planned_route(
-            &town,
+        let mut scene = Scene::on(
+            world::map::testtown::two_lane_road(300.0),
             &[(10.0, -1.75, 0.0), (100.0, -1.75, 0.0), (290.0, 1.75, 0.0)],
-        )
-        .unwrap();
-        let start_x = route
+            Vec::new(),
+        );
+        let start_x = scene
+            .route
             .points
             .iter()
             .find(|p| p.command == Command::ChangeLaneLeft)
             .unwrap()
             .position
             .x;
-        let stops = StopLines::new(&town).on_route(&route);
-        let mut scene = Scene {
-            town,
-            route,
-            stops,
-            lights: Vec::new(),
-            actors: Vec::new(),
-            held_until_s: 0.0,
-        };
         let vp = VehicleParams::default();
         let blocker = ActorView {
             id: 1,

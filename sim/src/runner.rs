@@ -491,35 +491,21 @@ impl Boundary<'_> {
                 )
             })
             .flatten();
-        // Where the expert must wait: before a junction without lights whose
-        // conflicting lanes are held, before a lane change without room.
         let (junction_yield_s, lane_change_wait_s) = if self.needs.privileged {
             let traffic = &now.world.traffic;
-            let position = now.ego.position.truncate();
-            let half_length = now.ego.extent.x / 2.0;
-            let front_s =
-                world::rules::route_s_at(self.route, now.route_index, position) + half_length;
             // The ego holds nothing: any holder of a conflicting lane is another vehicle.
-            let junction = world::rules::junction_yield(
+            crate::expert::waits(
                 self.town,
                 self.route,
-                front_s,
-                world::rules::YIELD_RANGE_M,
+                now.route_index,
+                now.ego,
                 |lane| {
                     !traffic
                         .reservations()
                         .free_for(&traffic.rules().conflicts, lane, u32::MAX)
                 },
-            );
-            let change = world::rules::lane_change_wait(
-                self.town,
-                self.route,
-                front_s,
-                half_length,
-                0,
                 traffic.actor_views(),
-            );
-            (junction, change)
+            )
         } else {
             (None, None)
         };

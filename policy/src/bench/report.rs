@@ -58,15 +58,17 @@ pub struct PolicyBench {
     pub quick: bool,
 }
 
+/// One network's fused timings per scale, as [`super::fused_latency`] gives them.
+type FusedRows<'a> = (
+    &'a str,
+    &'a PolicyConfig,
+    Vec<(f32, [usize; 2], super::Latency)>,
+);
+
 /// The arithmetic of each network's fused pass per scale against the machine's
-/// estimated peak ([`super::cpu_peak_gflops`]): what each frame costs at best.
-/// Times the fused pass again (`repeats` rounds) so the rate is its own.
-fn arithmetic(
-    nets: &[(&str, PolicyConfig)],
-    repeats: usize,
-    threads: usize,
-    out: &mut dyn Write,
-) -> io::Result<()> {
+/// estimated peak ([`super::cpu_peak_gflops`]), at the medians the latency
+/// table measured: what each frame costs at best.
+fn arithmetic(fused: &[FusedRows<'_>], threads: usize, out: &mut dyn Write) -> io::Result<()> {
     let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
     let peak = super::cpu_peak_gflops(&cpuinfo, threads);
     match &peak {
@@ -85,10 +87,9 @@ fn arithmetic(
         "% peak",
         "ms at peak"
     )?;
-    for (name, cfg) in nets {
+    for (name, cfg, times) in fused {
         let macs = super::frame_macs(cfg);
-        let times = super::fused_latency(cfg, 1, repeats);
-        for (i, ((r, [h, w], m), (_, _, l))) in macs.iter().zip(&times).enumerate() {
+        for (i, ((r, [h, w], m), (_, _, l))) in macs.iter().zip(times).enumerate() {
             let gflop = 2.0 * *m as f64 / 1e9;
             let rate = gflop / (l.median_ms / 1e3);
             let (pct, floor) = peak.as_ref().map_or(("-".into(), "-".into()), |(p, _)| {
@@ -158,10 +159,13 @@ pub fn policy_bench(
         "{:<36} {:<6} {:>6} {:>10} {:>10} {:>9} {:>9} {:>12}",
         "network", "engine", "scale", "input WxH", "median ms", "min ms", "max ms", "t(.75)/t(1)"
     )?;
+    let mut fused: Vec<FusedRows<'_>> = Vec::new();
     for (name, cfg) in &nets {
         let mut engines = vec![("burn", super::inference_latency(cfg, device, 3, repeats))];
         if kind == DeviceKind::Cpu {
-            engines.push(("fused", super::fused_latency(cfg, 3, repeats)));
+            let rows = super::fused_latency(cfg, 3, repeats);
+            fused.push((name, cfg, rows.clone()));
+            engines.push(("fused", rows));
         }
         for (e, (engine, rows)) in engines.iter().enumerate() {
             let t = |s: f32| rows.iter().find(|r| r.0 == s).map(|r| r.2.median_ms);
@@ -194,7 +198,7 @@ pub fn policy_bench(
         "(area ratio 0.5625; burn: tensor in, logits read back; fused: the driver's CPU path, RGB8 in, normalisation included)"
     )?;
     if kind == DeviceKind::Cpu {
-        arithmetic(&nets, repeats, threads, out)?;
+        arithmetic(&fused, threads, out)?;
     }
     writeln!(out, "load average after inference: {}", load_average())?;
     if train_steps > 0 {

@@ -43,6 +43,18 @@ pub fn bootstrap_mean(values: &[f64], resamples: usize, seed: u64) -> (f64, f64)
     (at(0.025), at(0.975))
 }
 
+/// Numbers blocks 0, 1, 2, ... by their keys, in the order the keys first appear.
+pub fn block_ids<K: PartialEq>(keys: impl Iterator<Item = K>) -> Vec<usize> {
+    let mut seen: Vec<K> = Vec::new();
+    keys.map(|k| {
+        seen.iter().position(|s| *s == k).unwrap_or_else(|| {
+            seen.push(k);
+            seen.len() - 1
+        })
+    })
+    .collect()
+}
+
 /// A percentile bootstrap 95 % interval of the mean of `values` that resamples
 /// whole blocks: `blocks[i]` names the block of `values[i]` (runs on one route and
 /// density, say), and each resample draws as many blocks as there are, with
@@ -59,14 +71,9 @@ pub fn block_bootstrap_mean(
     let n = values.len().min(blocks.len());
     let mean = values[..n].iter().sum::<f64>() / n.max(1) as f64;
     // (sum, count) per block, in the order blocks first appear.
-    let mut ids: Vec<usize> = Vec::new();
-    let mut sums: Vec<(f64, usize)> = Vec::new();
-    for (&v, &b) in values.iter().zip(blocks) {
-        let i = ids.iter().position(|&x| x == b).unwrap_or_else(|| {
-            ids.push(b);
-            sums.push((0.0, 0));
-            ids.len() - 1
-        });
+    let ids = block_ids(blocks[..n].iter());
+    let mut sums: Vec<(f64, usize)> = vec![(0.0, 0); ids.iter().max().map_or(0, |m| m + 1)];
+    for (&v, &i) in values.iter().zip(&ids) {
         sums[i].0 += v;
         sums[i].1 += 1;
     }
@@ -147,9 +154,6 @@ pub fn paired_in_blocks(
     let blocks = &blocks[..n];
     let mean_diff = d.iter().sum::<f64>() / n.max(1) as f64;
     let count = |f: &dyn Fn(f64) -> bool| d.iter().filter(|&&x| f(x)).count();
-    let mut distinct = blocks.to_vec();
-    distinct.sort_unstable();
-    distinct.dedup();
     Paired {
         n,
         mean_diff,
@@ -160,7 +164,10 @@ pub fn paired_in_blocks(
             count(&|x| x == 0.0),
         ),
         p: super::exact::sign_flip_p(&d, super::exact::Alternative::TwoSided),
-        blocks: distinct.len(),
+        blocks: block_ids(blocks.iter())
+            .into_iter()
+            .max()
+            .map_or(0, |m| m + 1),
         diffs: d,
     }
 }

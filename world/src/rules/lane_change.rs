@@ -18,6 +18,7 @@ use crate::route::DenseRoute;
 use crate::route::command::Command;
 use crate::rules::ahead::ActorView;
 use crate::rules::lanes::project_on_lane;
+use crate::rules::route::points_around;
 
 /// Room the target lane needs ahead of the car's front (metres).
 pub const GAP_AHEAD_M: f32 = 5.0;
@@ -30,14 +31,15 @@ pub const CHANGE_RANGE_M: f32 = 30.0;
 /// route arc length of the car's front): the route arc length where it starts
 /// and the lane it moves into. `None` once the front has passed a change's start.
 pub fn lane_change_ahead(route: &DenseRoute, front_s: f32, range_m: f32) -> Option<(f32, LaneIdx)> {
+    next_change(route, front_s, range_m).map(|(i, lane)| (route.points[i].route_s, lane))
+}
+
+/// [`lane_change_ahead`] with the index of the change's first point.
+fn next_change(route: &DenseRoute, front_s: f32, range_m: f32) -> Option<(usize, LaneIdx)> {
     let changing = |c: Command| matches!(c, Command::ChangeLaneLeft | Command::ChangeLaneRight);
-    let first = route.points.partition_point(|p| p.route_s < front_s);
-    // The point at or just behind the front: in a change there, it has begun.
-    let behind = route.points.partition_point(|p| p.route_s <= front_s);
-    if behind
-        .checked_sub(1)
-        .is_some_and(|i| changing(route.points[i].command))
-    {
+    let (behind, first) = points_around(route, front_s);
+    // In a change behind its front, it has begun.
+    if behind.is_some_and(|i| changing(route.points[i].command)) {
         return None;
     }
     let start = route.points[first..]
@@ -48,14 +50,14 @@ pub fn lane_change_ahead(route: &DenseRoute, front_s: f32, range_m: f32) -> Opti
     let target = route.points[start..]
         .iter()
         .find(|p| !changing(p.command))?;
-    Some((route.points[start].route_s, target.lane))
+    Some((start, target.lane))
 }
 
 /// Where a car must wait before the next lane change of `route` (the route
 /// arc length where the change starts), or `None` to go on: the change is
-/// within `range_m` of its front (`front_s`) and the target lane has no room
-/// for the car as it will stand when it moves across, its front at the
-/// change's start ([`lane_change_clear`]). `me` is the car's own actor id.
+/// within [`CHANGE_RANGE_M`] of its front (`front_s`) and the target lane has
+/// no room for the car as it will stand when it moves across, its front at
+/// the change's start ([`lane_change_clear`]). `me` is the car's own actor id.
 pub fn lane_change_wait(
     town: &Town,
     route: &DenseRoute,
@@ -64,11 +66,10 @@ pub fn lane_change_wait(
     me: u32,
     actors: &[ActorView],
 ) -> Option<f32> {
-    let (start_s, target) = lane_change_ahead(route, front_s, CHANGE_RANGE_M)?;
-    let i = route.points.partition_point(|p| p.route_s < start_s);
-    let start = route.points.get(i)?;
+    let (i, target) = next_change(route, front_s, CHANGE_RANGE_M)?;
+    let start = &route.points[i];
     let centre = start.position.truncate() - Vec2::from_angle(start.heading) * half_length_m;
-    (!lane_change_clear(town, target, centre, half_length_m, me, actors)).then_some(start_s)
+    (!lane_change_clear(town, target, centre, half_length_m, me, actors)).then_some(start.route_s)
 }
 
 /// Whether `lane` has room for a car at `position` (its centre; half length

@@ -41,6 +41,17 @@ pub fn route_point_at(route: &DenseRoute, from: usize, route_s: f32) -> Option<V
     Some(a.position.truncate().lerp(b.position.truncate(), t))
 }
 
+/// The route points a car's front at route arc length `front_s` stands on
+/// and drives towards: the index of the last point at or behind it (`None`
+/// before the first point) and of the first point at or ahead of it (the
+/// route's length when past the last). What a car has entered (a junction, a
+/// lane change) is what the point behind its front belongs to.
+pub fn points_around(route: &DenseRoute, front_s: f32) -> (Option<usize>, usize) {
+    let ahead = route.points.partition_point(|p| p.route_s < front_s);
+    let behind = route.points.partition_point(|p| p.route_s <= front_s);
+    (behind.checked_sub(1), ahead)
+}
+
 /// The path ahead of a vehicle along its route, for the "ahead" query
 /// ([`crate::rules::ahead::nearest_ahead`]): its position first, then the route's
 /// points from point `from` on, up to `range_m` metres along the route from

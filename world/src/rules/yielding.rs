@@ -14,6 +14,7 @@
 
 use crate::map::town::{JunctionIdx, LaneIdx, Town};
 use crate::route::DenseRoute;
+use crate::rules::route::points_around;
 
 #[cfg(doc)]
 use crate::rules::JunctionConflicts;
@@ -41,19 +42,15 @@ pub fn junction_yield(
     range_m: f32,
     held: impl Fn(LaneIdx) -> bool,
 ) -> Option<f32> {
-    let first = route.points.partition_point(|p| p.route_s < front_s);
-    let mut ahead = route.points[first.min(route.points.len())..]
-        .iter()
-        .take_while(|p| p.route_s - front_s <= range_m);
-    // The point at or just behind the front: on a junction lane there, it has entered.
-    let behind = route.points.partition_point(|p| p.route_s <= front_s);
-    if behind
-        .checked_sub(1)
-        .is_some_and(|i| town.lane(route.points[i].lane).junction.is_some())
-    {
+    let (behind, first) = points_around(route, front_s);
+    // On a junction lane behind its front, it has entered.
+    if behind.is_some_and(|i| town.lane(route.points[i].lane).junction.is_some()) {
         return None;
     }
-    let entry = ahead.find(|p| town.lane(p.lane).junction.is_some())?;
+    let entry = route.points[first..]
+        .iter()
+        .take_while(|p| p.route_s - front_s <= range_m)
+        .find(|p| town.lane(p.lane).junction.is_some())?;
     let j = town.lane(entry.lane).junction?;
     (!junction_signalled(town, j) && held(entry.lane)).then_some(entry.route_s)
 }
