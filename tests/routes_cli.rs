@@ -16,31 +16,43 @@ fn tables(text: &str) -> String {
 
 #[test]
 fn random_routes_are_written_again_bit_for_bit_from_their_seeds() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("held01.toml");
-    let printed = run_ok(&[
-        "routes",
-        "--map",
-        "maps/held01.xodr",
-        "--random",
-        "0..4",
-        "--write",
-        out.to_str().unwrap(),
-    ]);
-    assert!(printed.contains("random-3"), "{printed}");
-    assert!(printed.contains("wrote 4 route(s)"), "{printed}");
-    let written = std::fs::read_to_string(&out).unwrap();
-    assert!(
-        written.starts_with("# Written by `mrdrive routes --map maps/held01.xodr --random 0..4"),
-        "{written}"
-    );
-    // The shipped file is this command's output: same seeds, same routes.
-    let shipped = std::fs::read_to_string(root().join("routes/held01.toml")).unwrap();
-    assert_eq!(tables(&written), tables(&shipped));
-    // And it plans again as a route file.
-    let replanned = run_ok(&["routes", "--map", "maps/held01.xodr", out.to_str().unwrap()]);
-    for id in ["random-0", "random-1", "random-2", "random-3"] {
-        assert!(replanned.contains(id), "{replanned}");
+    // The held-out town's routes and gen03's (its arterials, unsignalled
+    // junctions and roundabout).
+    for (town, seeds, count) in [("held01", "0..4", 4), ("gen03", "0..8", 8)] {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join(format!("{town}.toml"));
+        let map = format!("maps/{town}.xodr");
+        let printed = run_ok(&[
+            "routes",
+            "--map",
+            &map,
+            "--random",
+            seeds,
+            "--write",
+            out.to_str().unwrap(),
+        ]);
+        let last = format!("random-{}", count - 1);
+        assert!(printed.contains(&last), "{printed}");
+        assert!(
+            printed.contains(&format!("wrote {count} route(s)")),
+            "{printed}"
+        );
+        let written = std::fs::read_to_string(&out).unwrap();
+        assert!(
+            written.starts_with(&format!(
+                "# Written by `mrdrive routes --map {map} --random {seeds}"
+            )),
+            "{written}"
+        );
+        // The shipped file is this command's output: same seeds, same routes.
+        let shipped = std::fs::read_to_string(root().join(format!("routes/{town}.toml"))).unwrap();
+        assert_eq!(tables(&written), tables(&shipped), "{town}");
+        // And it plans again as a route file.
+        let replanned = run_ok(&["routes", "--map", &map, out.to_str().unwrap()]);
+        for k in 0..count {
+            let id = format!("random-{k}");
+            assert!(replanned.contains(&id), "{replanned}");
+        }
     }
 }
 

@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 use clap::{Args, Subcommand};
-use world::map::generator::{GridTownParams, generate_grid_town};
+use world::map::generator::{Features, GridTownParams, LightRule, generate_grid_town};
 use world::map::picture::{RenderOptions, render_town};
 use world::{
     LightController, LightTiming, LoadOptions, PlannerConfig, RouteFile, UnsignalledJunctions,
@@ -95,6 +95,23 @@ pub struct GenerateArgs {
     /// Seed for removed streets and buildings.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Rows of nodes (0 = southmost) whose east-west streets are arterials of
+    /// two lanes each way, comma-separated.
+    #[arg(long, value_delimiter = ',')]
+    pub arterial_rows: Vec<u32>,
+    /// Columns of nodes (0 = westmost) whose north-south streets are arterials, comma-separated.
+    #[arg(long, value_delimiter = ',')]
+    pub arterial_cols: Vec<u32>,
+    /// A roundabout at interior node COLUMN,ROW off the arterials (repeatable).
+    #[arg(long, value_name = "COLUMN,ROW", value_parser = parse_node)]
+    pub roundabout: Vec<(u32, u32)>,
+    /// Lights only where two arterials cross (every other junction unsignalled);
+    /// without it every junction with three or more arms has lights.
+    #[arg(long)]
+    pub lights_where_arterials_cross: bool,
+    /// A shipped town's parameters instead of the flags above: gen01, gen02, held01 or gen03.
+    #[arg(long)]
+    pub preset: Option<String>,
     /// Town name written into the file (default: the output file's stem).
     #[arg(long)]
     pub name: Option<String>,
@@ -159,15 +176,55 @@ fn generate(a: GenerateArgs) -> anyhow::Result<()> {
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| "town".into())
     });
-    let p = GridTownParams {
-        name,
-        blocks_x: a.blocks_x,
-        blocks_y: a.blocks_y,
-        block_size_m: a.block_size,
-        seed: a.seed,
+    let p = match a.preset.as_deref() {
+        Some(preset) => {
+            let p = match preset {
+                "gen01" => GridTownParams::gen01(),
+                "gen02" => GridTownParams::gen02(),
+                "held01" => GridTownParams::held01(),
+                "gen03" => GridTownParams::gen03(),
+                other => anyhow::bail!(
+                    "--preset {other}: no such town. Fix: use gen01, gen02, held01 or gen03"
+                ),
+            };
+            GridTownParams {
+                name: a.name.clone().unwrap_or(p.name.clone()),
+                ..p
+            }
+        }
+        None => GridTownParams {
+            name,
+            blocks_x: a.blocks_x,
+            blocks_y: a.blocks_y,
+            block_size_m: a.block_size,
+            seed: a.seed,
+            features: Features {
+                arterial_rows: a.arterial_rows.clone(),
+                arterial_cols: a.arterial_cols.clone(),
+                roundabouts: a.roundabout.clone(),
+                lights: if a.lights_where_arterials_cross {
+                    LightRule::WhereArterialsCross
+                } else {
+                    LightRule::ThreeOrMoreArms
+                },
+            },
+        },
     };
     let xml = generate_grid_town(&p)?;
     std::fs::write(&a.out, &xml).with_context(|| format!("writing {}", a.out.display()))?;
     println!("wrote {} ({} bytes)", a.out.display(), xml.len());
     Ok(())
+}
+
+/// Parses a grid node `COLUMN,ROW`.
+fn parse_node(s: &str) -> Result<(u32, u32), String> {
+    let (i, j) = s
+        .split_once(',')
+        .ok_or_else(|| format!("{s:?}: expected COLUMN,ROW, e.g. 1,2"))?;
+    let n = |x: &str| {
+        x.trim()
+            .parse::<u32>()
+            .map_err(|e| format!("{s:?}: {x:?} is not a node index ({e}); expected COLUMN,ROW"))
+    };
+    Ok((n(i)?, n(j)?))
 }

@@ -233,6 +233,7 @@ impl Builder {
             od_id: format!("demo-{}", ji.0),
             outline,
             lights,
+            priorities: Vec::new(),
         });
     }
 

@@ -201,6 +201,7 @@ pub fn grid(nx: usize, ny: usize, block_m: f32) -> Town {
                     c + Vec2::new(-h, h),
                 ],
                 lights: Vec::new(),
+                priorities: Vec::new(),
             };
             let lit = approaches[n].len() >= 3;
             for &(ain, din) in &approaches[n] {
@@ -380,6 +381,7 @@ pub fn t_junction(right_turn_radius_m: f32) -> Town {
             od_id: "T".into(),
             outline: vec![v(-h, -h), v(h, -h), v(h, h), v(-h, h)],
             lights: Vec::new(),
+            priorities: Vec::new(),
         }],
         bounds: (v(-h - arm, -h), v(h + arm, h + arm)),
         ..Town::empty("fixture-t-junction")

@@ -121,6 +121,11 @@ pub struct Junction {
     pub outline: Vec<Vec2>,
     /// The junction's lights, in controller-group order (empty if it has none).
     pub lights: Vec<LightIdx>,
+    /// Right of way the map gives (OpenDRIVE `<priority>`): pairs (a
+    /// connecting lane with priority, a connecting lane that gives way to
+    /// it), e.g. a roundabout's ring over its entry. Empty: first come,
+    /// first served.
+    pub priorities: Vec<(LaneIdx, LaneIdx)>,
 }
 
 /// Where a light stops traffic on one lane.

@@ -572,6 +572,7 @@ mod tests {
                 od_id: "j".into(),
                 outline: vec![],
                 lights: vec![],
+                priorities: vec![],
             }],
             lights: vec![],
             buildings: vec![],

@@ -46,10 +46,12 @@ const CREEP_MPS: f32 = 1.0;
 /// Spacing of the footprints kept along a sweep (metres of travel).
 const SWEEP_STEP_M: f32 = 0.5;
 
-/// For each lane of a town, the connecting lanes of its junction it conflicts with.
+/// For each lane of a town, the connecting lanes of its junction it
+/// conflicts with, and those of them it gives way to.
 #[derive(Debug, Clone, Default)]
 pub struct JunctionConflicts {
     by_lane: Vec<Vec<LaneIdx>>,
+    gives_way_to: Vec<Vec<LaneIdx>>,
 }
 
 /// Where a car's body is while it drives one connecting lane: its centre
@@ -106,12 +108,40 @@ impl JunctionConflicts {
                 }
             }
         }
-        JunctionConflicts { by_lane }
+        // Right of way the map gives, where the two lanes conflict.
+        let mut gives_way_to = vec![Vec::new(); town.lanes.len()];
+        for j in &town.junctions {
+            for &(high, low) in &j.priorities {
+                let (h, l) = (high.0 as usize, low.0 as usize);
+                if h < by_lane.len()
+                    && l < by_lane.len()
+                    && by_lane[l].contains(&high)
+                    && !gives_way_to[l].contains(&high)
+                {
+                    gives_way_to[l].push(high);
+                }
+            }
+        }
+        JunctionConflicts {
+            by_lane,
+            gives_way_to,
+        }
     }
 
     /// The lanes `lane` conflicts with (none for a lane outside junctions).
     pub fn of(&self, lane: LaneIdx) -> &[LaneIdx] {
         self.by_lane.get(lane.0 as usize).map_or(&[], |v| &v[..])
+    }
+
+    /// The conflicting lanes the map gives priority over `lane` (its
+    /// junction's `<priority>`, e.g. a roundabout's ring over its entry): a
+    /// car about to take `lane` gives way to a vehicle on or about to enter
+    /// one of them ([`crate::rules::must_give_way`]). Empty where the map
+    /// says nothing: first come, first served.
+    pub fn gives_way_to(&self, lane: LaneIdx) -> &[LaneIdx] {
+        self.gives_way_to
+            .get(lane.0 as usize)
+            .map_or(&[], |v| &v[..])
     }
 }
 

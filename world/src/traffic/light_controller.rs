@@ -202,6 +202,7 @@ mod tests {
                     od_id: i.to_string(),
                     outline: vec![],
                     lights: vec![],
+                    priorities: vec![],
                 })
                 .collect(),
             lights,

@@ -10,10 +10,16 @@ use std::f64::consts::{FRAC_PI_2, PI};
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 
-use super::{GridTownParams, JUNCTION_HALF_M, LANE_WIDTH_M, SIDEWALK_WIDTH_M};
+use super::{
+    ARTERIAL_JUNCTION_HALF_M, Features, GridTownParams, JUNCTION_HALF_M, LANE_WIDTH_M,
+    ROUNDABOUT_HALF_M, SIDEWALK_WIDTH_M,
+};
 
-/// Half a street's width from its centre line to the sidewalk's outer edge (metres).
-pub(super) const HALF_ROAD_M: f64 = LANE_WIDTH_M + SIDEWALK_WIDTH_M;
+/// Half a street's width from its centre line to the sidewalk's outer edge
+/// (metres), for a street of `lanes` driving lanes each way.
+pub(super) fn half_road_m(lanes: u32) -> f64 {
+    f64::from(lanes) * LANE_WIDTH_M + SIDEWALK_WIDTH_M
+}
 
 /// A grid node, a junction's centre: column, row.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -28,10 +34,13 @@ pub(super) struct Street {
     pub(super) a: Node,
     /// The node it ends at.
     pub(super) b: Node,
+    /// Driving lanes each way (1, or 2 on an arterial).
+    pub(super) lanes: u32,
 }
 
-/// The grid of nodes: `blocks + 1` each way, `block_m` apart.
-#[derive(Debug, Clone, Copy)]
+/// The grid of nodes: `blocks + 1` each way, `block_m` apart, and the
+/// town's [`Features`].
+#[derive(Debug, Clone)]
 pub(super) struct Grid {
     /// Nodes along x.
     nx: u32,
@@ -39,6 +48,8 @@ pub(super) struct Grid {
     ny: u32,
     /// Distance between neighbouring nodes (metres).
     pub(super) block_m: f64,
+    /// Arterials, roundabouts, which junctions get lights.
+    pub(super) features: Features,
 }
 
 impl Grid {
@@ -48,6 +59,37 @@ impl Grid {
             nx: p.blocks_x + 1,
             ny: p.blocks_y + 1,
             block_m: p.block_size_m,
+            features: p.features.clone(),
+        }
+    }
+
+    /// Whether node `n` is a roundabout.
+    pub(super) fn roundabout(&self, n: Node) -> bool {
+        self.features.roundabouts.contains(&(n.0, n.1))
+    }
+
+    /// Whether the street from `a` to `b` lies on an arterial row or column.
+    pub(super) fn arterial(&self, a: Node, b: Node) -> bool {
+        (a.1 == b.1 && self.features.arterial_rows.contains(&a.1))
+            || (a.0 == b.0 && self.features.arterial_cols.contains(&a.0))
+    }
+
+    /// Whether an arterial passes through node `n`.
+    pub(super) fn on_arterial(&self, n: Node) -> bool {
+        self.features.arterial_rows.contains(&n.1) || self.features.arterial_cols.contains(&n.0)
+    }
+
+    /// Half the size of node `n`'s junction: streets end this far from it
+    /// (metres). A roundabout's ring and its entries need
+    /// [`ROUNDABOUT_HALF_M`]; a junction on an arterial
+    /// [`ARTERIAL_JUNCTION_HALF_M`], for its two lanes each way.
+    pub(super) fn half_m(&self, n: Node) -> f64 {
+        if self.roundabout(n) {
+            ROUNDABOUT_HALF_M
+        } else if self.on_arterial(n) {
+            ARTERIAL_JUNCTION_HALF_M
+        } else {
+            JUNCTION_HALF_M
         }
     }
 
@@ -56,9 +98,9 @@ impl Grid {
         (n.0 as f64 * self.block_m, n.1 as f64 * self.block_m)
     }
 
-    /// A street's length between the junction squares at its ends (metres).
-    pub(super) fn street_length(&self) -> f64 {
-        self.block_m - 2.0 * JUNCTION_HALF_M
+    /// A street's length between the junctions at its ends (metres).
+    pub(super) fn street_length(&self, st: &Street) -> f64 {
+        self.block_m - self.half_m(st.a) - self.half_m(st.b)
     }
 
     /// Each node's junction id: 1000, 1001, ... row by row.
@@ -84,6 +126,7 @@ impl Grid {
                 id: k as u32 + 1,
                 a: *a,
                 b: *b,
+                lanes: if self.arterial(*a, *b) { 2 } else { 1 },
             })
             .collect()
     }
@@ -106,14 +149,14 @@ impl Grid {
     }
 
     /// Whether a node is off the grid's edge.
-    fn interior(&self, n: Node) -> bool {
+    pub(super) fn interior(&self, n: Node) -> bool {
         n.0 > 0 && n.1 > 0 && n.0 + 1 < self.nx && n.1 + 1 < self.ny
     }
 
     /// Which `edges` the seed removes, to make interior T junctions: a fifth
-    /// of the streets between interior nodes, taken in a shuffled order, each
-    /// only while both its nodes still have four arms (so every node keeps
-    /// three or more).
+    /// of the streets between interior nodes (arterials and a roundabout's
+    /// arms stay), taken in a shuffled order, each only while both its nodes
+    /// still have four arms (so every node keeps three or more).
     fn removed(&self, edges: &[(Node, Node)], rng: &mut ChaCha8Rng) -> Vec<bool> {
         let mut degree: BTreeMap<Node, u32> = BTreeMap::new();
         for (a, b) in edges {
@@ -121,7 +164,14 @@ impl Grid {
             *degree.entry(*b).or_default() += 1;
         }
         let candidates: Vec<usize> = (0..edges.len())
-            .filter(|&k| self.interior(edges[k].0) && self.interior(edges[k].1))
+            .filter(|&k| {
+                let (a, b) = edges[k];
+                self.interior(a)
+                    && self.interior(b)
+                    && !self.arterial(a, b)
+                    && !self.roundabout(a)
+                    && !self.roundabout(b)
+            })
             .collect();
         let to_remove = candidates.len() / 5;
         let mut removed = vec![false; edges.len()];
@@ -184,14 +234,19 @@ pub(super) fn arms<'a>(grid: &Grid, streets: &'a [Street]) -> BTreeMap<Node, Vec
     arms
 }
 
-/// A way through a junction: from one arm's incoming lane to another arm's
-/// outgoing lane, as a connecting road on the incoming lane's reference line.
+/// A way through a junction: from a lane of one arm's incoming side to a
+/// lane of another arm's outgoing side, as a connecting road on the incoming
+/// street's reference line (its centre line).
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Turn<'a> {
     /// The arm the way comes in by.
     pub(super) from: Arm<'a>,
     /// The arm it leaves by.
     pub(super) to: Arm<'a>,
+    /// The lane it comes from, counted from the centre line (1 = innermost).
+    pub(super) from_lane: u32,
+    /// The lane it goes to, counted the same way.
+    pub(super) to_lane: u32,
     /// Where it starts: the incoming street's end, on its centre line (metres).
     pub(super) start: (f64, f64),
     /// The heading of travel into the junction (radians).
@@ -201,14 +256,36 @@ pub(super) struct Turn<'a> {
     /// Its curvature (1/metres, positive to the left); `None` straight on.
     pub(super) curvature: Option<f64>,
     /// Whether the sidewalk on the right of travel continues along it: the
-    /// rightmost way out (a right turn, else straight, else left).
+    /// outermost lane's way to the rightmost arm out (a right turn, else
+    /// straight, else left).
     pub(super) sidewalk: bool,
 }
 
-/// Every way through the junction at `centre` with `arms`: from each arm to
-/// each other arm, no U-turns, in arm order.
-pub(super) fn turns<'a>(centre: (f64, f64), arms: &[Arm<'a>]) -> Vec<Turn<'a>> {
-    let r = JUNCTION_HALF_M;
+impl Turn<'_> {
+    /// How far right of the reference line its lane's left edge is at the
+    /// start and at the end (metres): the lanes inside it.
+    pub(super) fn offsets_m(&self) -> (f64, f64) {
+        (
+            f64::from(self.from_lane - 1) * LANE_WIDTH_M,
+            f64::from(self.to_lane - 1) * LANE_WIDTH_M,
+        )
+    }
+
+    /// The same for its sidewalk's inner edge: outside every lane of each arm.
+    pub(super) fn sidewalk_offsets_m(&self) -> (f64, f64) {
+        (
+            f64::from(self.from.street.lanes) * LANE_WIDTH_M,
+            f64::from(self.to.street.lanes) * LANE_WIDTH_M,
+        )
+    }
+}
+
+/// Every way through the junction at `centre` (streets ending `r` metres
+/// from it) with `arms`: from each arm to each other arm, no U-turns, in arm
+/// order. Straight on, each lane keeps its lane; a right turn goes from the
+/// outermost lane to the outermost lane, a left turn from the innermost to
+/// the innermost.
+pub(super) fn turns<'a>(centre: (f64, f64), r: f64, arms: &[Arm<'a>]) -> Vec<Turn<'a>> {
     let (cx, cy) = centre;
     let mut turns = Vec::new();
     for from in arms {
@@ -231,24 +308,54 @@ pub(super) fn turns<'a>(centre: (f64, f64), arms: &[Arm<'a>]) -> Vec<Turn<'a>> {
             if (turn.abs() - PI).abs() < 0.1 {
                 continue; // no U-turns
             }
-            let (length_m, curvature) = if turn.abs() < 0.1 {
-                (2.0 * r, None)
+            let (nf, nt) = (from.street.lanes, to.street.lanes);
+            let (length_m, curvature, links) = if turn.abs() < 0.1 {
+                let links: Vec<(u32, u32)> = (1..=nf.min(nt)).map(|k| (k, k)).collect();
+                (2.0 * r, None, links)
+            } else if turn > 0.0 {
+                (FRAC_PI_2 * r, Some(1.0 / r), vec![(1, 1)])
             } else {
-                let curv = if turn > 0.0 { 1.0 / r } else { -1.0 / r };
-                (FRAC_PI_2 * r, Some(curv))
+                (FRAC_PI_2 * r, Some(-1.0 / r), vec![(nf, nt)])
             };
-            turns.push(Turn {
-                from: *from,
-                to: *to,
-                start: (cx + from.dir.cos() * r, cy + from.dir.sin() * r),
-                heading: travel,
-                length_m,
-                curvature,
-                sidewalk: (turn - rightmost).abs() < 1e-9,
-            });
+            for (from_lane, to_lane) in links {
+                turns.push(Turn {
+                    from: *from,
+                    to: *to,
+                    from_lane,
+                    to_lane,
+                    start: (cx + from.dir.cos() * r, cy + from.dir.sin() * r),
+                    heading: travel,
+                    length_m,
+                    curvature,
+                    sidewalk: (turn - rightmost).abs() < 1e-9 && from_lane == nf,
+                });
+            }
         }
     }
     turns
+}
+
+/// Each junction's id, by the node and the street whose end meets it: a
+/// node's junction is 1000, 1001, ... row by row; a roundabout has one
+/// junction per arm, the first arm's that id and the others 3000 + 10 x
+/// (the node's number) + the arm.
+pub(super) type JunctionIds = BTreeMap<(Node, u32), u32>;
+
+pub(super) fn junction_ids(grid: &Grid, arms: &BTreeMap<Node, Vec<Arm<'_>>>) -> JunctionIds {
+    let node_ids = grid.junction_ids();
+    let mut ids = JunctionIds::new();
+    for (node, list) in arms {
+        let base = node_ids[node];
+        for (k, arm) in list.iter().enumerate() {
+            let id = if grid.roundabout(*node) && k > 0 {
+                3000 + 10 * (base - 1000) + k as u32
+            } else {
+                base
+            };
+            ids.insert((*node, arm.street.id), id);
+        }
+    }
+    ids
 }
 
 /// A building on a lot beside a street, placed in the street's frame (metres).
@@ -269,17 +376,26 @@ pub(super) struct Building {
 /// The buildings on the lots on each side of `street` (right, then left),
 /// drawn from `rng`: lots one after another along the street, 10-22 m long,
 /// 10-18 m deep, 1-3 m behind the sidewalk, 1-4 m apart. A north-south
-/// street keeps its lots clear of the cross streets' lots at its ends.
+/// street keeps its lots clear of the cross streets' lots at its ends (and
+/// of a roundabout's ring).
 pub(super) fn buildings(grid: &Grid, street: &Street, rng: &mut ChaCha8Rng) -> Vec<Building> {
-    let r = JUNCTION_HALF_M;
-    let len = grid.street_length();
+    let len = grid.street_length(street);
     let vertical = street.a.0 == street.b.0;
-    let clear = HALF_ROAD_M + 3.0 + 18.0 + 1.0 - r; // keep clear of the cross street's lots
+    // Keep clear of the cross street's lots: an arterial's are farther out.
+    let clear = |n: Node| {
+        let cross_lanes = if grid.features.arterial_rows.contains(&n.1) {
+            2
+        } else {
+            1
+        };
+        (half_road_m(cross_lanes) + 3.0 + 18.0 + 1.0 - grid.half_m(n)).max(1.0)
+    };
     let (s_lo, s_hi) = if vertical {
-        (clear, len - clear)
+        (clear(street.a), len - clear(street.b))
     } else {
         (1.0, len - 1.0)
     };
+    let half_road = half_road_m(street.lanes);
     let mut buildings = Vec::new();
     for side in [-1.0f64, 1.0] {
         let mut s = s_lo + rng.random_range(0.0..3.0);
@@ -290,7 +406,7 @@ pub(super) fn buildings(grid: &Grid, street: &Street, rng: &mut ChaCha8Rng) -> V
             let height = rng.random_range(6.0..30.0f64);
             buildings.push(Building {
                 s: s + length * 0.5,
-                t: side * (HALF_ROAD_M + setback + depth * 0.5),
+                t: side * (half_road + setback + depth * 0.5),
                 length,
                 depth,
                 height,

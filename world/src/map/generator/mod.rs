@@ -11,13 +11,22 @@
 //! footprints stand on lots beside the streets. Everything is drawn from the
 //! seed with `ChaCha8Rng`: the same parameters give the same bytes.
 //!
+//! A town's [`Features`] add what CARLA's larger towns have: arterials of
+//! two lanes each way along chosen rows and columns (a solid yellow centre
+//! line, broken white between the lanes, wider junctions), lights only
+//! where arterials cross ([`LightRule`]), and single-lane roundabouts at
+//! chosen nodes (`roundabout.rs`). gen01, gen02 and held01 have none;
+//! [`GridTownParams::gen03`] has all three.
+//!
 //! The steps, one file each:
 //!
 //! | file | step |
 //! | --- | --- |
 //! | `mod.rs` | the parameters and their checks, and [`generate_grid_town`], which runs the steps in order |
 //! | `layout.rs` | the grid, the streets (the seed removes a few interior ones), each junction's arms and turns, the buildings on the lots |
-//! | `signals.rs` | a traffic light per approach at junctions with three or more arms |
+//! | `signals.rs` | a traffic light per approach at the junctions the [`LightRule`] names |
+//! | `elements.rs` | the OpenDRIVE elements roads share: a road's head and links, lane widths, a junction road's lanes |
+//! | `roundabout.rs` | a roundabout: ring roads, and per arm a junction with the ring, the entry, the exit and their `<priority>` |
 //! | `xml.rs` | the OpenDRIVE text: header, street roads, junctions' connecting and sidewalk roads, controllers, junctions |
 
 use rand::SeedableRng;
@@ -25,7 +34,9 @@ use rand_chacha::ChaCha8Rng;
 
 use layout::{Building, Grid};
 
+mod elements;
 mod layout;
+mod roundabout;
 mod signals;
 mod xml;
 
@@ -37,6 +48,11 @@ pub const SIDEWALK_WIDTH_M: f64 = 3.0;
 pub const SIDEWALK_HEIGHT_M: f64 = 0.15;
 /// Half the size of a junction's square (metres): streets end this far from the node.
 pub const JUNCTION_HALF_M: f64 = 10.0;
+/// Half the size of a junction on an arterial (metres): room for two lanes
+/// each way and the turns between them.
+pub const ARTERIAL_JUNCTION_HALF_M: f64 = 14.0;
+/// How far from a roundabout's centre its streets end (metres).
+pub const ROUNDABOUT_HALF_M: f64 = 28.0;
 /// Speed limit on generated streets (km/h).
 pub const SPEED_LIMIT_KMH: f64 = 30.0;
 /// A traffic light signal's `zOffset` (metres): its pole's foot below the
@@ -61,6 +77,36 @@ pub struct GridTownParams {
     pub block_size_m: f64,
     /// Seed for removed streets and buildings.
     pub seed: u64,
+    /// Arterials, roundabouts and which junctions get lights.
+    pub features: Features,
+}
+
+/// What a town has beyond the plain grid: arterials of two lanes each way,
+/// roundabouts, and which junctions get traffic lights.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Features {
+    /// Rows of nodes (0 = the southmost) whose east-west streets are
+    /// arterials: 2 driving lanes each way.
+    pub arterial_rows: Vec<u32>,
+    /// Columns of nodes (0 = the westmost) whose north-south streets are arterials.
+    pub arterial_cols: Vec<u32>,
+    /// Interior nodes (column, row) that are single-lane roundabouts, off
+    /// the arterials: the ring has priority over the entries (OpenDRIVE
+    /// junction `<priority>`).
+    pub roundabouts: Vec<(u32, u32)>,
+    /// Which junctions get traffic lights.
+    pub lights: LightRule,
+}
+
+/// Which junctions of a generated town get traffic lights.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum LightRule {
+    /// Every junction with three or more arms (gen01, gen02, held01).
+    #[default]
+    ThreeOrMoreArms,
+    /// Only where two arterials cross; every other junction is unsignalled
+    /// (first come, first served).
+    WhereArterialsCross,
 }
 
 impl GridTownParams {
@@ -72,6 +118,7 @@ impl GridTownParams {
             blocks_y: 4,
             block_size_m: 82.0,
             seed: 1,
+            features: Features::default(),
         }
     }
 
@@ -83,6 +130,7 @@ impl GridTownParams {
             blocks_y: 3,
             block_size_m: 67.0,
             seed: 2,
+            features: Features::default(),
         }
     }
 
@@ -96,6 +144,27 @@ impl GridTownParams {
             blocks_y: 4,
             block_size_m: 74.0,
             seed: 5,
+            features: Features::default(),
+        }
+    }
+
+    /// The town with all the traffic of CARLA's larger towns (360 m x 270 m,
+    /// 4 x 3 blocks of 90 m): an east-west and a north-south arterial of two
+    /// lanes each way, lights only where they cross, every other junction
+    /// unsignalled, and a roundabout.
+    pub fn gen03() -> Self {
+        GridTownParams {
+            name: "gen03".into(),
+            blocks_x: 4,
+            blocks_y: 3,
+            block_size_m: 90.0,
+            seed: 3,
+            features: Features {
+                arterial_rows: vec![1],
+                arterial_cols: vec![2],
+                roundabouts: vec![(1, 2)],
+                lights: LightRule::WhereArterialsCross,
+            },
         }
     }
 }
@@ -127,8 +196,9 @@ pub fn generate_grid_town(p: &GridTownParams) -> Result<String, GeneratorError> 
 }
 
 /// Refuses parameters the generator cannot build a town from: 1 to 50
-/// blocks each way (not 1 x 1), blocks wide enough for two junction squares
-/// and 10 m of street, and no wider than 1 km.
+/// blocks each way (not 1 x 1), blocks wide enough for the two widest
+/// neighbouring junctions and 10 m of street, and no wider than 1 km;
+/// arterials on the grid; roundabouts at interior nodes off the arterials.
 fn check(p: &GridTownParams) -> Result<(), GeneratorError> {
     if !(1..=50).contains(&p.blocks_x) || !(1..=50).contains(&p.blocks_y) {
         return Err(GeneratorError {
@@ -136,12 +206,81 @@ fn check(p: &GridTownParams) -> Result<(), GeneratorError> {
             fix: "use 1 to 50 blocks each way".into(),
         });
     }
-    let min_block = 2.0 * JUNCTION_HALF_M + 10.0;
+    let f = &p.features;
+    let half = |n: (u32, u32)| {
+        if f.roundabouts.contains(&n) {
+            ROUNDABOUT_HALF_M
+        } else if f.arterial_rows.contains(&n.1) || f.arterial_cols.contains(&n.0) {
+            ARTERIAL_JUNCTION_HALF_M
+        } else {
+            JUNCTION_HALF_M
+        }
+    };
+    // The widest junctions at both ends of one street, and 10 m of street.
+    let mut widest = [JUNCTION_HALF_M; 2];
+    for j in 0..=p.blocks_y {
+        for i in 0..=p.blocks_x {
+            let h = half((i, j));
+            let east = if i < p.blocks_x {
+                half((i + 1, j))
+            } else {
+                0.0
+            };
+            let north = if j < p.blocks_y {
+                half((i, j + 1))
+            } else {
+                0.0
+            };
+            for other in [east, north] {
+                if h + other > widest[0] + widest[1] {
+                    widest = [h, other];
+                }
+            }
+        }
+    }
+    let min_block = widest[0] + widest[1] + 10.0;
     if !p.block_size_m.is_finite() || p.block_size_m < min_block || p.block_size_m > 1000.0 {
         return Err(GeneratorError {
             what: format!("block size {} m out of range", p.block_size_m),
             fix: format!("use a block size from {min_block} m to 1000 m"),
         });
+    }
+    for &r in &f.arterial_rows {
+        if r > p.blocks_y {
+            return Err(GeneratorError {
+                what: format!(
+                    "arterial row {r} is off the grid (rows 0 to {})",
+                    p.blocks_y
+                ),
+                fix: format!("use a row from 0 to {}", p.blocks_y),
+            });
+        }
+    }
+    for &c in &f.arterial_cols {
+        if c > p.blocks_x {
+            return Err(GeneratorError {
+                what: format!(
+                    "arterial column {c} is off the grid (columns 0 to {})",
+                    p.blocks_x
+                ),
+                fix: format!("use a column from 0 to {}", p.blocks_x),
+            });
+        }
+    }
+    for &(i, j) in &f.roundabouts {
+        let interior = i > 0 && j > 0 && i < p.blocks_x && j < p.blocks_y;
+        if !interior || f.arterial_rows.contains(&j) || f.arterial_cols.contains(&i) {
+            return Err(GeneratorError {
+                what: format!(
+                    "roundabout at node ({i}, {j}) is not an interior node off the arterials"
+                ),
+                fix: format!(
+                    "put it at a node with column 1 to {} and row 1 to {}, on no arterial row or column",
+                    p.blocks_x.saturating_sub(1),
+                    p.blocks_y.saturating_sub(1)
+                ),
+            });
+        }
     }
     if p.blocks_x * p.blocks_y < 2 {
         return Err(GeneratorError {
@@ -159,7 +298,7 @@ mod tests {
 
     #[test]
     fn the_shipped_generated_towns_are_what_the_generator_writes() {
-        // maps/gen01.xodr, gen02.xodr and held01.xodr are this generator's output
+        // maps/gen01.xodr, gen02.xodr, held01.xodr and gen03.xodr are this generator's output
         // (`mrdrive map generate`, the parameters in each file's comment): a change
         // to the generator that moves a byte changes every gen01 run.
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
@@ -167,6 +306,7 @@ mod tests {
             GridTownParams::gen01(),
             GridTownParams::gen02(),
             GridTownParams::held01(),
+            GridTownParams::gen03(),
         ] {
             let path = root.join(format!("maps/{}.xodr", p.name));
             let shipped = std::fs::read_to_string(&path).unwrap();
@@ -186,6 +326,7 @@ mod tests {
             blocks_y: 2,
             block_size_m: 60.0,
             seed: 3,
+            features: Features::default(),
         };
         let xml = generate_grid_town(&p).unwrap();
         let (town, report) = load_xodr_str(&xml, "t", &LoadOptions::default()).unwrap();
@@ -254,6 +395,7 @@ mod tests {
             blocks_y: 1,
             block_size_m: 60.0,
             seed: 0,
+            features: Features::default(),
         };
         let (town, _) = load_xodr_str(
             &generate_grid_town(&p).unwrap(),
@@ -355,6 +497,164 @@ mod tests {
             generate_grid_town(&p).unwrap(),
             generate_grid_town(&q).unwrap()
         );
+    }
+
+    #[test]
+    fn gen03_has_two_lane_arterials_unsignalled_junctions_and_a_roundabout() {
+        let p = GridTownParams::gen03();
+        let (town, report) = load_xodr_str(
+            &generate_grid_town(&p).unwrap(),
+            "gen03",
+            &LoadOptions::default(),
+        )
+        .unwrap();
+        assert!(report.warnings.is_empty(), "{:#?}", report.warnings);
+        assert!(town.is_strongly_connected());
+        // Arterials: street lanes with a neighbour of the same direction
+        // (row 1 and column 2: 4 + 3 streets, 2 lanes each way, each lane
+        // with one neighbour).
+        let beside = town
+            .lanes
+            .iter()
+            .filter(|l| l.junction.is_none() && (l.left.is_some() || l.right.is_some()))
+            .count();
+        assert_eq!(beside, (4 + 3) * 4, "lanes with a neighbour");
+        // Lights only where the arterials cross: one four-way junction, an
+        // approach each, two lanes per approach.
+        assert_eq!(town.lights.len(), 4);
+        assert!(town.lights.iter().all(|l| l.stop_lines.len() == 2));
+        let lit: std::collections::BTreeSet<_> =
+            town.lights.iter().filter_map(|l| l.junction).collect();
+        assert_eq!(lit.len(), 1);
+        // Junctions of three or more ways in, without lights: every other
+        // grid junction (20 nodes less the 4 corners, the lit one and the
+        // roundabout).
+        let mut ways_in: std::collections::BTreeMap<u32, std::collections::BTreeSet<&str>> =
+            Default::default();
+        for l in &town.lanes {
+            if let Some(j) = l.junction {
+                for p in &l.predecessors {
+                    ways_in
+                        .entry(j.0)
+                        .or_default()
+                        .insert(&town.lanes[p.0 as usize].road_id);
+                }
+            }
+        }
+        let unlit = ways_in
+            .iter()
+            .filter(|(j, roads)| {
+                roads.len() >= 3
+                    && !lit.contains(&crate::map::JunctionIdx(**j))
+                    && town.junctions[**j as usize].priorities.is_empty()
+            })
+            .count();
+        assert_eq!(unlit, 20 - 4 - 1 - 1);
+        // The roundabout: four junctions, each giving its ring priority over
+        // its entry, which merges into the ring (the two conflict).
+        let conflicts = crate::rules::JunctionConflicts::new(&town);
+        let ring: Vec<_> = town
+            .junctions
+            .iter()
+            .filter(|j| !j.priorities.is_empty())
+            .collect();
+        assert_eq!(ring.len(), 4);
+        for j in ring {
+            assert_eq!(j.priorities.len(), 1, "{}", j.od_id);
+            let (high, low) = j.priorities[0];
+            let (h, l) = (town.lane(high), town.lane(low));
+            assert_eq!(h.junction, l.junction);
+            assert_eq!(h.successors, l.successors, "the entry merges into the ring");
+            assert!(
+                h.predecessors
+                    .iter()
+                    .all(|p| town.lane(*p).road_id.starts_with("6")),
+                "the ring comes from a ring road"
+            );
+            assert_eq!(conflicts.gives_way_to(low), &[high]);
+            assert!(conflicts.gives_way_to(high).is_empty());
+        }
+    }
+
+    #[test]
+    fn every_lane_of_gen03_ends_where_its_successors_start() {
+        // The spacer lanes that move a turn between the lanes of an arterial
+        // and a street, and the roundabout's cubic entries and exits, join
+        // their lanes end to start in position and heading.
+        let (town, _) = load_xodr_str(
+            &generate_grid_town(&GridTownParams::gen03()).unwrap(),
+            "gen03",
+            &LoadOptions::default(),
+        )
+        .unwrap();
+        let mut joins = 0;
+        for l in &town.lanes {
+            let (end, end_hdg, _) = l.pose_at(l.length_m());
+            for s in &l.successors {
+                let (start, start_hdg, _) = town.lane(*s).pose_at(0.0);
+                let d = end.distance(start);
+                let turn = (end_hdg - start_hdg).sin().abs();
+                // Headings are those of the 1 m centreline segments: on a
+                // curve of 8.25 m radius a segment turns 0.12 rad.
+                assert!(
+                    d < 0.05 && turn < 0.1,
+                    "road {} lane {} -> road {} lane {}: {d} m apart, {turn} rad",
+                    l.road_id,
+                    l.od_lane,
+                    town.lane(*s).road_id,
+                    town.lane(*s).od_lane
+                );
+                joins += 1;
+            }
+        }
+        // Each of the 150 junction lanes is joined at both ends.
+        assert_eq!(joins, 300);
+    }
+
+    #[test]
+    fn bad_features_are_errors_that_name_the_fix() {
+        let on_arterial = GridTownParams {
+            features: Features {
+                roundabouts: vec![(2, 2)],
+                ..GridTownParams::gen03().features
+            },
+            ..GridTownParams::gen03()
+        };
+        let e = generate_grid_town(&on_arterial).unwrap_err().to_string();
+        assert!(
+            e.contains("roundabout at node (2, 2)") && e.contains("Fix"),
+            "{e}"
+        );
+        let on_edge = GridTownParams {
+            features: Features {
+                roundabouts: vec![(0, 1)],
+                ..Features::default()
+            },
+            ..GridTownParams::gen03()
+        };
+        assert!(generate_grid_town(&on_edge).is_err());
+        let off_grid = GridTownParams {
+            features: Features {
+                arterial_rows: vec![9],
+                ..Features::default()
+            },
+            ..GridTownParams::gen03()
+        };
+        let e = generate_grid_town(&off_grid).unwrap_err().to_string();
+        assert!(e.contains("arterial row 9") && e.contains("Fix"), "{e}");
+        // A roundabout needs longer blocks than a plain junction.
+        // 28 m to the ring, 14 m to the arterial's junction, 10 m of street.
+        let short = GridTownParams {
+            block_size_m: 51.0,
+            ..GridTownParams::gen03()
+        };
+        let e = generate_grid_town(&short).unwrap_err().to_string();
+        assert!(e.contains("block size 51") && e.contains("52 m"), "{e}");
+        let enough = GridTownParams {
+            block_size_m: 52.0,
+            ..GridTownParams::gen03()
+        };
+        assert!(generate_grid_town(&enough).is_ok());
     }
 
     #[test]

@@ -1,13 +1,15 @@
-//! Traffic lights: at every junction with three or more arms, a signal beside
-//! each incoming lane, 1 m before the junction, with one controller per
-//! approach; the approaches take their turns in arm order (`sequence`).
+//! Traffic lights: at the junctions the town's [`LightRule`] names (every
+//! junction with three or more arms, or only where arterials cross), a
+//! signal beside each approach, 1 m before the junction, right of its
+//! incoming lanes, with one controller per approach; the approaches take
+//! their turns in arm order (`sequence`).
 
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
 use std::fmt::Write;
 
 use super::layout::{Arm, Grid, Node};
-use super::{LANE_WIDTH_M, SIGNAL_Z_OFFSET_M};
+use super::{LANE_WIDTH_M, LightRule, SIGNAL_Z_OFFSET_M};
 
 /// The town's lights as OpenDRIVE elements.
 #[derive(Debug, Default)]
@@ -20,23 +22,32 @@ pub(super) struct Lights {
     pub(super) junction_controllers: BTreeMap<Node, String>,
 }
 
-/// The lights of every junction with three or more `arms`: signals from id
-/// 5000, controllers from 7000, junction by junction.
+/// The lights of the junctions the grid's [`LightRule`] names among those
+/// with three or more `arms` (never a roundabout): signals from id 5000,
+/// controllers from 7000, junction by junction.
 pub(super) fn lights(grid: &Grid, arms: &BTreeMap<Node, Vec<Arm<'_>>>) -> Lights {
     let mut lights = Lights::default();
     let mut next_signal = 5000u32;
     let mut next_ctrl = 7000u32;
     for (node, list) in arms {
-        if list.len() < 3 {
+        let lit = match grid.features.lights {
+            LightRule::ThreeOrMoreArms => true,
+            LightRule::WhereArterialsCross => {
+                let f = &grid.features;
+                f.arterial_rows.contains(&node.1) && f.arterial_cols.contains(&node.0)
+            }
+        };
+        if list.len() < 3 || !lit || grid.roundabout(*node) {
             continue;
         }
         for (seq, arm) in list.iter().enumerate() {
-            // At the street's end that meets this junction, right of its incoming lane.
-            let len = grid.street_length();
+            // At the street's end that meets this junction, right of its incoming lanes.
+            let len = grid.street_length(arm.street);
+            let side = f64::from(arm.street.lanes) * LANE_WIDTH_M + 1.5;
             let (s, t, orient, hoff) = if arm.at_b {
-                (len - 1.0, -(LANE_WIDTH_M + 1.5), "+", PI)
+                (len - 1.0, -side, "+", PI)
             } else {
-                (1.0, LANE_WIDTH_M + 1.5, "-", 0.0)
+                (1.0, side, "-", 0.0)
             };
             let sid = next_signal;
             next_signal += 1;

@@ -42,7 +42,39 @@ impl Builder<'_> {
                     od_id: id,
                     outline: Vec::new(),
                     lights: Vec::new(),
+                    priorities: Vec::new(),
                 });
+            }
+        }
+    }
+
+    /// The junctions' `<priority>` elements as lane pairs: each driving lane
+    /// of the `high` road over each driving lane of the `low` road, where
+    /// both roads are connecting roads of one junction (other pairs say
+    /// nothing a car can use and are left out). Call after [`Builder::lanes`].
+    pub(super) fn priorities(&mut self) {
+        let net = self.ctx.net;
+        for pr in net.priorities() {
+            let od = |r| net.road(r).map(|r| r.od_id().to_string());
+            let (Some(high), Some(low)) = (od(pr.high), od(pr.low)) else {
+                continue;
+            };
+            let lanes_of = |road: &str| -> Vec<(crate::map::LaneIdx, JunctionIdx)> {
+                self.town
+                    .lanes
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, l)| l.road_id == road)
+                    .filter_map(|(i, l)| Some((crate::map::LaneIdx(i as u32), l.junction?)))
+                    .collect()
+            };
+            let (hs, ls) = (lanes_of(&high), lanes_of(&low));
+            for &(h, jh) in &hs {
+                for &(l, jl) in &ls {
+                    if jh == jl {
+                        self.town.junctions[jh.0 as usize].priorities.push((h, l));
+                    }
+                }
             }
         }
     }

@@ -228,6 +228,7 @@ fn load_impl(
     b.junctions();
     b.lanes();
     b.reject_junctions_without_lanes(xml)?;
+    b.priorities();
     b.markings();
     b.sidewalks();
     b.objects();

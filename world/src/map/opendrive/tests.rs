@@ -286,6 +286,7 @@ fn unsignalled_junctions_get_one_light_per_approach_only_when_asked() {
         blocks_y: 2,
         block_size_m: 60.0,
         seed: 3,
+        features: Default::default(),
     };
     // The generator's lights, taken out: signals become plain road.
     let xml = generate_grid_town(&p).unwrap();
@@ -340,6 +341,7 @@ fn a_map_without_crosswalks_gets_one_at_each_junction_approach() {
         blocks_y: 2,
         block_size_m: 60.0,
         seed: 3,
+        features: Default::default(),
     };
     let xml = generate_grid_town(&p).unwrap();
     let (town, _) = load_xodr_str(&xml, "g", &LoadOptions::default()).unwrap();
@@ -383,6 +385,7 @@ fn junction_outlines_hold_their_connecting_lanes() {
         blocks_y: 2,
         block_size_m: 60.0,
         seed: 3,
+        features: Default::default(),
     };
     let xml = generate_grid_town(&p).unwrap();
     let (town, _) = load_xodr_str(&xml, "g", &LoadOptions::default()).unwrap();
@@ -629,4 +632,39 @@ fn a_connecting_lane_to_nowhere_is_named_and_driven_around() {
         crate::agents::npc::extend_path(&town, &mut path, &mut rng, 80.0);
         assert_eq!(path.lanes.get(1), Some(&through), "seed {seed}");
     }
+}
+
+#[test]
+fn junction_priorities_become_lane_pairs_and_a_bad_one_is_named() {
+    let xml = generate_grid_town(&GridTownParams::gen03()).unwrap();
+    let (town, report) = load_xodr_str(&xml, "gen03", &LoadOptions::default()).unwrap();
+    assert!(report.warnings.is_empty(), "{:#?}", report.warnings);
+    let with: Vec<&crate::map::Junction> = town
+        .junctions
+        .iter()
+        .filter(|j| !j.priorities.is_empty())
+        .collect();
+    assert_eq!(with.len(), 4, "the roundabout's four junctions");
+    for j in &with {
+        let (high, low) = j.priorities[0];
+        let idx = town.junctions.iter().position(|x| x.od_id == j.od_id);
+        assert_eq!(town.lane(high).junction.map(|i| i.0 as usize), idx);
+        assert_eq!(town.lane(low).junction.map(|i| i.0 as usize), idx);
+    }
+    // A priority naming a road the map does not have is dropped with a
+    // warning that names the junction and the road; the map loads, first
+    // come, first served at that junction.
+    let first = xml.find("<priority high=\"").unwrap() + "<priority high=\"".len();
+    let end = first + xml[first..].find('"').unwrap();
+    let bad = format!("{}99999{}", &xml[..first], &xml[end..]);
+    let (town, report) = load_xodr_str(&bad, "gen03", &LoadOptions::default()).unwrap();
+    assert_eq!(report.warnings.len(), 1, "{:#?}", report.warnings);
+    let w = &report.warnings[0];
+    assert!(w.contains("priority") && w.contains("99999"), "{w}");
+    let left = town
+        .junctions
+        .iter()
+        .filter(|j| !j.priorities.is_empty())
+        .count();
+    assert_eq!(left, 3);
 }
