@@ -47,6 +47,40 @@ fn two_runs_of_one_scenario_give_identical_records() {
 }
 
 #[test]
+fn the_expert_drives_gen03_through_lane_changes_and_the_roundabout_in_traffic() {
+    // Route 4 changes lanes on the north-south arterial and goes round the
+    // roundabout; 20 vehicles and 40 pedestrians, three seeds.
+    let tmp = tempfile::tempdir().unwrap();
+    for seed in ["1", "2", "3"] {
+        let r = run_json(
+            &[
+                "scenarios/gen03/gen03_random4.toml",
+                "--expert",
+                "--vehicles",
+                "20",
+                "--pedestrians",
+                "40",
+                "--seed",
+                seed,
+                "--no-picture",
+            ],
+            &tmp.path().join(format!("{seed}.json")),
+        );
+        let r = &r["result"];
+        assert_eq!(r["success"], true, "seed {seed}: {}", r["termination"]);
+        for kind in [
+            "collision_vehicle",
+            "collision_pedestrian",
+            "collision_static",
+            "red_light",
+            "on_sidewalk",
+        ] {
+            assert_eq!(r["counts"][kind], 0, "seed {seed}: {kind}");
+        }
+    }
+}
+
+#[test]
 fn bad_scenario_gets_an_error_naming_the_file_and_key() {
     let tmp = tempfile::tempdir().unwrap();
     let path = tmp.path().join("bad.toml");

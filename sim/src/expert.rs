@@ -38,7 +38,8 @@ use crate::driver::{Driver, DriverNeeds, Observation, Privileged, VehicleControl
 
 /// Where a car driving `route` must wait, as the runner hands it to the
 /// expert: before a junction without lights while `held(lane)` says another
-/// vehicle holds a lane conflicting with the route's
+/// vehicle holds a lane conflicting with the route's (or, where the map
+/// gives a lane priority over the route's, is about to take it)
 /// ([`Privileged::junction_yield_s`]), and before a lane change while the
 /// target lane has no room among `actors` ([`Privileged::lane_change_wait_s`]);
 /// `ego` is the car, `route_index` the route point it has reached.

@@ -503,6 +503,7 @@ impl Boundary<'_> {
                     !traffic
                         .reservations()
                         .free_for(&traffic.rules().conflicts, lane, u32::MAX)
+                        || traffic.must_give_way(lane, 0)
                 },
                 traffic.actor_views(),
             )

@@ -107,7 +107,11 @@ fn drive_every_turn(town: &Arc<Town>) -> f32 {
 
 #[test]
 fn npcs_drive_every_turn_of_the_generated_towns_without_touching_a_curb() {
-    for p in [GridTownParams::gen01(), GridTownParams::gen02()] {
+    for p in [
+        GridTownParams::gen01(),
+        GridTownParams::gen02(),
+        GridTownParams::gen03(),
+    ] {
         let town = generated(p);
         let c = drive_every_turn(&town);
         // The generated towns put curbs at the lane edges (3.5 m lanes, 2.16 m
@@ -165,7 +169,11 @@ fn assert_clean(name: &str, s: world::traffic::TrafficStats) {
 
 #[test]
 fn traffic_on_the_generated_towns_has_no_collisions_or_red_runs() {
-    for p in [GridTownParams::gen01(), GridTownParams::gen02()] {
+    for p in [
+        GridTownParams::gen01(),
+        GridTownParams::gen02(),
+        GridTownParams::gen03(),
+    ] {
         let name = p.name.clone();
         assert_clean(&name, soak_two_minutes(generated(p), 1));
     }

@@ -2,7 +2,11 @@
 //!
 //! Each NPC follows a [`LanePath`] through the lane graph, choosing a random
 //! successor (its own `ChaCha8Rng`) whenever the path ahead runs short, so a
-//! new random choice is made at each junction. Per tick it decides a
+//! new random choice is made at each junction. On a road of several lanes
+//! each way the choice also takes the turns of the lanes beside it; such a
+//! turn is a [`PlannedChange`], made where the lane beside has room (the
+//! rule book's gap check, as the expert's) or given up for a way from its
+//! own lane. Per tick it decides a
 //! [`VehicleControl`] for the shared vehicle model:
 //!
 //! - longitudinal: the Intelligent Driver Model toward the lane's speed limit
@@ -19,8 +23,10 @@
 //! [`rules::conflicts`] says. Before entering a junction an
 //! NPC requests its connecting lane; [`crate::traffic::Reservations`] grants requests in
 //! order of waiting time (then id) when no other vehicle holds a conflicting
-//! lane and the exit lane has room for it ("don't block the box"). The
-//! reservation is released once the vehicle has left the junction.
+//! lane and the exit lane has room for it ("don't block the box"), and,
+//! where the map gives another lane priority (a roundabout's ring), no
+//! vehicle is about to take that lane. The reservation is released once the
+//! vehicle has left the junction.
 
 use crate::agents::vehicle::{VehicleControl, VehicleParams, VehicleState};
 use crate::map::town::{LaneIdx, LightIdx, LightState, Town};
@@ -89,6 +95,8 @@ pub struct Npc {
     pub reservation: Option<LaneIdx>,
     /// The connecting lane it is asking for and the tick it started asking.
     pub request: Option<(LaneIdx, u64)>,
+    /// The lane change it has planned for its next turn, if any.
+    pub change: Option<PlannedChange>,
     /// Consecutive ticks stopped while its driver wants to move.
     pub stuck_ticks: u32,
     /// Consecutive ticks below 0.1 m/s for any reason.
@@ -101,19 +109,79 @@ pub struct Npc {
     pub rng: ChaCha8Rng,
 }
 
+/// A lane change an NPC has chosen for its next turn on a road of several
+/// lanes each way: from `from` (the last lane of its path) to its neighbour
+/// `to`, then on into `then`, a successor of `to` that `from` does not lead
+/// to. The path ends at `from` until the change is made (with a gap,
+/// [`crate::traffic::Traffic::step`]) or given up.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PlannedChange {
+    /// The lane it changes from.
+    pub from: LaneIdx,
+    /// The neighbour lane it changes to (same direction).
+    pub to: LaneIdx,
+    /// Where it goes after `to`: a junction lane only `to` leads into.
+    pub then: LaneIdx,
+}
+
 /// Makes sure the path reaches `ahead_m` beyond the position, choosing random successors.
 ///
 /// A successor that leads nowhere (no successors of its own: a connecting
 /// lane the map links to no exit, a road that ends) is driven around: it is
 /// chosen only when no other successor is left. On a map without such lanes
-/// the choices, and the random stream, are as they were.
+/// the choices, and the random stream, are as they were. This never plans
+/// a lane change ([`extend_path_planning`] does).
 pub fn extend_path(town: &Town, path: &mut LanePath, rng: &mut ChaCha8Rng, ahead_m: f32) {
+    extend(town, path, rng, ahead_m, None);
+}
+
+/// [`extend_path`] that also chooses among the turns of the lanes beside
+/// the path's last one: where that lane has a neighbour of the same
+/// direction, every way on from it, and every way on from a neighbour that
+/// leads to a road it does not, is equally likely. A way from a neighbour
+/// is planned as `change` ([`PlannedChange`]) and the path stops there. On
+/// a road of one lane each way the choices, and the random stream, are
+/// those of [`extend_path`]. Nothing is extended while a change is planned.
+pub fn extend_path_planning(
+    town: &Town,
+    path: &mut LanePath,
+    rng: &mut ChaCha8Rng,
+    ahead_m: f32,
+    change: &mut Option<PlannedChange>,
+) {
+    extend(town, path, rng, ahead_m, Some(change));
+}
+
+fn extend(
+    town: &Town,
+    path: &mut LanePath,
+    rng: &mut ChaCha8Rng,
+    ahead_m: f32,
+    mut change: Option<&mut Option<PlannedChange>>,
+) {
     let leads_on = |l: LaneIdx| !town.lanes[l.0 as usize].successors.is_empty();
     while path.remaining_m(town) < ahead_m {
+        if change.as_ref().is_some_and(|c| c.is_some()) {
+            return;
+        }
         let last = *path.lanes.back().expect("path has a lane");
         let succ = &town.lanes[last.0 as usize].successors;
         if succ.is_empty() {
             return;
+        }
+        if let Some(change) = change.as_deref_mut()
+            && let Some((lane, then)) = choose_with_neighbours(town, last, rng)
+        {
+            if lane == last {
+                path.lanes.push_back(then);
+            } else {
+                *change = Some(PlannedChange {
+                    from: last,
+                    to: lane,
+                    then,
+                });
+            }
+            continue;
         }
         let on = succ.iter().filter(|&&l| leads_on(l)).count();
         let next = if on == succ.len() || on == 0 {
@@ -133,6 +201,47 @@ pub fn extend_path(town: &Town, path: &mut LanePath, rng: &mut ChaCha8Rng, ahead
         };
         path.lanes.push_back(next);
     }
+}
+
+/// The way on from `last` drawn among its own successors and those of its
+/// same-direction neighbours that lead to a road it does not reach: (the
+/// lane it is taken from, the successor). `None` (nothing drawn) when
+/// `last` is a junction lane or has no neighbour with such a way on.
+fn choose_with_neighbours(
+    town: &Town,
+    last: LaneIdx,
+    rng: &mut ChaCha8Rng,
+) -> Option<(LaneIdx, LaneIdx)> {
+    let lane = &town.lanes[last.0 as usize];
+    if lane.junction.is_some() {
+        return None;
+    }
+    let leads_on = |l: LaneIdx| !town.lanes[l.0 as usize].successors.is_empty();
+    // The road a way on leads to: its successor's road (or its own).
+    let exit_road = |l: LaneIdx| {
+        let d = &town.lanes[l.0 as usize];
+        d.successors
+            .first()
+            .map_or(&d.road_id, |s| &town.lanes[s.0 as usize].road_id)
+    };
+    let own: Vec<LaneIdx> = lane
+        .successors
+        .iter()
+        .copied()
+        .filter(|&l| leads_on(l))
+        .collect();
+    let mut options: Vec<(LaneIdx, LaneIdx)> = own.iter().map(|&l| (last, l)).collect();
+    for n in [lane.left, lane.right].into_iter().flatten() {
+        for &l in &town.lanes[n.0 as usize].successors {
+            if leads_on(l) && !own.iter().any(|&o| exit_road(o) == exit_road(l)) {
+                options.push((n, l));
+            }
+        }
+    }
+    if options.len() == own.len() {
+        return None;
+    }
+    Some(options[rng.random_range(0..options.len())])
 }
 
 /// What an NPC's driver decided this tick and why.

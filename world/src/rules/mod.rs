@@ -46,7 +46,10 @@ pub use pursuit::pursuit_lookahead_m;
 pub use route::{nearest_route_point, route_ahead, route_point_at, route_s_at};
 pub use sidewalks::{OnSidewalk, SidewalkGrid};
 pub use stop_lines::{RouteStop, RouteStops, StopLineEntry, StopLines};
-pub use yielding::{YIELD_RANGE_M, junction_signalled, junction_yield};
+pub use yielding::{
+    GIVE_WAY_HORIZON_S, GIVE_WAY_MIN_M, YIELD_RANGE_M, approaching, junction_signalled,
+    junction_yield, must_give_way,
+};
 
 use crate::map::town::Town;
 

@@ -11,17 +11,49 @@
 //! is inside, it drives on: it is then the one already in the junction, and
 //! the NPCs treat its lane as held. At a junction with lights the lights
 //! decide, as before.
+//!
+//! Where the map gives one road priority over another (an OpenDRIVE junction
+//! `<priority>`, such as a roundabout's ring over its entries), a car about
+//! to take the lower lane also gives way to any vehicle about to enter a
+//! conflicting higher one ([`must_give_way`], [`approaching`]): it yields on
+//! entry, as CARLA's Traffic Manager yields to traffic already on the ring.
 
 use crate::map::town::{JunctionIdx, LaneIdx, Town};
 use crate::route::DenseRoute;
 use crate::rules::route::points_around;
 
-#[cfg(doc)]
 use crate::rules::JunctionConflicts;
 
 /// How far ahead of its front bumper the ego looks for a junction without
 /// lights (metres): more than its stopping distance from cruise speed.
 pub const YIELD_RANGE_M: f32 = 30.0;
+
+/// How far ahead, in time at its speed, a vehicle counts as about to enter
+/// a lane (seconds).
+pub const GIVE_WAY_HORIZON_S: f32 = 3.0;
+/// ... and at least how far ahead of the lane's entry its front may be (metres).
+pub const GIVE_WAY_MIN_M: f32 = 8.0;
+
+/// Whether a vehicle whose front is `distance_m` before a lane's entry at
+/// `speed_mps` is about to enter it: within [`GIVE_WAY_HORIZON_S`] of it at
+/// its speed, or within [`GIVE_WAY_MIN_M`].
+pub fn approaching(distance_m: f32, speed_mps: f32) -> bool {
+    distance_m <= (speed_mps.max(0.0) * GIVE_WAY_HORIZON_S).max(GIVE_WAY_MIN_M)
+}
+
+/// Whether a car about to take connecting lane `lane` must give way: a lane
+/// the map gives priority over it ([`JunctionConflicts::gives_way_to`]) is
+/// taken or about to be, as `approaching(that lane)` says.
+pub fn must_give_way(
+    conflicts: &JunctionConflicts,
+    lane: LaneIdx,
+    approaching: impl Fn(LaneIdx) -> bool,
+) -> bool {
+    conflicts
+        .gives_way_to(lane)
+        .iter()
+        .any(|&high| approaching(high))
+}
 
 /// Whether junction `j` has traffic lights (a light whose controller cycles it).
 pub fn junction_signalled(town: &Town, j: JunctionIdx) -> bool {

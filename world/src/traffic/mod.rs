@@ -27,6 +27,7 @@
 //! | [`soak`] | soak runs and the realised-count table (Table I) |
 //! | [`crossings`] | walkers sent across the road ahead of the ego (a collection aid) |
 //! | [`light_controller`] | the traffic-light controllers |
+//! | `tests.rs`, `tests_gen03.rs` | tests through the API; on gen03: giving way at the roundabout, reservations round a ring, gridlocks, lane changes |
 
 pub mod crossings;
 pub mod incidents;
@@ -227,3 +228,5 @@ impl Traffic {
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_gen03;

@@ -9,7 +9,16 @@
 //! room for it ("don't block the box"). The reservation is released once the
 //! vehicle has left the junction, or when it stops for a light before it.
 //! The ego reserves nothing, but while it is on a connecting lane NPCs treat
-//! that lane as held.
+//! that lane as held. Where the map gives another lane priority over the
+//! requested one (a roundabout's ring over its entry), the request also
+//! waits while a vehicle is about to enter that lane
+//! ([`Traffic::must_give_way`], [`rules::must_give_way`]).
+//!
+//! A circle of cars each waiting for the next (four cars round a full
+//! roundabout, each with no room on the ring after its junction) would wait
+//! forever: after [`GRIDLOCK_AFTER_S`] of standing, its cars that wait for
+//! room are granted their lanes and the circle moves up together
+//! (`break_gridlocks`).
 
 use super::Traffic;
 use crate::agents::npc::{self, Npc};
@@ -78,6 +87,40 @@ impl Traffic {
         )
     }
 
+    /// Whether a vehicle other than `me` (the ego is 0) is on connecting lane
+    /// `lane` or about to enter it ([`rules::approaching`]): an NPC whose
+    /// next junction lane it is, the ego on a lane leading into it.
+    pub fn about_to_enter(&self, lane: LaneIdx, me: u32) -> bool {
+        let vp = &self.cfg.vehicle;
+        let half = vp.length_m * 0.5;
+        let npc = self.npcs.iter().filter(|n| n.id != me).any(|n| {
+            n.path.lane() == lane
+                || npc::next_junction_lane(&self.town, n, vp)
+                    .is_some_and(|(l, d)| l == lane && rules::approaching(d, n.state.speed_mps))
+        });
+        let ego = me != 0
+            && self.ego.as_ref().is_some_and(|e| {
+                e.lane.is_some_and(|(l, s)| {
+                    l == lane
+                        || (self.town.lanes[lane.0 as usize].predecessors.contains(&l)
+                            && rules::approaching(
+                                self.town.lane(l).length_m() - s - half,
+                                e.state.speed_mps,
+                            ))
+                })
+            });
+        npc || ego
+    }
+
+    /// Whether a vehicle `me` about to take connecting lane `lane` must give
+    /// way to another on or about to enter a lane the map gives priority
+    /// over it ([`rules::must_give_way`]).
+    pub fn must_give_way(&self, lane: LaneIdx, me: u32) -> bool {
+        rules::must_give_way(&self.rules.conflicts, lane, |high| {
+            self.about_to_enter(high, me)
+        })
+    }
+
     /// Where each vehicle's rear is on the lane graph (for the box check).
     fn occupants(&self) -> Vec<LaneOccupant> {
         let half = self.cfg.vehicle.length_m * 0.5;
@@ -100,7 +143,14 @@ impl Traffic {
         for i in 0..self.npcs.len() {
             let n = &self.npcs[i];
             let Some(res) = n.reservation else { continue };
-            let inside_or_ahead = n.path.lanes.contains(&res);
+            // In it, or it is the next junction lane on the path (a path round a
+            // roundabout may come back to the same lane later: that is not this one).
+            let inside_or_ahead = n
+                .path
+                .lanes
+                .iter()
+                .find(|l| self.town.lanes[l.0 as usize].junction.is_some())
+                == Some(&res);
             let left = !inside_or_ahead && n.path.s_m > half + 1.0;
             let lost =
                 !inside_or_ahead && !left && n.path.lanes[0] != town_successor_of(&self.town, res);
@@ -147,6 +197,10 @@ impl Traffic {
         }
         requests.sort();
         let min_room = vp.length_m + self.cfg.npc.min_gap_m;
+        // Requests refused for want of room on the exit: (NPC, lane).
+        let mut room_waits: Vec<(usize, LaneIdx)> = Vec::new();
+        // Requests refused while another NPC holds a conflicting lane: (NPC, that NPC).
+        let mut held_by: Vec<(usize, usize)> = Vec::new();
         let mut waiting: Vec<LaneIdx> = Vec::new();
         // The ego reserves nothing, but while it is on a connecting lane NPCs treat that lane as held.
         let ego_junction_lane = self
@@ -173,8 +227,16 @@ impl Traffic {
             let queued_behind = waiting
                 .iter()
                 .any(|&w: &LaneIdx| w == lane || self.rules.conflicts.of(lane).contains(&w));
+            // Giving way (the map gives a conflicting lane priority and a vehicle
+            // is about to take it): wait, without holding up the one it gives way to.
+            if self.must_give_way(lane, id) {
+                continue;
+            }
             if queued_behind || !self.reservations.free_for(&self.rules.conflicts, lane, id) {
                 waiting.push(lane);
+                if let Some(h) = self.conflicting_holder(lane, id) {
+                    held_by.push((i, h));
+                }
                 continue;
             }
             // Only the first vehicle of its lane may reserve: one behind it could not enter anyway
@@ -206,6 +268,7 @@ impl Traffic {
                 other == id || l != exit_on_path || rear >= min_room
             });
             if !room {
+                room_waits.push((i, lane));
                 continue;
             }
             self.reservations.grant(lane, id);
@@ -213,8 +276,129 @@ impl Traffic {
             n.reservation = Some(lane);
             n.request = None;
         }
+        self.break_gridlocks(&occ, &room_waits, &held_by);
         if let Some(l) = ego_junction_lane {
             self.reservations.release(l, 0);
+        }
+    }
+}
+
+/// How long every car of a circle of waits must have stood before the
+/// circle is let move (seconds).
+pub const GRIDLOCK_AFTER_S: f32 = 5.0;
+
+/// How far along its path a standing car looks for the car it waits behind (metres).
+const WAIT_BEHIND_M: f32 = 30.0;
+
+impl Traffic {
+    /// The NPC (index) holding a lane that conflicts with `lane`, other than `id`.
+    fn conflicting_holder(&self, lane: LaneIdx, id: u32) -> Option<usize> {
+        self.rules
+            .conflicts
+            .of(lane)
+            .iter()
+            .flat_map(|c| self.reservations.holders(*c))
+            .filter(|&&h| h != id && h != 0)
+            .map(|&h| h as usize - 1)
+            .min()
+    }
+
+    /// The car (index in `occ`) NPC `i` stands behind: the first whose rear
+    /// is ahead of its own along its path, within [`WAIT_BEHIND_M`].
+    fn car_ahead_on_path(&self, occ: &[LaneOccupant], i: usize) -> Option<usize> {
+        let path = &self.npcs[i].path;
+        let (_, my_rear) = occ[i];
+        let mut offset = -my_rear;
+        for (step, &lane) in path.lanes.iter().enumerate() {
+            let floor = if step == 0 {
+                my_rear
+            } else {
+                f32::NEG_INFINITY
+            };
+            let ahead = occ
+                .iter()
+                .enumerate()
+                .filter(|&(k, &(l, r))| k != i && l == lane && r > floor)
+                .min_by(|a, b| a.1.1.total_cmp(&b.1.1).then(a.0.cmp(&b.0)));
+            if let Some((k, _)) = ahead {
+                return Some(k);
+            }
+            offset += self.town.lane(lane).length_m();
+            if offset > WAIT_BEHIND_M {
+                break;
+            }
+        }
+        None
+    }
+
+    /// Lets a gridlock move. A standing NPC waits for the NPC holding a
+    /// junction lane that conflicts with the one it asks for (`held_by`),
+    /// else for the car ahead of it along its path. A circle of such waits,
+    /// every car of it standing for [`GRIDLOCK_AFTER_S`], waits for itself
+    /// forever (four cars round a full roundabout, full streets round a
+    /// block, each front car with no room on its exit). Its cars refused for
+    /// want of room (`room_waits`) are granted their lanes where nothing
+    /// conflicting is held, so the circle moves up together, each car
+    /// following the one ahead.
+    fn break_gridlocks(
+        &mut self,
+        occ: &[LaneOccupant],
+        room_waits: &[(usize, LaneIdx)],
+        held_by: &[(usize, usize)],
+    ) {
+        if room_waits.is_empty() {
+            return;
+        }
+        let n = self.npcs.len();
+        let long = (GRIDLOCK_AFTER_S / self.cfg.tick_s).round() as u32;
+        let standing = |i: usize| i < n && self.npcs[i].stopped_ticks >= long;
+        if !room_waits.iter().any(|&(i, _)| standing(i)) {
+            return;
+        }
+        let mut waits_for: Vec<Option<usize>> = vec![None; n];
+        for (i, w) in waits_for.iter_mut().enumerate() {
+            if standing(i) {
+                *w = held_by
+                    .iter()
+                    .find(|&&(k, _)| k == i)
+                    .map(|&(_, h)| h)
+                    .or_else(|| self.car_ahead_on_path(occ, i));
+            }
+        }
+        // Circles of the wait graph (at most one wait per car), in NPC order.
+        let mut state = vec![0u8; n]; // 0 unseen, 1 on this walk, 2 done
+        let mut in_circle = vec![false; n];
+        for start in 0..n {
+            let mut walk = Vec::new();
+            let mut at = Some(start);
+            while let Some(i) = at {
+                if i >= n || state[i] == 2 {
+                    break;
+                }
+                if state[i] == 1 {
+                    let from = walk.iter().position(|&w| w == i).expect("on the walk");
+                    for &w in &walk[from..] {
+                        in_circle[w] = true;
+                    }
+                    break;
+                }
+                state[i] = 1;
+                walk.push(i);
+                at = waits_for[i];
+            }
+            for w in walk {
+                state[w] = 2;
+            }
+        }
+        for &(i, lane) in room_waits {
+            let id = self.npcs[i].id;
+            if in_circle[i] && self.reservations.free_for(&self.rules.conflicts, lane, id) {
+                self.reservations.grant(lane, id);
+                let npc = &mut self.npcs[i];
+                npc.reservation = Some(lane);
+                npc.request = None;
+                self.stats.gridlocks_broken += 1;
+            }
         }
     }
 }

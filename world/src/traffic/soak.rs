@@ -35,6 +35,9 @@ pub struct SoakReport {
     pub stats: TrafficStats,
     /// The first incidents of each kind ([`crate::traffic::incidents`]).
     pub incidents: Vec<Incident>,
+    /// The process's resident memory after the first simulated minute and at
+    /// the end (KiB; Linux only, None elsewhere): flat when nothing grows.
+    pub rss_kib: Option<(u64, u64)>,
 }
 
 impl SoakReport {
@@ -44,7 +47,7 @@ impl SoakReport {
         use std::fmt::Write;
         let mut out = String::new();
         let s = &self.stats;
-        let lines: [(&str, String); 12] = [
+        let lines: [(&str, String); 14] = [
             (
                 "realised vehicles",
                 format!("{} / {}", self.vehicles.1, self.vehicles.0),
@@ -71,6 +74,17 @@ impl SoakReport {
             ),
             ("NPC-static contacts", s.npc_static_collisions.to_string()),
             ("NPC respawns", s.respawns.to_string()),
+            (
+                "gridlock moves",
+                format!("{} cars let move", s.gridlocks_broken),
+            ),
+            (
+                "NPC lane changes",
+                format!(
+                    "{} made, {} given up",
+                    s.lane_changes, s.lane_changes_given_up
+                ),
+            ),
             ("step wall time", format!("{:.2} s", self.step_wall_s)),
         ];
         for (name, value) in lines {
@@ -81,6 +95,14 @@ impl SoakReport {
             "ticks/s                 {:.0} per wall second of stepping (physics + behaviours, one thread)",
             self.ticks_per_s
         );
+        if let Some((first, last)) = self.rss_kib {
+            let _ = writeln!(
+                out,
+                "resident memory         {:.1} MiB after the first minute, {:.1} MiB at the end",
+                first as f64 / 1024.0,
+                last as f64 / 1024.0
+            );
+        }
         if let Some(cpu) = self.cpu_s.filter(|&c| c > 0.0) {
             let _ = writeln!(
                 out,
@@ -115,7 +137,12 @@ pub fn soak(
     let mut states = Vec::new();
     let mut wall = 0.0f64;
     let cpu0 = thread_cpu_s();
+    let first_minute = (60.0 / tick_s).round() as u64;
+    let mut rss_first = None;
     for tick in 0..ticks {
+        if tick == first_minute.min(ticks.saturating_sub(1)) {
+            rss_first = resident_kib();
+        }
         lights(tick, &mut states);
         let t0 = Instant::now();
         traffic.step(&states);
@@ -133,7 +160,15 @@ pub fn soak(
         cpu_s,
         stats: traffic.stats(),
         incidents: traffic.incidents().to_vec(),
+        rss_kib: rss_first.zip(resident_kib()),
     }
+}
+
+/// The process's resident memory (KiB), from Linux's `/proc/self/status`.
+fn resident_kib() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = text.lines().find(|l| l.starts_with("VmRSS:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
 }
 
 /// CPU time this thread has run (seconds), from Linux's `/proc/thread-self/schedstat`.

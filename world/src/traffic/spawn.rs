@@ -120,7 +120,8 @@ impl Traffic {
                 continue;
             };
             let mut path = LanePath::new(lane, s);
-            npc::extend_path(&self.town, &mut path, &mut rng, 80.0);
+            let mut change = None;
+            npc::extend_path_planning(&self.town, &mut path, &mut rng, 80.0, &mut change);
             self.physics
                 .add_vehicle(id, ActorKind::Vehicle, self.vehicle_size(), p, z, yaw);
             self.npcs.push(Npc {
@@ -130,6 +131,7 @@ impl Traffic {
                 path,
                 reservation: None,
                 request: None,
+                change,
                 stuck_ticks: 0,
                 stopped_ticks: 0,
                 control: VehicleControl::BRAKE,
@@ -182,9 +184,10 @@ impl Traffic {
         n.ground_z = z;
         n.path = path;
         n.request = None;
+        n.change = None;
         n.stuck_ticks = 0;
         n.stopped_ticks = 0;
-        npc::extend_path(&self.town, &mut n.path, &mut n.rng, 80.0);
+        npc::extend_path_planning(&self.town, &mut n.path, &mut n.rng, 80.0, &mut n.change);
         self.physics.teleport(id, p, yaw);
         self.refresh_views();
     }

@@ -24,6 +24,13 @@ pub struct TrafficStats {
     pub deadlocks: u64,
     /// Walkers sent across the road ahead of the ego (`crossings.rs`).
     pub walkers_sent: u64,
+    /// Lane changes NPCs made for their next turn.
+    pub lane_changes: u64,
+    /// Lane changes NPCs planned but gave up (no gap before the lane ran out).
+    pub lane_changes_given_up: u64,
+    /// Cars of a circle of waits granted their lanes to let a gridlock move
+    /// ([`crate::traffic::reservations::GRIDLOCK_AFTER_S`]).
+    pub gridlocks_broken: u64,
 }
 
 impl TrafficStats {

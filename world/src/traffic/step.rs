@@ -12,13 +12,69 @@ use super::incidents::IncidentKind;
 use crate::agents::{kerb, npc};
 use crate::map::LightState;
 use crate::physics::ContactEvent;
+use crate::rules;
 
 /// An NPC stopped this long counts as a deadlock (seconds).
 const DEADLOCK_S: f32 = 60.0;
+/// A planned lane change is given up when less road than this is left
+/// before the lane's end, beyond the stopping distance (metres): the car
+/// then takes a way on from its own lane.
+const CHANGE_GIVE_UP_M: f32 = 25.0;
 /// A walker held up by a vehicle this long turns back (seconds).
 const WALKER_PATIENCE_S: f32 = 0.5;
 
 impl Traffic {
+    /// Makes the lane changes NPCs planned ([`npc::PlannedChange`]) where
+    /// the target lane has room ([`rules::lane_change_clear`], the rule the
+    /// expert changes lanes by), and gives up those that ran out of road.
+    /// Decided from the start-of-tick views, NPCs in id order.
+    fn change_lanes(&mut self) {
+        let half = self.cfg.vehicle.length_m * 0.5;
+        let decel = self.cfg.npc.comfort_decel_mps2;
+        for i in 0..self.npcs.len() {
+            let n = &self.npcs[i];
+            let Some(c) = n.change else { continue };
+            if n.path.lane() != c.from {
+                if !n.path.lanes.contains(&c.from) {
+                    self.npcs[i].change = None; // not on its way there any more
+                }
+                continue;
+            }
+            let v = n.state.speed_mps;
+            let left = self.town.lane(c.from).length_m() - n.path.s_m - half;
+            let n = &mut self.npcs[i];
+            if left < v * v / (2.0 * decel) + CHANGE_GIVE_UP_M {
+                n.change = None;
+                npc::extend_path(&self.town, &mut n.path, &mut n.rng, 80.0);
+                self.stats.lane_changes_given_up += 1;
+                continue;
+            }
+            // Wholly on the lane (out of the junction behind), and room beside.
+            if n.path.s_m < 2.0 * half
+                || !rules::lane_change_clear(
+                    &self.town,
+                    c.to,
+                    n.state.position,
+                    half,
+                    n.id,
+                    &self.views,
+                )
+            {
+                continue;
+            }
+            let target = self.town.lane(c.to);
+            let s = target
+                .project_near(n.state.position, n.path.s_m, 5.0)
+                .unwrap_or(n.path.s_m)
+                .min(target.length_m());
+            n.path = crate::road::LanePath::new(c.to, s);
+            n.path.lanes.push_back(c.then);
+            n.change = None;
+            npc::extend_path_planning(&self.town, &mut n.path, &mut n.rng, 80.0, &mut n.change);
+            self.stats.lane_changes += 1;
+        }
+    }
+
     /// Advances the world one tick of [`TrafficConfig::tick_s`]; `lights` are the light states by `LightIdx` (a light beyond the slice's end counts as green). Returns the tick's contacts.
     pub fn step(&mut self, lights: &[LightState]) -> &[ContactEvent] {
         let vp = self.cfg.vehicle;
@@ -26,6 +82,7 @@ impl Traffic {
         if self.maybe_send_walker() {
             self.refresh_views();
         }
+        self.change_lanes();
         self.update_reservations(lights);
         // Decide.
         let mut decisions = Vec::with_capacity(self.npcs.len());
@@ -85,7 +142,7 @@ impl Traffic {
             {
                 self.stats.npc_red_runs += 1;
             }
-            npc::extend_path(&self.town, &mut n.path, &mut n.rng, 80.0);
+            npc::extend_path_planning(&self.town, &mut n.path, &mut n.rng, 80.0, &mut n.change);
             // Stuck / stopped bookkeeping.
             if s.speed_mps < 0.1 {
                 n.stopped_ticks += 1;
