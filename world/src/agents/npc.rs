@@ -167,6 +167,16 @@ fn extend(
         let last = *path.lanes.back().expect("path has a lane");
         let succ = &town.lanes[last.0 as usize].successors;
         if succ.is_empty() {
+            // A lane that ends (a lane drop): on into the lane beside, if one leads on.
+            if let Some(change) = change.as_deref_mut()
+                && let Some((to, then)) = choose_with_neighbours(town, last, rng)
+            {
+                *change = Some(PlannedChange {
+                    from: last,
+                    to,
+                    then,
+                });
+            }
             return;
         }
         if let Some(change) = change.as_deref_mut()
@@ -206,7 +216,9 @@ fn extend(
 /// The way on from `last` drawn among its own successors and those of its
 /// same-direction neighbours that lead to a road it does not reach: (the
 /// lane it is taken from, the successor). `None` (nothing drawn) when
-/// `last` is a junction lane or has no neighbour with such a way on.
+/// `last` is a junction lane or has no neighbour with such a way on. A lane
+/// whose own ways lead nowhere (or that ends) can only be left by a lane
+/// beside it.
 fn choose_with_neighbours(
     town: &Town,
     last: LaneIdx,
@@ -242,6 +254,15 @@ fn choose_with_neighbours(
         return None;
     }
     Some(options[rng.random_range(0..options.len())])
+}
+
+/// Whether no way on from `lane` leads anywhere: it ends, or every
+/// successor is a lane to nowhere.
+pub fn leads_nowhere(town: &Town, lane: LaneIdx) -> bool {
+    town.lanes[lane.0 as usize]
+        .successors
+        .iter()
+        .all(|s| town.lanes[s.0 as usize].successors.is_empty())
 }
 
 /// What an NPC's driver decided this tick and why.
@@ -382,6 +403,13 @@ pub fn decide(
         );
         if stop {
             accel = accel.min(free + idm_term(p, v, d, 0.0, p.stop_gap_m));
+        }
+    }
+    // The end of a lane that leads nowhere (a lane drop waiting for a gap beside, a dead end).
+    if leads_nowhere(town, *npc.path.lanes.back().expect("path has a lane")) {
+        let end = npc.path.remaining_m(town) - half;
+        if end < look {
+            accel = accel.min(free + idm_term(p, v, end, 0.0, p.stop_gap_m));
         }
     }
     // Junction entry without a reservation.

@@ -43,7 +43,9 @@ impl Traffic {
             let v = n.state.speed_mps;
             let left = self.town.lane(c.from).length_m() - n.path.s_m - half;
             let n = &mut self.npcs[i];
-            if left < v * v / (2.0 * decel) + CHANGE_GIVE_UP_M {
+            // A lane that leads nowhere has no way on to give the change up for.
+            let optional = !npc::leads_nowhere(&self.town, c.from);
+            if optional && left < v * v / (2.0 * decel) + CHANGE_GIVE_UP_M {
                 n.change = None;
                 npc::extend_path(&self.town, &mut n.path, &mut n.rng, 80.0);
                 self.stats.lane_changes_given_up += 1;

@@ -670,3 +670,108 @@ fn npcs_do_not_collide_where_a_tight_right_turn_swings_wide() {
         assert!(through(&tr), "starts {sa} m / {sb} m: not both through");
     }
 }
+
+/// A lane drop: the right lane of a two-lane road ends at x = 100 m; the
+/// left lane goes on to a road that ends at x = 400 m. Lanes: 0 the right
+/// lane, 1 the left, 2 and 3 the road after it.
+fn lane_drop() -> Arc<Town> {
+    use crate::map::testtown::lane_through;
+    let line = |x0: f32, x1: f32, y: f32| lane_through(&[Vec2::new(x0, y), Vec2::new(x1, y)]);
+    let mut right = line(0.0, 100.0, -1.75);
+    let mut left = line(0.0, 100.0, 1.75);
+    let mut after = line(100.0, 300.0, 1.75);
+    let mut last = line(300.0, 400.0, 1.75);
+    right.left = Some(LaneIdx(1));
+    left.right = Some(LaneIdx(0));
+    left.successors = vec![LaneIdx(2)];
+    after.predecessors = vec![LaneIdx(1)];
+    after.successors = vec![LaneIdx(3)];
+    last.predecessors = vec![LaneIdx(2)];
+    Arc::new(Town {
+        lanes: vec![right, left, after, last],
+        bounds: (Vec2::new(0.0, -10.0), Vec2::new(400.0, 10.0)),
+        ..Town::empty("fixture-lane-drop")
+    })
+}
+
+#[test]
+fn an_npc_in_a_lane_that_ends_merges_into_the_lane_beside() {
+    let t = lane_drop();
+    let mut tr = Traffic::new(t.clone(), cfg(1, 0, 1), None);
+    tr.place_npc(0, LanePath::new(LaneIdx(0), 25.0));
+    // Its path reaches the lane's end: the only way on is the lane beside.
+    let c = tr.npcs()[0]
+        .change
+        .expect("a change planned out of the lane that ends");
+    assert_eq!((c.from, c.to, c.then), (LaneIdx(0), LaneIdx(1), LaneIdx(2)));
+    for _ in 0..(40 * 20) {
+        tr.step(&[]);
+    }
+    let n = &tr.npcs()[0];
+    assert!(
+        n.state.position.x > 120.0,
+        "stayed at x = {}",
+        n.state.position.x
+    );
+    let s = tr.stats();
+    assert_eq!((s.lane_changes, s.respawns), (1, 0), "{s:?}");
+}
+
+#[test]
+fn an_npc_waits_at_the_end_of_a_lane_that_ends_until_the_lane_beside_has_room() {
+    // The ego stands in the left lane level with the NPC, 20 m before the
+    // drop: the NPC cannot merge before it has pulled 10 m ahead, and its
+    // lane leaves it no way on but the merge, so it never gives the merge
+    // up and never drives past the lane's end.
+    let t = lane_drop();
+    let ego = EgoStart {
+        position: Vec2::new(80.0, 1.75),
+        z: 0.0,
+        yaw: 0.0,
+    };
+    let mut tr = Traffic::new(t.clone(), cfg(1, 0, 1), Some(ego));
+    tr.set_ego_control(VehicleControl::BRAKE);
+    tr.place_npc(0, LanePath::new(LaneIdx(0), 80.0));
+    let half = tr.config().vehicle.length_m * 0.5;
+    for _ in 0..(40 * 30) {
+        tr.step(&[]);
+        let n = &tr.npcs()[0];
+        if n.path.lane() == LaneIdx(0) {
+            let front = n.state.position.x + half;
+            assert!(front < 100.5, "drove past the lane's end: front at {front}");
+        }
+    }
+    let n = &tr.npcs()[0];
+    assert!(
+        n.state.position.x > 120.0,
+        "stayed at x = {}",
+        n.state.position.x
+    );
+    let s = tr.stats();
+    assert_eq!(
+        (
+            s.lane_changes,
+            s.lane_changes_given_up,
+            s.respawns,
+            s.npc_npc_collisions
+        ),
+        (1, 0, 0, 0),
+        "{s:?}"
+    );
+}
+
+#[test]
+fn an_npc_stops_at_a_dead_end() {
+    let t = lane_drop();
+    let mut tr = Traffic::new(t.clone(), cfg(1, 0, 1), None);
+    tr.place_npc(0, LanePath::new(LaneIdx(2), 150.0));
+    let half = tr.config().vehicle.length_m * 0.5;
+    for _ in 0..(40 * 40) {
+        tr.step(&[]);
+    }
+    let n = &tr.npcs()[0];
+    let front = n.state.position.x + half;
+    assert!((395.0..400.5).contains(&front), "front at {front}");
+    assert!(n.state.speed_mps < 0.1);
+    assert_eq!(tr.stats().respawns, 0);
+}
