@@ -165,20 +165,8 @@ fn extend(
             return;
         }
         let last = *path.lanes.back().expect("path has a lane");
-        let succ = &town.lanes[last.0 as usize].successors;
-        if succ.is_empty() {
-            // A lane that ends (a lane drop): on into the lane beside, if one leads on.
-            if let Some(change) = change.as_deref_mut()
-                && let Some((to, then)) = choose_with_neighbours(town, last, rng)
-            {
-                *change = Some(PlannedChange {
-                    from: last,
-                    to,
-                    then,
-                });
-            }
-            return;
-        }
+        // Planning: the turns of the lanes beside count too (and are the
+        // only way on from a lane that ends).
         if let Some(change) = change.as_deref_mut()
             && let Some((lane, then)) = choose_with_neighbours(town, last, rng)
         {
@@ -192,6 +180,10 @@ fn extend(
                 });
             }
             continue;
+        }
+        let succ = &town.lanes[last.0 as usize].successors;
+        if succ.is_empty() {
+            return;
         }
         let on = succ.iter().filter(|&&l| leads_on(l)).count();
         let next = if on == succ.len() || on == 0 {
