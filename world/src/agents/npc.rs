@@ -159,7 +159,7 @@ fn extend(
     ahead_m: f32,
     mut change: Option<&mut Option<PlannedChange>>,
 ) {
-    let leads_on = |l: LaneIdx| !town.lanes[l.0 as usize].successors.is_empty();
+    let leads_on = |l: LaneIdx| leads_on(town, l);
     while path.remaining_m(town) < ahead_m {
         if change.as_ref().is_some_and(|c| c.is_some()) {
             return;
@@ -220,7 +220,7 @@ fn choose_with_neighbours(
     if lane.junction.is_some() {
         return None;
     }
-    let leads_on = |l: LaneIdx| !town.lanes[l.0 as usize].successors.is_empty();
+    let leads_on = |l: LaneIdx| leads_on(town, l);
     // The road a way on leads to: its successor's road (or its own).
     let exit_road = |l: LaneIdx| {
         let d = &town.lanes[l.0 as usize];
@@ -248,13 +248,18 @@ fn choose_with_neighbours(
     Some(options[rng.random_range(0..options.len())])
 }
 
+/// Whether a car can go on from the end of `lane` (it has a successor).
+fn leads_on(town: &Town, lane: LaneIdx) -> bool {
+    !town.lanes[lane.0 as usize].successors.is_empty()
+}
+
 /// Whether no way on from `lane` leads anywhere: it ends, or every
 /// successor is a lane to nowhere.
 pub fn leads_nowhere(town: &Town, lane: LaneIdx) -> bool {
-    town.lanes[lane.0 as usize]
+    !town.lanes[lane.0 as usize]
         .successors
         .iter()
-        .all(|s| town.lanes[s.0 as usize].successors.is_empty())
+        .any(|&s| leads_on(town, s))
 }
 
 /// What an NPC's driver decided this tick and why.

@@ -42,10 +42,20 @@ impl Reservations {
     /// Whether `lane` can be granted to `id`: no other vehicle holds it or a conflicting lane.
     /// (Several vehicles may hold the same lane: they follow each other.)
     pub fn free_for(&self, conflicts: &JunctionConflicts, lane: LaneIdx, id: u32) -> bool {
+        self.conflict_holders(conflicts, lane).all(|h| h == id)
+    }
+
+    /// Every holder of a lane that conflicts with `lane` (ids, repeated for
+    /// each lane they hold).
+    pub fn conflict_holders<'a>(
+        &'a self,
+        conflicts: &'a JunctionConflicts,
+        lane: LaneIdx,
+    ) -> impl Iterator<Item = u32> + 'a {
         conflicts
             .of(lane)
             .iter()
-            .all(|c| self.holders[c.0 as usize].iter().all(|&h| h == id))
+            .flat_map(|c| self.holders[c.0 as usize].iter().copied())
     }
 
     /// Records that `id` holds `lane`.
@@ -293,13 +303,10 @@ const WAIT_BEHIND_M: f32 = 30.0;
 impl Traffic {
     /// The NPC (index) holding a lane that conflicts with `lane`, other than `id`.
     fn conflicting_holder(&self, lane: LaneIdx, id: u32) -> Option<usize> {
-        self.rules
-            .conflicts
-            .of(lane)
-            .iter()
-            .flat_map(|c| self.reservations.holders(*c))
-            .filter(|&&h| h != id && h != 0)
-            .map(|&h| h as usize - 1)
+        self.reservations
+            .conflict_holders(&self.rules.conflicts, lane)
+            .filter(|&h| h != id && h != 0)
+            .map(|h| h as usize - 1)
             .min()
     }
 

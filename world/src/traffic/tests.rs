@@ -694,6 +694,12 @@ fn lane_drop() -> Arc<Town> {
     })
 }
 
+/// The NPC has gone on past the lane drop into the road after it.
+fn assert_past_the_drop(tr: &Traffic) {
+    let x = tr.npcs()[0].state.position.x;
+    assert!(x > 120.0, "stayed at x = {x}");
+}
+
 #[test]
 fn an_npc_in_a_lane_that_ends_merges_into_the_lane_beside() {
     let t = lane_drop();
@@ -707,12 +713,7 @@ fn an_npc_in_a_lane_that_ends_merges_into_the_lane_beside() {
     for _ in 0..(40 * 20) {
         tr.step(&[]);
     }
-    let n = &tr.npcs()[0];
-    assert!(
-        n.state.position.x > 120.0,
-        "stayed at x = {}",
-        n.state.position.x
-    );
+    assert_past_the_drop(&tr);
     let s = tr.stats();
     assert_eq!((s.lane_changes, s.respawns), (1, 0), "{s:?}");
 }
@@ -741,12 +742,7 @@ fn an_npc_waits_at_the_end_of_a_lane_that_ends_until_the_lane_beside_has_room() 
             assert!(front < 100.5, "drove past the lane's end: front at {front}");
         }
     }
-    let n = &tr.npcs()[0];
-    assert!(
-        n.state.position.x > 120.0,
-        "stayed at x = {}",
-        n.state.position.x
-    );
+    assert_past_the_drop(&tr);
     let s = tr.stats();
     assert_eq!(
         (

@@ -74,6 +74,11 @@ impl Grid {
             || (a.0 == b.0 && self.features.arterial_cols.contains(&a.0))
     }
 
+    /// Whether two arterials cross at node `n`.
+    pub(super) fn arterials_cross(&self, n: Node) -> bool {
+        self.features.arterial_rows.contains(&n.1) && self.features.arterial_cols.contains(&n.0)
+    }
+
     /// Whether an arterial passes through node `n`.
     pub(super) fn on_arterial(&self, n: Node) -> bool {
         self.features.arterial_rows.contains(&n.1) || self.features.arterial_cols.contains(&n.0)
@@ -132,7 +137,7 @@ impl Grid {
     }
 
     /// Every street of the full grid, row by row: from each node east, then north.
-    fn edges(&self) -> Vec<(Node, Node)> {
+    pub(super) fn edges(&self) -> Vec<(Node, Node)> {
         let (nx, ny) = (self.nx, self.ny);
         let mut edges = Vec::new();
         for j in 0..ny {

@@ -206,45 +206,21 @@ fn check(p: &GridTownParams) -> Result<(), GeneratorError> {
             fix: "use 1 to 50 blocks each way".into(),
         });
     }
-    let f = &p.features;
-    let half = |n: (u32, u32)| {
-        if f.roundabouts.contains(&n) {
-            ROUNDABOUT_HALF_M
-        } else if f.arterial_rows.contains(&n.1) || f.arterial_cols.contains(&n.0) {
-            ARTERIAL_JUNCTION_HALF_M
-        } else {
-            JUNCTION_HALF_M
-        }
-    };
-    // The widest junctions at both ends of one street, and 10 m of street.
-    let mut widest = [JUNCTION_HALF_M; 2];
-    for j in 0..=p.blocks_y {
-        for i in 0..=p.blocks_x {
-            let h = half((i, j));
-            let east = if i < p.blocks_x {
-                half((i + 1, j))
-            } else {
-                0.0
-            };
-            let north = if j < p.blocks_y {
-                half((i, j + 1))
-            } else {
-                0.0
-            };
-            for other in [east, north] {
-                if h + other > widest[0] + widest[1] {
-                    widest = [h, other];
-                }
-            }
-        }
-    }
-    let min_block = widest[0] + widest[1] + 10.0;
+    // The widest junctions at the two ends of one street, and 10 m of street.
+    let grid = Grid::of(p);
+    let min_block = grid
+        .edges()
+        .iter()
+        .map(|&(a, b)| grid.half_m(a) + grid.half_m(b))
+        .fold(2.0 * JUNCTION_HALF_M, f64::max)
+        + 10.0;
     if !p.block_size_m.is_finite() || p.block_size_m < min_block || p.block_size_m > 1000.0 {
         return Err(GeneratorError {
             what: format!("block size {} m out of range", p.block_size_m),
             fix: format!("use a block size from {min_block} m to 1000 m"),
         });
     }
+    let f = &p.features;
     for &r in &f.arterial_rows {
         if r > p.blocks_y {
             return Err(GeneratorError {

@@ -97,11 +97,10 @@ fn on_ring(centre: (f64, f64), a: f64) -> Pose {
 
 /// The ring road's lanes: its driving lane (solid white at its outer edge,
 /// the island's edge marked on the centre lane) and the sidewalk outside it.
-fn ring_lanes(out: &mut String, links: (&str, &str)) {
+fn ring_lanes(out: &mut String) {
     let _ = writeln!(
         out,
-        "        <lanes>\n            <laneSection s=\"0\">\n                <center>\n                    <lane id=\"0\" type=\"none\" level=\"false\">\n                        <roadMark sOffset=\"0\" type=\"solid\" weight=\"standard\" color=\"white\" width=\"0.15\" laneChange=\"none\"/>\n                    </lane>\n                </center>\n                <right>\n                    <lane id=\"-1\" type=\"driving\" level=\"false\">\n                        <link>{}{}</link>\n                        <width sOffset=\"0\" a=\"{LANE_WIDTH_M}\" b=\"0\" c=\"0\" d=\"0\"/>\n                        <roadMark sOffset=\"0\" type=\"solid\" weight=\"standard\" color=\"white\" width=\"0.15\" laneChange=\"none\"/>\n                    </lane>\n                    <lane id=\"-2\" type=\"sidewalk\" level=\"false\">\n                        <link/>\n                        <width sOffset=\"0\" a=\"{SIDEWALK_WIDTH_M}\" b=\"0\" c=\"0\" d=\"0\"/>\n                        <height sOffset=\"0\" inner=\"{SIDEWALK_HEIGHT_M}\" outer=\"{SIDEWALK_HEIGHT_M}\"/>\n                    </lane>\n                </right>\n            </laneSection>\n        </lanes>\n    </road>",
-        links.0, links.1
+        "        <lanes>\n            <laneSection s=\"0\">\n                <center>\n                    <lane id=\"0\" type=\"none\" level=\"false\">\n                        <roadMark sOffset=\"0\" type=\"solid\" weight=\"standard\" color=\"white\" width=\"0.15\" laneChange=\"none\"/>\n                    </lane>\n                </center>\n                <right>\n                    <lane id=\"-1\" type=\"driving\" level=\"false\">\n                        <link></link>\n                        <width sOffset=\"0\" a=\"{LANE_WIDTH_M}\" b=\"0\" c=\"0\" d=\"0\"/>\n                        <roadMark sOffset=\"0\" type=\"solid\" weight=\"standard\" color=\"white\" width=\"0.15\" laneChange=\"none\"/>\n                    </lane>\n                    <lane id=\"-2\" type=\"sidewalk\" level=\"false\">\n                        <link/>\n                        <width sOffset=\"0\" a=\"{SIDEWALK_WIDTH_M}\" b=\"0\" c=\"0\" d=\"0\"/>\n                        <height sOffset=\"0\" inner=\"{SIDEWALK_HEIGHT_M}\" outer=\"{SIDEWALK_HEIGHT_M}\"/>\n                    </lane>\n                </right>\n            </laneSection>\n        </lanes>\n    </road>"
     );
 }
 
@@ -150,7 +149,7 @@ pub(super) fn roads(
             len,
             &format!("<arc curvature=\"{:.9}\"/>", 1.0 / ISLAND_RADIUS_M),
         );
-        ring_lanes(out, ("", ""));
+        ring_lanes(out);
     }
     let mut by_arm: BTreeMap<usize, String> = BTreeMap::new();
     for (k, arm) in arms.iter().enumerate() {

@@ -32,10 +32,7 @@ pub(super) fn lights(grid: &Grid, arms: &BTreeMap<Node, Vec<Arm<'_>>>) -> Lights
     for (node, list) in arms {
         let lit = match grid.features.lights {
             LightRule::ThreeOrMoreArms => true,
-            LightRule::WhereArterialsCross => {
-                let f = &grid.features;
-                f.arterial_rows.contains(&node.1) && f.arterial_cols.contains(&node.0)
-            }
+            LightRule::WhereArterialsCross => grid.arterials_cross(*node),
         };
         if list.len() < 3 || !lit || grid.roundabout(*node) {
             continue;
