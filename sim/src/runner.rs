@@ -493,18 +493,12 @@ impl Boundary<'_> {
             .flatten();
         let (junction_yield_s, lane_change_wait_s) = if self.needs.privileged {
             let traffic = &now.world.traffic;
-            // The ego holds nothing: any holder of a conflicting lane is another vehicle.
             crate::expert::waits(
                 self.town,
                 self.route,
                 now.route_index,
                 now.ego,
-                |lane| {
-                    !traffic
-                        .reservations()
-                        .free_for(&traffic.rules().conflicts, lane, u32::MAX)
-                        || traffic.must_give_way(lane, 0)
-                },
+                |lane| traffic.ego_must_wait_for(lane),
                 traffic.actor_views(),
             )
         } else {

@@ -131,6 +131,18 @@ impl Traffic {
         })
     }
 
+    /// Whether the ego, about to take connecting lane `lane` at a junction
+    /// without lights, must wait: another vehicle holds a lane that
+    /// conflicts with it (the ego holds nothing, so any holder is another),
+    /// or it must give way ([`Traffic::must_give_way`]). What the runner
+    /// hands the expert ([`crate::rules::junction_yield`]'s `held`).
+    pub fn ego_must_wait_for(&self, lane: LaneIdx) -> bool {
+        !self
+            .reservations
+            .free_for(&self.rules.conflicts, lane, u32::MAX)
+            || self.must_give_way(lane, 0)
+    }
+
     /// Where each vehicle's rear is on the lane graph (for the box check).
     fn occupants(&self) -> Vec<LaneOccupant> {
         let half = self.cfg.vehicle.length_m * 0.5;

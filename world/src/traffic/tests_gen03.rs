@@ -96,10 +96,20 @@ fn the_ego_gives_way_by_the_same_rule_and_npcs_give_way_to_it() {
     path.lanes.push_back(ring);
     tr.place_npc(0, path);
     assert!(tr.must_give_way(entry, 0));
+    assert!(
+        tr.ego_must_wait_for(entry),
+        "what the runner hands the expert"
+    );
     // Far back on the street it would enter from: it does not.
     let street = t.lane(entry).predecessors[0];
     tr.place_npc(0, LanePath::new(street, 5.0));
     assert!(!tr.must_give_way(entry, 0));
+    assert!(!tr.ego_must_wait_for(entry));
+    // Holding the ring lane (a conflicting one), wherever it is: the ego waits.
+    let id = tr.npcs()[0].id;
+    tr.reservations.grant(ring, id);
+    assert!(tr.ego_must_wait_for(entry));
+    tr.reservations.release(ring, id);
     // The ego on the ring 3 m before the ring lane: an NPC gives way to it.
     let (p, yaw, z) = t.lane(ring_road).pose_at(ring_len - half - 3.0);
     tr.teleport_ego(EgoStart {
@@ -108,7 +118,6 @@ fn the_ego_gives_way_by_the_same_rule_and_npcs_give_way_to_it() {
         yaw,
     });
     tr.step(&[]);
-    let id = tr.npcs()[0].id;
     assert!(tr.must_give_way(entry, id));
     // A lane nothing has priority over gives way to nothing.
     assert!(!tr.must_give_way(ring, id));
