@@ -1,6 +1,7 @@
 //! The camera commands without the `mrdrive` binary (handy while it is being
 //! rebuilt): `render_tool demo OUT.png [labels] [paper] [SCALE]`,
-//! `render_tool lamp-size`, `render_tool bench [FRAMES] [REPEATS]`.
+//! `render_tool lamp-size [K] [MSAA]`, `render_tool bench [FRAMES] [REPEATS] [K] [MSAA]`
+//! (K: supersampling per axis; MSAA: 1 or 4 samples).
 
 use sim::render::image::save_png;
 use sim::render::{RigConfig, demo, measure};
@@ -19,14 +20,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             save_png(&img, out.as_ref())?;
             println!("wrote {out} ({}x{}) on {backend}", img.width, img.height);
         }
-        Some("lamp-size") => print!("{}", measure::lamp_size_report(&[1.0, 0.75, 0.5], &[10.0, 20.0, 30.0])?),
+        Some("lamp-size") => {
+            let aa = (num(1).unwrap_or(2.0) as u32, num(2).unwrap_or(1.0) as u32);
+            print!("{}", measure::lamp_size_report(&[1.0, 0.75, 0.5], &[10.0, 20.0, 30.0], aa)?)
+        }
         Some("bench") => {
             let frames = num(1).unwrap_or(200.0) as usize;
             let repeats = num(2).unwrap_or(5.0) as usize;
-            let k = num(3).unwrap_or(2.0) as u32;
-            print!("{}", measure::bench_report(frames, repeats, k)?);
+            let aa = (num(3).unwrap_or(2.0) as u32, num(4).unwrap_or(1.0) as u32);
+            print!("{}", measure::bench_report(frames, repeats, aa)?);
         }
-        _ => return Err("usage: render_tool demo OUT.png [labels] [paper] [top] [SCALE] | lamp-size | bench [FRAMES] [REPEATS] [K]".into()),
+        _ => return Err("usage: render_tool demo OUT.png [labels] [paper] [top] [SCALE] | lamp-size [K] [MSAA] | bench [FRAMES] [REPEATS] [K] [MSAA]".into()),
     }
     Ok(())
 }

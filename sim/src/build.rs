@@ -352,6 +352,7 @@ pub fn rig_for(scenario: &Scenario, drivers: &Drivers) -> Result<RigConfig, Buil
     };
     Ok(RigConfig {
         supersample: scenario.camera.supersample,
+        msaa: scenario.camera.msaa,
         ..base
     })
 }

@@ -231,6 +231,9 @@ impl RunRecord {
             "driver        {}   resolution {}",
             r.provenance.driver, r.settings.resolution
         );
+        if r.provenance.render_backend != "none" {
+            let _ = writeln!(out, "camera        {}", r.provenance.render_backend);
+        }
         let _ = writeln!(
             out,
             "delay         {} ms (max latency in force {} ms)",

@@ -244,13 +244,16 @@ pub struct CameraSpec {
     pub rig: RigKind,
     /// Supersampling factor per axis for anti-aliasing (1 turns it off).
     pub supersample: u32,
+    /// Multisamples per drawn pixel for anti-aliasing: 1 (off) or 4.
+    pub msaa: u32,
 }
 
 impl Default for CameraSpec {
     fn default() -> Self {
         Self {
             rig: RigKind::Cpu,
-            supersample: 2,
+            supersample: crate::render::rig::DEFAULT_SUPERSAMPLE,
+            msaa: crate::render::rig::DEFAULT_MSAA,
         }
     }
 }
@@ -576,6 +579,13 @@ impl Scenario {
                 "use 1 (off) to 4",
             );
         }
+        if ![1, 4].contains(&self.camera.msaa) {
+            return bad(
+                "camera.msaa",
+                self.camera.msaa.to_string(),
+                "use 1 (off) or 4 (the sample counts lavapipe offers)",
+            );
+        }
         let term = &self.termination;
         for (key, v) in [
             ("termination.stuck_s", term.stuck_s),
@@ -647,6 +657,15 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("driver.checkpoint"), "{err}");
+        let err = parse(&format!("{MINIMAL}[camera]\nmsaa = 2\n"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("camera.msaa") && err.contains("1 (off) or 4"),
+            "{err}"
+        );
+        let s = parse(&format!("{MINIMAL}[camera]\nmsaa = 4\nsupersample = 1\n")).unwrap();
+        assert_eq!((s.camera.msaa, s.camera.supersample), (4, 1));
         let err = parse(&format!("{MINIMAL}[resolution]\nscale = 1.5\n"))
             .unwrap_err()
             .to_string();

@@ -163,30 +163,44 @@ fn two_renders_of_the_same_state_are_byte_identical_and_reuse_buffers() {
     assert_eq!((again.width, again.height), (180, 72));
 }
 
+/// The two anti-aliasings the camera offers: 2x2 supersampling (the default) and
+/// 4x MSAA without supersampling.
+fn antialiasings() -> [(&'static str, RigConfig); 2] {
+    let ssaa = RigConfig::cpu_default();
+    let msaa = RigConfig {
+        supersample: 1,
+        msaa: 4,
+        ..ssaa
+    };
+    [("2x2 supersampling", ssaa), ("4x MSAA", msaa)]
+}
+
 #[test]
-fn supersampling_keeps_a_sub_pixel_lamp_as_a_tinted_labelled_pixel() {
+fn anti_aliasing_keeps_a_sub_pixel_lamp_as_a_tinted_labelled_pixel() {
     // At 0.75 of the CPU rig a 0.3 m lamp 18 m away is 0.87 px across.
     let town = straight_road(18.0);
-    let mut r = Renderer::new(&town, RigConfig::cpu_default(), 1).unwrap();
-    let ego = EgoPose::default();
-    let dark = r.render_rig(&ego, &[], &[], 0.75).unwrap().0.clone();
-    let (rgb, labels) = r.render_rig(&ego, &[], &[LightState::Red], 0.75).unwrap();
-    assert!(labels.count(classes::LAMP_RED) >= 1, "lamp lost");
-    // The lit lamp reddens some pixel clearly over the same frame with dark lamps.
-    let rise = rgb
-        .data
-        .chunks_exact(3)
-        .zip(dark.data.chunks_exact(3))
-        .map(|(a, b)| i32::from(a[0]) - i32::from(b[0]));
-    let best = rise.max().unwrap();
-    assert!(best >= 30, "no tinted pixel (best rise {best})");
-    // And where it is labelled, it is tinted.
-    for (i, &c) in labels.data.iter().enumerate() {
-        if c == classes::LAMP_RED {
-            assert!(
-                rgb.data[i * 3] > dark.data[i * 3],
-                "labelled lamp pixel {i} is not redder"
-            );
+    for (aa, rig) in antialiasings() {
+        let mut r = Renderer::new(&town, rig, 1).unwrap();
+        let ego = EgoPose::default();
+        let dark = r.render_rig(&ego, &[], &[], 0.75).unwrap().0.clone();
+        let (rgb, labels) = r.render_rig(&ego, &[], &[LightState::Red], 0.75).unwrap();
+        assert!(labels.count(classes::LAMP_RED) >= 1, "{aa}: lamp lost");
+        // The lit lamp reddens some pixel clearly over the same frame with dark lamps.
+        let rise = rgb
+            .data
+            .chunks_exact(3)
+            .zip(dark.data.chunks_exact(3))
+            .map(|(a, b)| i32::from(a[0]) - i32::from(b[0]));
+        let best = rise.max().unwrap();
+        assert!(best >= 30, "{aa}: no tinted pixel (best rise {best})");
+        // And where it is labelled, it is tinted.
+        for (i, &c) in labels.data.iter().enumerate() {
+            if c == classes::LAMP_RED {
+                assert!(
+                    rgb.data[i * 3] > dark.data[i * 3],
+                    "{aa}: labelled lamp pixel {i} is not redder"
+                );
+            }
         }
     }
 }
@@ -195,21 +209,23 @@ fn supersampling_keeps_a_sub_pixel_lamp_as_a_tinted_labelled_pixel() {
 fn a_lamp_far_below_a_pixel_keeps_its_label_and_a_faint_tint() {
     // 0.5 of the CPU rig, 40 m: the lamp is 0.26 px across.
     let town = straight_road(40.0);
-    let mut r = Renderer::new(&town, RigConfig::cpu_default(), 1).unwrap();
-    let ego = EgoPose::default();
-    let dark = r.render_rig(&ego, &[], &[], 0.5).unwrap().0.clone();
-    let (rgb, labels) = r.render_rig(&ego, &[], &[LightState::Green], 0.5).unwrap();
-    assert!(labels.count(classes::LAMP_GREEN) >= 1, "lamp lost");
-    let rise = rgb
-        .data
-        .chunks_exact(3)
-        .zip(dark.data.chunks_exact(3))
-        .map(|(a, b)| i32::from(a[1]) - i32::from(b[1]));
-    let best = rise.max().unwrap();
-    assert!(
-        (1..60).contains(&best),
-        "tint should be faint but present (green rise {best})"
-    );
+    for (aa, rig) in antialiasings() {
+        let mut r = Renderer::new(&town, rig, 1).unwrap();
+        let ego = EgoPose::default();
+        let dark = r.render_rig(&ego, &[], &[], 0.5).unwrap().0.clone();
+        let (rgb, labels) = r.render_rig(&ego, &[], &[LightState::Green], 0.5).unwrap();
+        assert!(labels.count(classes::LAMP_GREEN) >= 1, "{aa}: lamp lost");
+        let rise = rgb
+            .data
+            .chunks_exact(3)
+            .zip(dark.data.chunks_exact(3))
+            .map(|(a, b)| i32::from(a[1]) - i32::from(b[1]));
+        let best = rise.max().unwrap();
+        assert!(
+            (1..60).contains(&best),
+            "{aa}: tint should be faint but present (green rise {best})"
+        );
+    }
 }
 
 #[test]

@@ -30,9 +30,25 @@ pub struct RenderDemoArgs {
     /// Draw the top-down view (this many pixels square, 60 m across) instead of the rig.
     #[arg(long)]
     pub top_down: Option<u32>,
-    /// Supersampling factor per axis (1 = no anti-aliasing).
-    #[arg(long, default_value_t = 2)]
+    #[command(flatten)]
+    pub antialias: AntialiasFlags,
+}
+
+/// How the camera anti-aliases (the scenario's `camera.supersample` and `camera.msaa`).
+#[derive(Debug, Args, Clone, Copy)]
+pub struct AntialiasFlags {
+    /// Supersampling factor per axis (1 = none).
+    #[arg(long, default_value_t = sim::render::rig::DEFAULT_SUPERSAMPLE)]
     pub supersample: u32,
+    /// Multisamples per drawn pixel: 1 (none) or 4.
+    #[arg(long, default_value_t = sim::render::rig::DEFAULT_MSAA)]
+    pub msaa: u32,
+}
+
+impl AntialiasFlags {
+    fn pair(&self) -> (u32, u32) {
+        (self.supersample, self.msaa)
+    }
 }
 
 /// `mrdrive render SCENARIO --at SECONDS ...` or `mrdrive render lamp-size`.
@@ -95,6 +111,8 @@ pub enum RenderCmd {
         /// Distances from the camera (metres).
         #[arg(long, value_delimiter = ',', default_values_t = [10.0, 20.0, 30.0])]
         distances: Vec<f32>,
+        #[command(flatten)]
+        antialias: AntialiasFlags,
     },
     /// Render fixed frames (no file needed) and print their SHA-256: two machines
     /// whose digests agree draw them bit for bit alike.
@@ -116,9 +134,8 @@ pub enum BenchCmd {
         /// Repeats (the median is reported).
         #[arg(long, default_value_t = 5)]
         repeats: usize,
-        /// Supersampling factor per axis.
-        #[arg(long, default_value_t = 2)]
-        supersample: u32,
+        #[command(flatten)]
+        antialias: AntialiasFlags,
         /// Render along this scenario's route (its town, its rig; lights red,
         /// no actors) instead of the demo town.
         #[arg(long)]
@@ -134,7 +151,8 @@ pub fn render_demo(a: &RenderDemoArgs) -> Result<()> {
         RigConfig::cpu_default()
     };
     let rig = RigConfig {
-        supersample: a.supersample,
+        supersample: a.antialias.supersample,
+        msaa: a.antialias.msaa,
         ..base
     };
     let (img, backend) = demo::render_demo(rig, a.scale, a.top_down, a.labels)?;
@@ -151,8 +169,15 @@ pub fn render_demo(a: &RenderDemoArgs) -> Result<()> {
 /// Runs `render ...`.
 pub fn render(a: &RenderArgs) -> Result<()> {
     match &a.cmd {
-        Some(RenderCmd::LampSize { scales, distances }) => {
-            print!("{}", measure::lamp_size_report(scales, distances)?);
+        Some(RenderCmd::LampSize {
+            scales,
+            distances,
+            antialias,
+        }) => {
+            print!(
+                "{}",
+                measure::lamp_size_report(scales, distances, antialias.pair())?
+            );
             Ok(())
         }
         Some(RenderCmd::Fingerprint { png }) => {
@@ -246,13 +271,14 @@ fn bench_scenario(
     path: &std::path::Path,
     frames: usize,
     repeats: usize,
-    supersample: u32,
+    antialias: AntialiasFlags,
 ) -> Result<()> {
     let scenario = Scenario::from_file(path)?;
     let prepared =
         runner::prepare(&scenario).with_context(|| format!("scenario {}", path.display()))?;
     let rig = RigConfig {
-        supersample,
+        supersample: antialias.supersample,
+        msaa: antialias.msaa,
         ..build::rig_for(&scenario, &super::drivers())?
     };
     print!(
@@ -275,20 +301,20 @@ pub fn bench_command(cmd: &BenchCmd) -> Result<()> {
         BenchCmd::Render {
             frames,
             repeats,
-            supersample,
+            antialias,
             scenario: None,
         } => {
             print!(
                 "{}",
-                measure::bench_report(*frames, *repeats, *supersample)?
+                measure::bench_report(*frames, *repeats, antialias.pair())?
             );
             Ok(())
         }
         BenchCmd::Render {
             frames,
             repeats,
-            supersample,
+            antialias,
             scenario: Some(path),
-        } => bench_scenario(path, *frames, *repeats, *supersample),
+        } => bench_scenario(path, *frames, *repeats, *antialias),
     }
 }

@@ -1,14 +1,22 @@
-// Supersampling resolve: k x k subsamples -> one output pixel (k = 1 copies).
+// Anti-aliasing resolve: the samples under one output pixel -> its colour and
+// class. The scene pass draws k x k pixels per output pixel (supersampling),
+// each with `samples` multisamples (1, or 4 with MSAA); an output pixel takes
+// all n = k * k * samples of them, sample i being multisample i % samples of
+// drawn pixel i / samples (row-major in its k x k block).
 // Colour: box filter in linear light (a float texture), then sRGB's 8-bit
 // code by counting the encode steps at or below the value (`render::srgb`):
-// comparisons only, the same bits on every CPU. Class: a lit lamp in any subsample wins (the
+// comparisons only, the same bits on every CPU. Class: a lit lamp in any sample wins (the
 // most frequent lamp colour, ties to the lower id); otherwise the most
 // frequent class, ties to the higher id (objects over the surface under them).
+// With MSAA the renderer declares the two textures `texture_multisampled_2d`
+// (the third argument of textureLoad is then the sample, else the mip level 0).
 
 struct Params {
     k: u32,
     // Bit i set: class i is a small object (wins when present).
     small_mask: u32,
+    // Multisamples per drawn pixel (1 or 4).
+    samples: u32,
 };
 
 @group(0) @binding(0) var hi_color: texture_2d<f32>;
@@ -66,23 +74,43 @@ fn offer(acc: vec4<u32>, c: u32, m: u32) -> vec4<u32> {
     return r;
 }
 
+// The drawn pixel of sample i under the output pixel whose block starts at `base`.
+fn sample_pixel(base: vec2<i32>, i: i32) -> vec2<i32> {
+    let k = i32(params.k);
+    let p = i / i32(params.samples);
+    return base + vec2<i32>(p % k, p / k);
+}
+
+// Which multisample of its drawn pixel sample i is (0 without MSAA: the mip level).
+fn sample_index(i: i32) -> i32 {
+    return i % i32(params.samples);
+}
+
+fn color_of(base: vec2<i32>, i: i32) -> vec3<f32> {
+    return textureLoad(hi_color, sample_pixel(base, i), sample_index(i)).rgb;
+}
+
+fn class_of(base: vec2<i32>, i: i32) -> u32 {
+    return textureLoad(hi_class, sample_pixel(base, i), sample_index(i)).r;
+}
+
 @fragment
 fn fs_down(@builtin(position) pos: vec4<f32>) -> FsOut {
     let k = i32(params.k);
-    let n = k * k;
+    let n = k * k * i32(params.samples);
     let base = vec2<i32>(floor(pos.xy)) * k;
     var sum = vec3<f32>(0.0);
     for (var i = 0; i < n; i++) {
-        sum += textureLoad(hi_color, base + vec2<i32>(i % k, i / k), 0).rgb;
+        sum += color_of(base, i);
     }
     // acc = (best class, its count, best small class, its count).
     var acc = vec4<u32>(0u, 0u, 0u, 0u);
-    if (k == 2) {
+    if (n == 4) {
         // The common case, unrolled: pairwise counts of four samples.
-        let c0 = textureLoad(hi_class, base, 0).r;
-        let c1 = textureLoad(hi_class, base + vec2<i32>(1, 0), 0).r;
-        let c2 = textureLoad(hi_class, base + vec2<i32>(0, 1), 0).r;
-        let c3 = textureLoad(hi_class, base + vec2<i32>(1, 1), 0).r;
+        let c0 = class_of(base, 0);
+        let c1 = class_of(base, 1);
+        let c2 = class_of(base, 2);
+        let c3 = class_of(base, 3);
         let e01 = select(0u, 1u, c0 == c1);
         let e02 = select(0u, 1u, c0 == c2);
         let e03 = select(0u, 1u, c0 == c3);
@@ -95,10 +123,10 @@ fn fs_down(@builtin(position) pos: vec4<f32>) -> FsOut {
         acc = offer(acc, c3, 1u + e03 + e13 + e23);
     } else {
         for (var i = 0; i < n; i++) {
-            let c = textureLoad(hi_class, base + vec2<i32>(i % k, i / k), 0).r;
+            let c = class_of(base, i);
             var m = 0u;
             for (var j = 0; j < n; j++) {
-                m += select(0u, 1u, textureLoad(hi_class, base + vec2<i32>(j % k, j / k), 0).r == c);
+                m += select(0u, 1u, class_of(base, j) == c);
             }
             acc = offer(acc, c, m);
         }

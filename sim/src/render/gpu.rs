@@ -23,6 +23,22 @@ use thiserror::Error;
 /// The environment variable that picks the render backend: `vulkan` or `gl`.
 pub const BACKEND_VAR: &str = "MRDRIVE_RENDER_BACKEND";
 
+/// Says once per process, on stderr, that the camera fell back to GL: its frames
+/// differ from lavapipe's in a few pixels, so no record matches the goldens, and
+/// the fix is one package.
+fn warn_gl_fallback(backend: &str) {
+    static WARNED: OnceLock<()> = OnceLock::new();
+    WARNED.get_or_init(|| {
+        eprintln!(
+            "mrdrive: warning: the camera renders on {backend}, not on Mesa's Vulkan \
+             (lavapipe): its frames differ from lavapipe's in a few pixels, so records and \
+             fingerprints will not match the repository's. Install it with \
+             `apt-get install mesa-vulkan-drivers` (or `cargo xtask setup`), or set \
+             {BACKEND_VAR}=gl to choose GL and silence this."
+        );
+    });
+}
+
 /// Why no device could be opened.
 #[derive(Debug, Error)]
 pub enum GpuError {
@@ -96,6 +112,9 @@ impl Gpu {
         }
         let adapter = chosen.ok_or(GpuError::NoAdapter)?;
         let info = adapter.get_info();
+        if info.backend == wgpu::Backend::Gl && order.len() > 1 {
+            warn_gl_fallback(&describe(&info));
+        }
         let desc = wgpu::DeviceDescriptor {
             label: Some("mrdrive render device"),
             required_features: wgpu::Features::empty(),

@@ -202,12 +202,23 @@ pub fn speed_line(name: &str, m: &RigSpeed) -> String {
 }
 
 /// The `render lamp-size` table: lamp sizes for the CPU and the paper's S0.
-pub fn lamp_size_report(scales: &[f32], distances_m: &[f32]) -> Result<String, RenderError> {
+pub fn lamp_size_report(
+    scales: &[f32],
+    distances_m: &[f32],
+    antialias: (u32, u32),
+) -> Result<String, RenderError> {
     use std::fmt::Write;
+    let (supersample, msaa) = antialias;
     let mut s = String::new();
+    let aa = RigConfig {
+        supersample,
+        msaa,
+        ..RigConfig::cpu_default()
+    }
+    .antialias();
     let _ = writeln!(
         s,
-        "lamp: {LAMP_DIAMETER_M:.2} m disc, red, on the centre camera's axis; supersampling 2x\n\
+        "lamp: {LAMP_DIAMETER_M:.2} m disc, red, on the centre camera's axis; anti-aliasing {aa}\n\
          class_px: pixels labelled lamp_red; tinted_px: red channel +30 or more over dark lamps;\n\
          analytic_d / analytic_a: projected diameter (px) and disc area (px^2)"
     );
@@ -228,6 +239,11 @@ pub fn lamp_size_report(scales: &[f32], distances_m: &[f32]) -> Result<String, R
         ("cpu-S0", RigConfig::cpu_default()),
         ("paper-S0", RigConfig::paper()),
     ] {
+        let rig = RigConfig {
+            supersample,
+            msaa,
+            ..rig
+        };
         for m in lamp_sizes(rig, scales, distances_m)? {
             let _ = writeln!(
                 s,
@@ -280,14 +296,14 @@ pub fn route_report(
     let states = vec![LightState::Red; town.lights.len()];
     let mut s = format!(
         "backend: {}\ntown {}: {} static triangles in {} cells; route {} ({} poses, 1 m apart); \
-         no actors, all lights red; supersampling {}x; {} frames x {} repeats\n",
+         no actors, all lights red; anti-aliasing {}; {} frames x {} repeats\n",
         r.backend(),
         town.name,
         r.scene().triangle_count(),
         r.scene().cells.len(),
         route.id,
         poses.len(),
-        r.rig().supersample,
+        r.rig().antialias(),
         frames,
         repeats
     );
@@ -302,7 +318,7 @@ pub fn route_report(
         let _ = writeln!(s, "{}", speed_line("scenario", &m));
     }
     // The floor: the same frames of a town with nothing in it (the sky, the
-    // clear, the 2x2 resolve, the sRGB encode and the readback): what a frame
+    // clear, the anti-aliasing resolve, the sRGB encode and the readback): what a frame
     // costs before the first triangle is drawn.
     let mut empty = Town::empty("empty");
     empty.bounds = town.bounds;
@@ -331,7 +347,7 @@ pub fn route_report(
 pub fn bench_report(
     frames: usize,
     repeats: usize,
-    supersample: u32,
+    (supersample, msaa): (u32, u32),
 ) -> Result<String, RenderError> {
     use std::fmt::Write;
     let mut s = String::new();
@@ -343,6 +359,7 @@ pub fn bench_report(
     ] {
         let rig = RigConfig {
             supersample,
+            msaa,
             ..base
         };
         let mut r = Renderer::new(&town, rig, 7)?;
@@ -350,14 +367,14 @@ pub fn bench_report(
             let _ = writeln!(
                 s,
                 "backend: {}\ntown {}: {} static triangles in {} cells, drawn within {} m; {} actors; \
-                 supersampling {}x; {} frames x {} repeats",
+                 anti-aliasing {}; {} frames x {} repeats",
                 r.backend(),
                 town.name,
                 r.scene().triangle_count(),
                 r.scene().cells.len(),
                 super::renderer::DRAW_DISTANCE_M,
                 actors.len(),
-                r.rig().supersample,
+                r.rig().antialias(),
                 frames,
                 repeats
             );

@@ -3,12 +3,15 @@
 //! that anti-aliases and encodes sRGB, and a readback that strips the 256-byte
 //! row padding into reused images.
 //!
-//! Anti-aliasing is supersampling: integer class targets cannot be
-//! MSAA-resolved, so the scene is drawn at k x the output size (per axis) and
-//! a second pass filters each k x k block down: colour by a box filter in
-//! linear light (a distant lamp becomes a tinted pixel), class by a rule that
-//! keeps small objects (a lit lamp in any subsample wins; otherwise the most
-//! frequent class, ties to the higher id). With k = 1 the resolve copies.
+//! Anti-aliasing takes several samples per output pixel, by supersampling (the
+//! scene drawn at k x the output size per axis), by 4x multisampling (MSAA:
+//! the rasteriser keeps 4 coverage samples per pixel and shades once per
+//! pixel and triangle), or both. Integer class targets cannot be resolved by
+//! the hardware, so a second pass of ours filters every sample of an output
+//! pixel down: colour by a box filter in linear light (a distant lamp becomes
+//! a tinted pixel), class by a rule that keeps small objects (a lit lamp in
+//! any sample wins; otherwise the most frequent class, ties to the higher
+//! id). With one sample the resolve copies.
 //!
 //! The same frame is the same bytes on every x86-64 CPU with AVX2 and FMA
 //! (tested against an emulated CPU: `tests/render_fingerprint.rs`): no sRGB
@@ -44,10 +47,17 @@ pub const DRAW_DISTANCE_M: f32 = 200.0;
 /// street lamps) are drawn (metres): beyond it a tree is under 2 pixels at
 /// the CPU S0 and paint under a tenth of one, half-hidden by fog.
 pub const DETAIL_DISTANCE_M: f32 = 120.0;
-/// Smallest diameter a lit lamp is drawn at (supersampled pixels); its
-/// radiance is cut by the area ratio. 1.6 > sqrt(2) / cos(22.5 deg): an
-/// octagon this size always covers a sample point.
+/// Smallest diameter a lit lamp is drawn at (drawn pixels) with one sample
+/// per drawn pixel; its radiance is cut by the area ratio. 1.6 > sqrt(2) /
+/// cos(22.5 deg): an octagon this size always covers a sample point of the
+/// unit grid.
 pub const MIN_LAMP_PX: f32 = 1.6;
+/// The same with 4x MSAA (drawn pixels). Vulkan's standard 4-sample positions
+/// (1/8 (3, 1), (7, 3), (1, 5), (5, 7)) tile the plane as a square lattice of
+/// spacing sqrt(5) / 4 = 0.559 px, whose farthest point from every sample is
+/// 0.395 px away: an octagon of diameter 2 x 0.395 / cos(22.5 deg) = 0.855 px
+/// always covers one.
+pub const MIN_LAMP_PX_MSAA4: f32 = 0.9;
 /// Most vertices one static draw call holds (a multiple of 3). Measured on
 /// lavapipe (Mesa 22.3) along real routes: 768 beats 192, 384 and 1536, and
 /// is ~1.5x faster than unsplit runs of whole cells.
@@ -116,8 +126,8 @@ struct ViewUniform {
 /// Render targets and readback for one output size.
 struct Targets {
     size: (u32, u32),
-    /// The scene pass's targets (linear colour, class; k x the output size) and the
-    /// resolve pass's bind group that reads them.
+    /// The scene pass's targets (linear colour, class; k x the output size, `msaa`
+    /// samples a pixel) and the resolve pass's bind group that reads them.
     hi: (wgpu::TextureView, wgpu::TextureView, wgpu::BindGroup),
     depth: wgpu::TextureView,
     color: wgpu::Texture,
@@ -172,7 +182,12 @@ impl Renderer {
     pub fn with_gpu(gpu: Gpu, town: &Town, rig: RigConfig, seed: u64) -> Renderer {
         let rig = RigConfig {
             supersample: rig.supersample.clamp(1, 5),
+            msaa: if rig.msaa >= 4 { 4 } else { 1 },
             ..rig
+        };
+        let multisample = wgpu::MultisampleState {
+            count: rig.msaa,
+            ..Default::default()
         };
         let scene = StaticScene::build(town, seed);
         let device = &gpu.device;
@@ -280,7 +295,7 @@ impl Renderer {
                     stencil: Default::default(),
                     bias: Default::default(),
                 }),
-                multisample: Default::default(),
+                multisample,
                 fragment: Some(wgpu::FragmentState {
                     module: &scene_module,
                     entry_point: Some("fs_main"),
@@ -311,9 +326,13 @@ impl Renderer {
             Some(wgpu::ColorTargetState::from(CLASS_FORMAT)),
         ];
         let lamp_pipeline = scene_pipe("lamp pipeline", &lamp_targets, false);
+        let down_source = match rig.msaa {
+            1 => include_str!("downsample.wgsl").to_string(),
+            _ => include_str!("downsample.wgsl").replace("texture_2d<", "texture_multisampled_2d<"),
+        };
         let down_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("downsample.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("downsample.wgsl").into()),
+            source: wgpu::ShaderSource::Wgsl(down_source.into()),
         });
         let tex_entry = |binding, sample_type| wgpu::BindGroupLayoutEntry {
             binding,
@@ -321,7 +340,7 @@ impl Renderer {
             ty: wgpu::BindingType::Texture {
                 sample_type,
                 view_dimension: wgpu::TextureViewDimension::D2,
-                multisampled: false,
+                multisampled: rig.msaa > 1,
             },
             count: None,
         };
@@ -376,7 +395,7 @@ impl Renderer {
         gpu.queue.write_buffer(
             &down_params,
             0,
-            bytemuck::cast_slice(&[rig.supersample, small_mask, 0, 0]),
+            bytemuck::cast_slice(&[rig.supersample, small_mask, rig.msaa, 0]),
         );
         let static_vb = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("static vertices"),
@@ -679,12 +698,16 @@ impl Renderer {
 
     fn upload_views(&mut self, cams: &[View]) {
         let k = self.rig.supersample as f32;
+        let min_lamp_px = match self.rig.msaa {
+            1 => MIN_LAMP_PX,
+            _ => MIN_LAMP_PX_MSAA4,
+        };
         for (i, cam) in cams.iter().take(MAX_VIEWS).enumerate() {
             let u = ViewUniform {
                 view_proj: cam.view_proj.to_cols_array_2d(),
                 eye: cam.eye.extend(if cam.fog { 1.0 } else { 0.0 }).to_array(),
                 lamp: match cam.focal_px {
-                    Some(f) => [f * k, MIN_LAMP_PX, 0.0, 0.0],
+                    Some(f) => [f * k, min_lamp_px, 0.0, 0.0],
                     None => [0.0; 4],
                 },
             };
@@ -743,7 +766,7 @@ impl Renderer {
         let device = &self.gpu.device;
         let k = self.rig.supersample;
         let (w, h) = size;
-        let tex = |label, w, h, format, usage| {
+        let tex_sampled = |label, w, h, format, usage, samples| {
             device.create_texture(&wgpu::TextureDescriptor {
                 label: Some(label),
                 size: wgpu::Extent3d {
@@ -752,30 +775,47 @@ impl Renderer {
                     depth_or_array_layers: 1,
                 },
                 mip_level_count: 1,
-                sample_count: 1,
+                sample_count: samples,
                 dimension: wgpu::TextureDimension::D2,
                 format,
                 usage,
                 view_formats: &[],
             })
         };
+        let tex = |label, w, h, format, usage| tex_sampled(label, w, h, format, usage, 1);
+        let samples = self.rig.msaa;
         use wgpu::TextureUsages as U;
         let out_usage = U::RENDER_ATTACHMENT | U::COPY_SRC;
         let color = tex("colour", w, h, OUTPUT_FORMAT, out_usage);
         let class = tex("class", w, h, CLASS_FORMAT, out_usage);
-        let depth = tex("depth", w * k, h * k, DEPTH_FORMAT, U::RENDER_ATTACHMENT);
+        let depth = tex_sampled(
+            "depth",
+            w * k,
+            h * k,
+            DEPTH_FORMAT,
+            U::RENDER_ATTACHMENT,
+            samples,
+        );
         let hi = {
             let usage = U::RENDER_ATTACHMENT | U::TEXTURE_BINDING;
-            let c = tex(
-                "linear colour (supersampled)",
+            let c = tex_sampled(
+                "linear colour (anti-aliased)",
                 w * k,
                 h * k,
                 LINEAR_FORMAT,
                 usage,
+                samples,
             )
             .create_view(&Default::default());
-            let l = tex("class (supersampled)", w * k, h * k, CLASS_FORMAT, usage)
-                .create_view(&Default::default());
+            let l = tex_sampled(
+                "class (anti-aliased)",
+                w * k,
+                h * k,
+                CLASS_FORMAT,
+                usage,
+                samples,
+            )
+            .create_view(&Default::default());
             let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("resolve bind group"),
                 layout: &self.down_layout,

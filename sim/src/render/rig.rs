@@ -13,6 +13,10 @@ use world::EgoPose;
 
 /// Near plane of the perspective cameras (metres).
 pub const NEAR_M: f32 = 0.1;
+/// The default anti-aliasing: supersampling factor per axis.
+pub const DEFAULT_SUPERSAMPLE: u32 = 2;
+/// The default anti-aliasing: multisamples per drawn pixel (1 or 4).
+pub const DEFAULT_MSAA: u32 = 1;
 
 /// The rig's geometry at the base size S0 and the anti-aliasing factor.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -33,6 +37,10 @@ pub struct RigConfig {
     /// Supersampling factor per axis: the scene is drawn at k x the output
     /// size and filtered down (see `render::renderer`). 1 disables it.
     pub supersample: u32,
+    /// Multisampling: samples per drawn pixel, 1 (off) or 4 (the only other
+    /// count lavapipe offers). Combines with `supersample`: every sample of
+    /// every k x k block goes into the output pixel.
+    pub msaa: u32,
 }
 
 impl RigConfig {
@@ -45,7 +53,8 @@ impl RigConfig {
             fov_deg: 60.0,
             yaws_deg: [-55.0, 0.0, 55.0],
             mount_m: Vec3::new(1.5, 0.0, 2.4),
-            supersample: 2,
+            supersample: DEFAULT_SUPERSAMPLE,
+            msaa: DEFAULT_MSAA,
         }
     }
 
@@ -56,6 +65,22 @@ impl RigConfig {
             cam_height_px: 120,
             crop_top_px: 24,
             ..RigConfig::paper()
+        }
+    }
+
+    /// The anti-aliasing in words, for reports: `supersampling 2x`, `4x MSAA`,
+    /// both joined by ` + `, or `none`.
+    pub fn antialias(&self) -> String {
+        let mut parts = Vec::new();
+        if self.supersample > 1 {
+            parts.push(format!("supersampling {}x", self.supersample));
+        }
+        if self.msaa > 1 {
+            parts.push(format!("{}x MSAA", self.msaa));
+        }
+        match parts.is_empty() {
+            true => "none".into(),
+            false => parts.join(" + "),
         }
     }
 
