@@ -13,9 +13,10 @@
 //! - weight gradient: `dW += dY [O, n*OH*OW] x col^T`, summed over the batch;
 //! - input gradient: `dcol = W^T x dY`, scattered back onto `dX` (col2im).
 //!
-//! Every product goes through `crate::matmul` (fixed-order gemm), and the batch is cut into groups and
-//! lanes whose sizes follow the shapes alone, so results are bit-identical for any
-//! thread count and on any x86-64 CPU.
+//! Every product goes through `kernels::gemm` (each output one fused multiply-add
+//! chain in a fixed order), and the batch is cut into groups and lanes whose sizes
+//! follow the shapes alone, so results are bit-identical for any thread count and on
+//! any x86-64 CPU.
 //!
 //! burn sees two custom operations, [`ConvOps::im2col_conv2d`] and
 //! [`ConvOps::im2col_conv_transpose2d`] (the decoder's upsampling: the same kernels the
@@ -25,7 +26,6 @@
 //! the CPU, add a bias after it, and call burn's own `forward` everywhere else (the GPU
 //! backends, grouped or dilated convolutions).
 
-use crate::matmul::{Mat, matmul};
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
 use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
 use burn::backend::autodiff::grads::Gradients;
@@ -37,6 +37,7 @@ use burn::nn::PaddingConfig2d;
 use burn::nn::conv::{Conv2d, ConvTranspose2d};
 use burn::prelude::*;
 use burn::tensor::{DType, TensorData};
+use kernels::{Mat, gemm as matmul};
 use rayon::prelude::*;
 use std::cell::RefCell;
 
@@ -351,9 +352,11 @@ pub fn input_grad(w: &[f32], dy: &[f32], g: &Geometry) -> Vec<f32> {
 }
 
 /// The gradient of [`forward`] with respect to its weights, given the output's gradient
-/// `dy`: `[cout, cin, kh, kw]`, the sum over the batch of `dy_b x col_b^T`. The batch is
-/// cut into at most `LANES` (8) lanes of whole groups, each summing its own part; the parts
-/// are then added in lane order, so the result does not depend on the thread count.
+/// `dy`: `[cout, cin, kh, kw]`, the sum over the batch of `dy_b x col_b^T`. It is computed
+/// transposed, `dW^T [K, cout] += col_b [K, P] x dy_b^T`, so the large operand (the
+/// column matrix) is read in place and only `dy_b` is repacked. The batch is cut into at
+/// most `LANES` (8) lanes of whole groups, each summing its own part; the parts are then
+/// added in lane order, so the result does not depend on the thread count.
 pub fn weight_grad(x: &[f32], dy: &[f32], g: &Geometry) -> Vec<f32> {
     let (k, p, per) = (g.k(), g.p(), g.group());
     assert_eq!(
@@ -376,7 +379,7 @@ pub fn weight_grad(x: &[f32], dy: &[f32], g: &Geometry) -> Vec<f32> {
         .map(|l| {
             let first = l * groups / lanes * per;
             let last = ((l + 1) * groups / lanes * per).min(g.batch);
-            let mut dw = vec![0.0; g.cout * k];
+            let mut dwt = vec![0.0; k * g.cout];
             SCRATCH.with_borrow_mut(|(col, tmp)| {
                 for b0 in (first..last).step_by(per) {
                     let n = per.min(last - b0);
@@ -389,11 +392,11 @@ pub fn weight_grad(x: &[f32], dy: &[f32], g: &Geometry) -> Vec<f32> {
                         im2col(x, g, b0, n, c);
                         c
                     };
-                    let (lhs, rhs) = (Mat::rows(dyg, cols), Mat::transposed(cm, cols));
-                    matmul(&mut dw, (g.cout, cols, k), lhs, rhs, true);
+                    let (lhs, rhs) = (Mat::rows(cm, cols), Mat::transposed(dyg, cols));
+                    matmul(&mut dwt, (k, cols, g.cout), lhs, rhs, true);
                 }
             });
-            dw
+            dwt
         })
         .collect();
     let mut parts = parts.into_iter();
@@ -401,7 +404,13 @@ pub fn weight_grad(x: &[f32], dy: &[f32], g: &Geometry) -> Vec<f32> {
     for part in parts {
         total.iter_mut().zip(&part).for_each(|(t, v)| *t += v);
     }
-    total
+    let mut dw = vec![0.0; g.cout * k];
+    for (q, row) in total.chunks_exact(g.cout).enumerate() {
+        for (o, v) in row.iter().enumerate() {
+            dw[o * k + q] = *v;
+        }
+    }
+    dw
 }
 
 /// Both gradients of [`forward`], each computed only where asked for: `(dx, dw)`.

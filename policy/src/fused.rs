@@ -10,23 +10,29 @@
 //!   the epilogue of its convolution, together with the residual add and ReLU;
 //!   the convolution weights stay shared, each branch of a bank keeps its own
 //!   scale and shift (so switching scales costs nothing);
-//! - a k x k convolution is one im2col copy (each tap a contiguous run of C
-//!   floats) and one matrix product (`gemm`, the kernel burn itself uses).
+//! - a k x k convolution is one matrix product that reads the zero-padded
+//!   input in place (`kernels::conv`, an implicit im2col) against weights
+//!   packed once when the policy is frozen.
 //!
 //! Only the driving path is here: backbone, global average pool, action head.
 //! Training and the segmentation decoder stay in burn. [`FusedPolicy::from_net`]
 //! is checked against [`PolicyNet::forward`] in the tests (same logits to 1e-4).
-//! Convolutions run in fixed-size tiles of output pixels on rayon's pool, so
-//! the logits are bit-identical for any thread count (tested).
+//! Convolutions run in tiles of output pixels (and, in the late layers with few
+//! pixels, shares of the output channels) on rayon's pool; every output is one
+//! fixed chain of fused multiply-adds however the work is cut (the `kernels`
+//! crate's promise), so the logits are bit-identical for any thread count and
+//! CPU (tested).
 
 use crate::backbone::BasicBlock;
 use crate::bn_bank::BnBank;
-use crate::matmul::{Mat, matmul};
 use crate::model::{PolicyConfig, PolicyNet};
 use burn::nn::conv::Conv2d;
 use burn::nn::{Linear, PaddingConfig2d};
 use burn::prelude::*;
 use dataset::action::{NUM_ACTIONS, NUM_STEERS, NUM_THROTTLES};
+use kernels::conv::{Conv2dNhwc, Padded, conv2d_nhwc};
+use kernels::gemm::NR;
+use kernels::{Mat, PackedRhs};
 use rayon::prelude::*;
 
 /// A feature map of one image, channels last: `data[(y * w + x) * c + ch]`.
@@ -42,7 +48,7 @@ pub struct Fmap {
     pub data: Vec<f32>,
 }
 
-/// A bias-free square convolution, weights laid out for `col [HoWo, K] x w [K, Cout]`.
+/// A bias-free square convolution, weights packed for `col [HoWo, K] x w [K, Cout]`.
 #[derive(Debug, Clone)]
 struct Conv {
     cin: usize,
@@ -50,8 +56,8 @@ struct Conv {
     k: usize,
     stride: usize,
     pad: usize,
-    /// `w[((ky * k + kx) * cin + ci) * cout + co]`.
-    w: Vec<f32>,
+    /// `w[((ky * k + kx) * cin + ci) * cout + co]`, packed in panels for the product.
+    w: PackedRhs,
 }
 
 /// A folded BatchNorm: `y = x * scale + shift`, per channel.
@@ -122,13 +128,14 @@ impl Conv {
                 }
             }
         }
+        let kdim = k * k * cin;
         Conv {
             cin,
             cout,
             k,
             stride,
             pad,
-            w,
+            w: PackedRhs::new(Mat::rows(&w, cout), kdim, cout),
         }
     }
 
@@ -149,85 +156,93 @@ impl Conv {
 
     /// `epilogue(conv(x))`: the output `[Ho * Wo, cout]` and its size.
     ///
-    /// The output rows (pixels) are cut into tiles of [`TILE_ROWS`]; each tile is one im2col
-    /// copy, one single-threaded product and the epilogue (called with the tile's first row
-    /// and its `rows x cout` values), and tiles run in parallel on rayon's pool. The tile
-    /// size is fixed, so every value is computed the same way whatever the thread count.
+    /// The output is cut into [`Share`]s: tiles of [`TILE_ROWS`] pixels, and where a
+    /// layer has fewer than [`MIN_SHARES`] tiles (the late layers' few pixels) each
+    /// tile's channels too, so both cores work on every layer. A share is one
+    /// single-threaded product over the padded input and the epilogue (called with the
+    /// share and its `pixels x channels` values); shares run in parallel on rayon's pool.
     fn apply(
         &self,
         x: &Fmap,
-        epilogue: impl Fn(usize, &mut [f32]) + Sync,
+        epilogue: impl Fn(Share, &mut [f32]) + Sync,
     ) -> (usize, usize, Vec<f32>) {
         debug_assert_eq!(x.c, self.cin);
         let (ho, wo) = (self.out_len(x.h), self.out_len(x.w));
-        let kdim = self.k * self.k * self.cin;
-        let direct = self.k == 1 && self.stride == 1;
-        let mut out = vec![0.0; ho * wo * self.cout];
-        out.par_chunks_mut(TILE_ROWS * self.cout)
-            .enumerate()
-            .for_each(|(t, tile)| {
-                let first = t * TILE_ROWS;
-                let rows = tile.len() / self.cout;
-                if direct {
-                    let lhs = &x.data[first * kdim..(first + rows) * kdim];
-                    matmul(
-                        tile,
-                        (rows, kdim, self.cout),
-                        Mat::rows(lhs, kdim),
-                        Mat::rows(&self.w, self.cout),
-                        false,
-                    );
-                } else {
-                    COL.with_borrow_mut(|col| {
-                        im2col(x, self, wo, first..first + rows, col);
-                        matmul(
-                            tile,
-                            (rows, kdim, self.cout),
-                            Mat::rows(col, kdim),
-                            Mat::rows(&self.w, self.cout),
-                            false,
-                        );
-                    });
+        let pixels = ho * wo;
+        let mut out = vec![0.0; pixels * self.cout];
+        let tiles = pixels.div_ceil(TILE_ROWS);
+        let per_tile = MIN_SHARES.div_ceil(tiles.max(1));
+        let channels = (self.cout.div_ceil(per_tile).div_ceil(NR) * NR).min(self.cout);
+        let padded = Padded::new(
+            &x.data,
+            Conv2dNhwc {
+                h: x.h,
+                w: x.w,
+                cin: x.c,
+                k: self.k,
+                stride: self.stride,
+                pad: self.pad,
+            },
+        );
+        let compute = |share: Share, values: &mut [f32]| {
+            let (pixels, cols) = (share.pixels.clone(), share.channels.clone());
+            conv2d_nhwc(values, &padded, &self.w, pixels, cols);
+            epilogue(share, values);
+        };
+        if channels == self.cout {
+            out.par_chunks_mut(TILE_ROWS * self.cout)
+                .enumerate()
+                .for_each(|(t, values)| {
+                    let first = t * TILE_ROWS;
+                    let share = Share {
+                        pixels: first..first + values.len() / self.cout,
+                        channels: 0..self.cout,
+                    };
+                    compute(share, values);
+                });
+        } else {
+            let shares: Vec<Share> = (0..tiles)
+                .flat_map(|t| {
+                    let px = t * TILE_ROWS..((t + 1) * TILE_ROWS).min(pixels);
+                    (0..self.cout).step_by(channels).map(move |c0| Share {
+                        pixels: px.clone(),
+                        channels: c0..(c0 + channels).min(self.cout),
+                    })
+                })
+                .collect();
+            let parts: Vec<(Share, Vec<f32>)> = shares
+                .into_par_iter()
+                .map(|share| {
+                    let mut values = vec![0.0; share.pixels.len() * share.channels.len()];
+                    compute(share.clone(), &mut values);
+                    (share, values)
+                })
+                .collect();
+            for (share, values) in parts {
+                let n = share.channels.len();
+                for (i, p) in share.pixels.enumerate() {
+                    out[p * self.cout + share.channels.start..][..n]
+                        .copy_from_slice(&values[i * n..][..n]);
                 }
-                epilogue(first, tile);
-            });
+            }
+        }
         (ho, wo, out)
     }
 }
 
+/// A part of a convolution's output one worker computes: its pixels (row-major over
+/// `[Ho, Wo]`) and its output channels.
+#[derive(Debug, Clone)]
+struct Share {
+    pixels: std::ops::Range<usize>,
+    channels: std::ops::Range<usize>,
+}
+
+/// Shares a convolution is cut into at least, where its pixels allow fewer tiles.
+const MIN_SHARES: usize = 4;
+
 /// Output pixels per tile of a convolution (see [`Conv::apply`]).
-const TILE_ROWS: usize = 128;
-
-thread_local! {
-    /// Each worker thread's im2col buffer, reused from tile to tile.
-    static COL: std::cell::RefCell<Vec<f32>> = const { std::cell::RefCell::new(Vec::new()) };
-}
-
-/// Writes the im2col rows `rows` (output pixels, row-major over `[Ho, wo]`) of `x` into
-/// `col`, `k * k * cin` values a row (zeros where the window is in the padding).
-fn im2col(x: &Fmap, conv: &Conv, wo: usize, rows: std::ops::Range<usize>, col: &mut Vec<f32>) {
-    let (k, s, p, c) = (conv.k, conv.stride, conv.pad, x.c);
-    let row_len = k * k * c;
-    // Every value is written below (a copy or a padding zero): no need to clear first.
-    col.resize(rows.len() * row_len, 0.0);
-    for (r, pixel) in rows.enumerate() {
-        let (oy, ox) = (pixel / wo, pixel % wo);
-        let row = &mut col[r * row_len..][..row_len];
-        for ky in 0..k {
-            let iy = (oy * s + ky) as isize - p as isize;
-            for kx in 0..k {
-                let ix = (ox * s + kx) as isize - p as isize;
-                let tap = &mut row[(ky * k + kx) * c..][..c];
-                if iy < 0 || iy >= x.h as isize || ix < 0 || ix >= x.w as isize {
-                    tap.fill(0.0);
-                } else {
-                    let src = (iy as usize * x.w + ix as usize) * c;
-                    tap.copy_from_slice(&x.data[src..src + c]);
-                }
-            }
-        }
-    }
-}
+const TILE_ROWS: usize = 64;
 
 impl ConvBn {
     fn from_burn(conv: &Conv2d, bank: &BnBank) -> Self {
@@ -263,10 +278,12 @@ impl ConvBn {
     fn apply(&self, x: &Fmap, branch: usize, residual: Option<&Fmap>, relu: bool) -> Fmap {
         let Affine { scale, shift } = &self.bn[branch];
         let c = self.conv.cout;
-        let (h, w, data) = self.conv.apply(x, |first, tile| {
-            for (i, px) in tile.chunks_exact_mut(c).enumerate() {
-                let res = residual.map(|r| &r.data[(first + i) * c..][..c]);
-                for ch in 0..c {
+        let (h, w, data) = self.conv.apply(x, |share, values| {
+            let (c0, n) = (share.channels.start, share.channels.len());
+            let (scale, shift) = (&scale[c0..][..n], &shift[c0..][..n]);
+            for (px, p) in values.chunks_exact_mut(n).zip(share.pixels) {
+                let res = residual.map(|r| &r.data[p * c + c0..][..n]);
+                for ch in 0..n {
                     let mut v = px[ch] * scale[ch] + shift[ch];
                     if let Some(r) = res {
                         v += r[ch];

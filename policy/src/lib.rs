@@ -5,7 +5,7 @@
 //! The resolution selectors that pick the scale live in `sim::selector`.
 //!
 //! Read in this order: [`bn_bank`], [`backbone`], [`heads`], [`model`],
-//! `dataset::action` and `dataset::decode` (the 28 actions and WoR's decoding, shared with the labels), [`device`], [`checkpoint`], [`fused`], [`conv`] and [`batch_norm`] (the CPU convolutions and BatchNorms training runs through), [`driver`], [`train`], [`bench`](mod@bench).
+//! `dataset::action` and `dataset::decode` (the 28 actions and WoR's decoding, shared with the labels), [`device`], [`checkpoint`], [`fused`], [`conv`] and [`batch_norm`] (the CPU convolutions and BatchNorms training runs through; their arithmetic is the `kernels` crate's), [`driver`], [`train`], [`bench`](mod@bench).
 
 pub mod backbone;
 pub mod batch_norm;
@@ -19,7 +19,6 @@ pub mod driver;
 pub mod fingerprint;
 pub mod fused;
 pub mod heads;
-mod matmul;
 pub mod model;
 pub mod train;
 pub mod trigger;
