@@ -168,7 +168,7 @@ pub const TOWN01_ROUTE_EPISODES: usize = 8 * DENSITIES.len();
 /// not seen it). (town index in `ours`, route id).
 const RETARGET_TOWN_ROUTES: [(usize, &str); 5] = [(0, "1"), (0, "2"), (1, "0"), (1, "1"), (1, "2")];
 
-/// Town01 routes kept for evaluation (PROTOCOL §2): never collected.
+/// Town01 routes kept for evaluation (docs/protocol.md §2): never collected.
 pub const EVALUATION_ROUTES: [&str; 2] = ["0", "1"];
 
 /// The plan of a preset: `episodes` episodes. `carla` is the folder with

@@ -1,6 +1,6 @@
 //! From the head's logits to a control: speed interpolation, then WoR's decoding.
 //!
-//! PROTOCOL §4. The head gives, for each command, 28 logits at each of 4 speed
+//! docs/protocol.md §4. The head gives, for each command, 28 logits at each of 4 speed
 //! bins. The logits at the measured speed are the linear interpolation between
 //! the two nearest bin centres (clamped at the end bins). Then, with
 //! `p = softmax(logits)`: if `p[brake] > 0.5` the car brakes fully (steer 0,
@@ -69,7 +69,7 @@ pub fn softmax(logits: &[f32; NUM_ACTIONS]) -> [f32; NUM_ACTIONS] {
     std::array::from_fn(|j| e[j] / s)
 }
 
-/// Decodes the 28 logits at the current speed into a control (PROTOCOL §4).
+/// Decodes the 28 logits at the current speed into a control (docs/protocol.md §4).
 pub fn decode(logits: &[f32; NUM_ACTIONS], speed_mps: f32, command: Command) -> Decoded {
     let p = softmax(logits);
     let brake_prob = p[BRAKE];

@@ -100,7 +100,7 @@ pub struct PaperConfig {
 }
 
 impl PaperConfig {
-    /// The paper's protocol (PROTOCOL §2, §7) with three seeds per (route,
+    /// The paper's protocol (docs/protocol.md §2, §7) with three seeds per (route,
     /// density); paths are relative to the workspace root.
     pub fn full() -> Self {
         let route = |town: &str, id: u32| Route {

@@ -1,6 +1,6 @@
 //! A bank of BatchNorms: one branch per input scale, exactly one used per forward.
 //!
-//! The paper's resolution-aware BN (PROTOCOL §6): convolutions are shared across
+//! The paper's resolution-aware BN (docs/protocol.md §6): convolutions are shared across
 //! scales, normalisation statistics and affine parameters are per scale. With a
 //! single branch the bank is an ordinary BatchNorm (the NRA model).
 

@@ -263,7 +263,7 @@ impl PolicyNet {
     }
 
     /// A multi-resolution network for `scales` from this single-branch one: every BN copied into
-    /// every branch, convolutions and heads shared (PROTOCOL §6 init).
+    /// every branch, convolutions and heads shared (docs/protocol.md §6 init).
     pub fn to_multires(&self, scales: Vec<f32>) -> Result<PolicyNet, ConfigError> {
         if self.config.scales.len() != 1 {
             return Err(ConfigError::Field {

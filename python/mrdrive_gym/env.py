@@ -2,7 +2,7 @@
 
 One `step` is one control period of mrdrive's synchronous loop: the control
 goes through the same delay line and zero-order hold as mrdrive's own
-drivers' (PROTOCOL §1), and the next observation comes at the next control
+drivers' (docs/protocol.md §1), and the next observation comes at the next control
 boundary. The simulator runs in a `mrdrive serve` process per environment.
 """
 

@@ -1,7 +1,7 @@
 //! The zero-order-hold delay line between the driver and the ego's actuators.
 //!
 //! This reproduces the timeline of the paper's experiment code (TimeParam's
-//! run loop, PROTOCOL §1) on a 40 Hz tick:
+//! run loop, docs/protocol.md §1) on a 40 Hz tick:
 //!
 //! - Controls are computed at *control boundaries*, every `period_ticks`
 //!   ticks, from the observation at that tick.
@@ -233,7 +233,7 @@ mod tests {
 
     #[test]
     fn no_delay_applies_each_control_from_its_own_tick_for_two_steps() {
-        // PROTOCOL §1: with D = 0 the command from the observation at t = 2 is
+        // docs/protocol.md §1: with D = 0 the command from the observation at t = 2 is
         // in force over the steps 2->3 and 3->4.
         let got = timeline(DelayTiming::time_param(0.0, DT), 8, |_| None);
         assert_eq!(
@@ -253,7 +253,7 @@ mod tests {
 
     #[test]
     fn fifty_ms_delay_lands_one_period_late_and_holds() {
-        // PROTOCOL §1: with D = 50 ms the command from t = 0 is in force over
+        // docs/protocol.md §1: with D = 50 ms the command from t = 0 is in force over
         // 2->3 and 3->4, the one from t = 2 over 4->5 and 5->6; a no-op before.
         let got = timeline(DelayTiming::time_param(50.0, DT), 8, |_| None);
         assert_eq!(

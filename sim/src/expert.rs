@@ -8,7 +8,7 @@
 //!   [`rules::pursuit_lookahead_m`] ahead, converted to a steer value through
 //!   the vehicle model's inverse (`VehicleParams::steer_for_curvature`).
 //! - **Speed**: 6 m/s on turns (a LEFT/RIGHT command within 10 m), 6.5 m/s
-//!   otherwise, never above the lane's limit (PROTOCOL §5's target speeds).
+//!   otherwise, never above the lane's limit (docs/protocol.md §5's target speeds).
 //! - **Stops**: for a light it must stop for ([`rules::must_stop`]: red, or
 //!   yellow when it can still stop at `stop_decel_mps2`), at a stop line of
 //!   the route ([`rules::RouteStops`], given in the privileged view) that its

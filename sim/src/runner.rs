@@ -1,6 +1,6 @@
 //! The closed loop: one scenario driven from start to result record.
 //!
-//! Each 40 Hz tick (PROTOCOL §1, DESIGN's data flow):
+//! Each 40 Hz tick (docs/protocol.md §1, DESIGN's data flow):
 //!
 //! 1. At a control boundary, the resolution selector picks the input scale
 //!    (and with it the latency in force), the camera renders the rig at that
@@ -174,7 +174,7 @@ fn cpuinfo_field(cpuinfo: &str, key: &str) -> Option<String> {
 }
 
 /// The timing in force at `scale`: the delay is `max(D, Lexec(scale))`, the
-/// period `max(Tc, delay)` (PROTOCOL §1). With `latency = "measured"` the
+/// period `max(Tc, delay)` (docs/protocol.md §1). With `latency = "measured"` the
 /// loop replaces `Lexec` by the driver's real compute time at each boundary.
 pub fn timing_at(scenario: &Scenario, scale: f64) -> (DelayTiming, f64) {
     let t = &scenario.timing;
@@ -409,7 +409,7 @@ struct Now<'t> {
     route_index: usize,
 }
 
-/// Step 1 of the tick (PROTOCOL §1): at a control boundary the selector picks
+/// Step 1 of the tick (docs/protocol.md §1): at a control boundary the selector picks
 /// the scale (and with it the latency in force), the camera renders the
 /// observation, the driver acts and its control enters the delay line. Holds
 /// what every boundary of a run reads, and the buffers it reuses.

@@ -130,12 +130,12 @@ pub enum LatencyModel {
     Measured,
 }
 
-/// The loop's clock and the controller's timing (PROTOCOL §1).
+/// The loop's clock and the controller's timing (docs/protocol.md §1).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TimingSpec {
     /// Physics tick (seconds): the world (vehicle model, physics, walkers)
-    /// advances this much a tick. Rules that PROTOCOL gives per tick (an NPC
+    /// advances this much a tick. Rules that docs/protocol.md gives per tick (an NPC
     /// stopped 40 ticks is respawned, a walker picks a new goal with
     /// p = 0.02 a tick) stay per tick.
     pub tick_s: f64,
@@ -333,7 +333,7 @@ pub enum SelectorKind {
     Learned,
 }
 
-/// When a run ends before the route does (PROTOCOL §3).
+/// When a run ends before the route does (docs/protocol.md §3).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TerminationSpec {

@@ -5,7 +5,7 @@
 //! knows it, how far the ego is past the last stop line it crossed). The scale
 //! returned applies from that boundary: the next observation is rendered at
 //! it, and the latency in force is the one the [`LatencyTable`] gives for it
-//! (PROTOCOL §1 and §7, Table III).
+//! (docs/protocol.md §1 and §7, Table III).
 
 /// What a selector sees at a control boundary.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

@@ -60,7 +60,7 @@ enum PolicyCommand {
         scales: Vec<f32>,
     },
     /// Re-estimate every BN branch's running statistics on frames rendered along scenarios
-    /// (PROTOCOL §6: 200 batches), each branch on frames drawn at its own scale.
+    /// (docs/protocol.md §6: 200 batches), each branch on frames drawn at its own scale.
     Recalibrate(super::recalibrate::RecalibrateArgs),
     /// The closed-loop table of one sweep folder per driver (`<SWEEPS>/<label>/`): per
     /// town, success, runs with a collision, red lights, lane crossings, route %.

@@ -1,4 +1,4 @@
-//! `mrdrive policy recalibrate`: BN recalibration (PROTOCOL §6) on frames
+//! `mrdrive policy recalibrate`: BN recalibration (docs/protocol.md §6) on frames
 //! rendered along scenarios (`policy::train::recalibrate_scenes`).
 
 use anyhow::Result;
@@ -21,7 +21,7 @@ pub struct RecalibrateArgs {
     /// Scenario files to collect frames along (driven by the expert; never the evaluation routes).
     #[arg(long = "scenario", required = true, num_args = 1..)]
     pub scenarios: Vec<PathBuf>,
-    /// Batches per branch (PROTOCOL §6: 200).
+    /// Batches per branch (docs/protocol.md §6: 200).
     #[arg(long, default_value_t = 200)]
     pub batches: usize,
     /// Frames per batch.

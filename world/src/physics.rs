@@ -40,7 +40,7 @@ use rapier3d::parry::shape::{Capsule, Cuboid, Shape};
 use rapier3d::prelude::*;
 use std::collections::BTreeMap;
 
-/// The default simulation step (seconds): 40 Hz (PROTOCOL §1). A run steps
+/// The default simulation step (seconds): 40 Hz (docs/protocol.md §1). A run steps
 /// by its scenario's `timing.tick_s` (see [`Physics::new`]).
 pub const DT_S: f32 = 0.025;
 /// Gap left between bodies when a sweep stops at a contact (metres).

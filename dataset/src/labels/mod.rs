@@ -1,6 +1,6 @@
 //! World-on-rails action values: `Q[command, speed bin, action]` for a frame,
 //! computed from mrdrive's own vehicle model and the recorded future of every
-//! other actor and light (WOR.md §2, PROTOCOL §5). `docs/labels.md` lists each
+//! other actor and light (WOR.md §2, docs/protocol.md §5). `docs/labels.md` lists each
 //! difference from WoR's code with its reason.
 //!
 //! For one frame: the ego's pose at t = 0 fixes a local grid ([`grid`]); the

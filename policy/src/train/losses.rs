@@ -1,4 +1,4 @@
-//! The training losses (PROTOCOL §4 and §6).
+//! The training losses (docs/protocol.md §4 and §6).
 
 use burn::prelude::*;
 use burn::tensor::activation::{log_softmax, softmax};

@@ -1,4 +1,4 @@
-//! The multi-resolution training step (PROTOCOL §6).
+//! The multi-resolution training step (docs/protocol.md §6).
 //!
 //! For each scale r in R: resize the micro-batch to r, activate BN branch r,
 //! forward, compute the loss; average the losses over R; one backward pass and

@@ -2,7 +2,7 @@
 //!
 //! For each scale, the branch's running mean/var are reset and then set to the
 //! cumulative average of the batch statistics over the batches given (momentum
-//! 1/(k+1) at batch k), with no parameter update (PROTOCOL §6: 200 batches).
+//! 1/(k+1) at batch k), with no parameter update (docs/protocol.md §6: 200 batches).
 
 use super::multires::Batch;
 use super::resize::resize_to_scale;

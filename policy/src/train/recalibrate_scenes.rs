@@ -1,4 +1,4 @@
-//! BN recalibration (PROTOCOL §6) on frames rendered along scenarios.
+//! BN recalibration (docs/protocol.md §6) on frames rendered along scenarios.
 //!
 //! The expert drives each scenario (with its traffic); every `every_s`
 //! seconds of simulated time the moment (ego pose, actors, light states) is
@@ -28,7 +28,7 @@ pub struct SceneRecalibration {
     pub scenarios: Vec<PathBuf>,
     /// Traffic given over each scenario's.
     pub overrides: Overrides,
-    /// Batches per branch (PROTOCOL §6: 200).
+    /// Batches per branch (docs/protocol.md §6: 200).
     pub batches: usize,
     /// Frames per batch.
     pub batch: usize,
@@ -68,7 +68,7 @@ pub struct Recalibrated {
 pub enum SceneRecalibrationError {
     /// Batches or batch size zero.
     #[error(
-        "--batches {batches} --batch {batch}: both must be at least 1 (PROTOCOL §6 uses 200 batches)"
+        "--batches {batches} --batch {batch}: both must be at least 1 (docs/protocol.md §6 uses 200 batches)"
     )]
     Sizes {
         /// Batches per branch asked for.

@@ -1,4 +1,4 @@
-//! Timeouts that end a run (PROTOCOL §3): stuck (standing still while
+//! Timeouts that end a run (docs/protocol.md §3): stuck (standing still while
 //! pressing the throttle, or after a collision), low speed for too long, and
 //! the route timeout.
 //!

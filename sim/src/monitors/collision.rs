@@ -1,4 +1,4 @@
-//! Collisions, counted as TimeParam counts them (PROTOCOL §3): each other
+//! Collisions, counted as TimeParam counts them (docs/protocol.md §3): each other
 //! actor at most once per run, no new collision within a cooldown of the last
 //! one counted, and none while the ego is (almost) standing still, since then
 //! the other party hit the ego.

@@ -1,7 +1,7 @@
 //! Infraction monitors: one file each, all reading the same per-tick facts
 //! ([`EgoTick`]) and the world's shared definitions (markings, stop lines,
 //! footprints), so a marking or a red-light crossing means one thing
-//! everywhere (PROTOCOL §3).
+//! everywhere (docs/protocol.md §3).
 //!
 //! | monitor | counts |
 //! | --- | --- |

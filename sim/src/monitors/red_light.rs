@@ -1,4 +1,4 @@
-//! Red-light infractions (PROTOCOL §3, CARLA's `RunningRedLightTest`): the
+//! Red-light infractions (docs/protocol.md §3, CARLA's `RunningRedLightTest`): the
 //! ego crosses, in its driving direction, the stop line of a light that is
 //! red, faster than 0.3 m/s. The point that must cross is the rule book's
 //! crossing point ([`world::rules::crossing`]: 0.8 half-lengths behind the

@@ -1,4 +1,4 @@
-//! Route completion, success and deviation (PROTOCOL §3, scenario_runner's
+//! Route completion, success and deviation (docs/protocol.md §3, scenario_runner's
 //! `RouteCompletionTest` and `InRouteTest`).
 //!
 //! Progress is the arc length of the dense route point the ego has reached:

@@ -1,5 +1,5 @@
 //! Leaderboard-1.0's driving score: route completion times a penalty factor
-//! per infraction (PROTOCOL §3), times the share of the route driven inside the
+//! per infraction (docs/protocol.md §3), times the share of the route driven inside the
 //! lanes (`OUTSIDE_ROUTE_LANES_INFRACTION`: `score_penalty *= 1 - percentage / 100`).
 
 use super::InfractionKind;

@@ -21,7 +21,7 @@ pub struct SemanticClass {
     pub wor: WorClass,
 }
 
-/// World-on-Rails' six segmentation classes (PROTOCOL §4).
+/// World-on-Rails' six segmentation classes (docs/protocol.md §4).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 #[repr(u8)]
 pub enum WorClass {

@@ -1,4 +1,4 @@
-//! World-on-Rails' camera rig (PROTOCOL §4): three cameras, 60 deg FOV,
+//! World-on-Rails' camera rig (docs/protocol.md §4): three cameras, 60 deg FOV,
 //! yaw -55/0/+55 deg (CARLA's clockwise yaw: left, centre, right), mounted at
 //! x = 1.5 m, z = 2.4 m on the ego, each 160 x 240 (w x h), stitched side by
 //! side to 480 x 240 and cropped by rows 0..47 to S0 = 480 x 192.

@@ -41,7 +41,7 @@ use rand_chacha::ChaCha8Rng;
 /// Parameters of the NPC driver.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NpcParams {
-    /// Minimum bumper-to-bumper gap to a leader at standstill (metres; PROTOCOL: 3.0).
+    /// Minimum bumper-to-bumper gap to a leader at standstill (metres; docs/protocol.md §2: 3.0).
     pub min_gap_m: f32,
     /// Desired time headway to a leader (seconds).
     pub time_headway_s: f32,
@@ -57,7 +57,7 @@ pub struct NpcParams {
     pub max_lateral_accel_mps2: f32,
     /// Fraction of the speed limit driven (1.0 = at the limit).
     pub speed_factor: f32,
-    /// Ticks stopped while wanting to move before a respawn (PROTOCOL: 40).
+    /// Ticks stopped while wanting to move before a respawn (docs/protocol.md §2: 40).
     pub stuck_ticks: u32,
     /// Extra half-width of the corridor in which actors count as ahead (metres).
     pub corridor_margin_m: f32,

@@ -6,7 +6,7 @@
 //! ends join the nearest sidewalk nodes) and "jaywalk" edges straight across
 //! the road between facing sidewalks. A walker heads for a random goal node
 //! (a bounded Dijkstra from where it is; a new goal with probability
-//! `regoal_p` per tick, PROTOCOL §2: 0.02) at its own speed (uniform in
+//! `regoal_p` per tick, docs/protocol.md §2: 0.02) at its own speed (uniform in
 //! 1.2-1.8 m/s). Only jaywalkers (a share `cross_factor` of the walkers, like
 //! CARLA's `set_pedestrians_cross_factor`) use jaywalk edges. Before stepping
 //! onto a crossing or jaywalk edge a walker waits while a vehicle moving

@@ -1,7 +1,7 @@
 //! A training stage on a dataset: the paper's four recipes, run in a folder that
 //! survives a kill.
 //!
-//! A stage is one of (PROTOCOL §4-§6, WOR.md §4-§5):
+//! A stage is one of (docs/protocol.md §4-§6, WOR.md §4-§5):
 //! - **original**: a single-resolution network (1.0x) from scratch, WoR's loss
 //!   (action KL with the command grouping + 0.05 segmentation), Adam 3e-4;
 //! - **nra-R**: the Original retargeted to the one scale R without BN banks: teacher
