@@ -10,8 +10,11 @@
 //! same bits (tested, kernel against kernel, on every machine that has them).
 //!
 //! Read in this order: [`gemm`] (the product and its promise), [`conv`] (inference's
-//! convolutions, reading the image in place), [`isa`] (which kernel this CPU runs).
+//! convolutions reading the image in place, and training's through im2col),
+//! [`batch_norm`] (training-mode BatchNorm), [`isa`] (which kernel this CPU runs).
+//! `policy` registers the training kernels with burn and runs inference on them.
 
+pub mod batch_norm;
 pub mod conv;
 pub mod gemm;
 pub mod isa;
