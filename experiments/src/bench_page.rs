@@ -266,8 +266,19 @@ pub fn write_page(exe: &Path, root: &Path, note: &dyn Fn(&str)) -> Result<String
         }
         None => md += "Not run: no Python with torch (set MRDRIVE_TORCH_PYTHON to one).\n",
     }
+    md += &comparisons(root);
     let _ = std::fs::remove_dir_all(&tmp);
     Ok(md)
+}
+
+/// `docs/bench-compare.md`, the measured comparisons of two builds side by side
+/// (`bench/compare.sh`), which no single build can make: kept on the page whenever it
+/// is remade, under its own heading. Empty when the file is missing.
+pub fn comparisons(root: &Path) -> String {
+    match std::fs::read_to_string(root.join("docs/bench-compare.md")) {
+        Ok(text) => format!("\n{}", text.trim_end()) + "\n",
+        Err(_) => String::new(),
+    }
 }
 
 /// The first number after `prefix` on the last line of `text` that starts
@@ -433,5 +444,18 @@ default: resnet18 half 32-256          0.75     180x72        0.283       5.19  
         assert!(m.output.contains("hi"));
         let e = measure(&dir, Path::new("/bin/sh"), &["-c".into(), "exit 4".into()]);
         assert!(e.err().unwrap().contains("exit 4"));
+    }
+
+    #[test]
+    fn the_comparisons_file_is_carried_onto_the_page() {
+        let root = tempfile::tempdir().unwrap();
+        assert_eq!(comparisons(root.path()), "");
+        std::fs::create_dir_all(root.path().join("docs")).unwrap();
+        std::fs::write(
+            root.path().join("docs/bench-compare.md"),
+            "## Before and after\n\n| a |\n\n",
+        )
+        .unwrap();
+        assert_eq!(comparisons(root.path()), "\n## Before and after\n\n| a |\n");
     }
 }
