@@ -277,6 +277,36 @@ fn each_selector_switches_as_its_scenario_says_past_a_light() {
     assert_eq!(latency(&budget), 50.0);
 }
 
+/// A policy whose control lands a tick or more after its frame computes beside the loop
+/// while the next frame renders (`sim::overlap`); a run with the log's recorder, which
+/// reads each control at its own tick, computes it in line. Both give the same record.
+#[test]
+fn a_policy_computed_beside_the_loop_gives_the_record_of_the_loop_in_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    // The shipped RA with the oracle selector: latency 50 ms at 0.75x, 100 ms at 1.0x.
+    let args = [
+        "scenarios/policy_oracle.toml",
+        "--vehicles",
+        "5",
+        "--pedestrians",
+        "10",
+        "--seed",
+        "3",
+        "--no-picture",
+    ];
+    let beside = run_json(&args, &tmp.path().join("beside.json"));
+    let log = tmp.path().join("in_line.mcap");
+    let mut in_line_args = args.to_vec();
+    in_line_args.extend(["--record", log.to_str().unwrap(), "--no-images"]);
+    let in_line = run_json(&in_line_args, &tmp.path().join("in_line.json"));
+    assert_eq!(
+        beside["result"], in_line["result"],
+        "computing the control beside the loop changed the run"
+    );
+    assert!(beside["result"]["ticks"].as_u64().unwrap() > 400);
+    assert!(beside["result"]["max_latency_ms"].as_f64().unwrap() >= 50.0);
+}
+
 #[test]
 fn a_policy_checkpoint_drives_a_scenario_through_its_camera() {
     let tmp = tempfile::tempdir().unwrap();

@@ -114,10 +114,24 @@ impl DelayLine {
 
     /// Hands in the control computed at boundary `tick`.
     pub fn submit(&mut self, tick: u64, control: VehicleControl) {
+        let landing = self.defer(tick);
+        self.fulfil(landing, control);
+    }
+
+    /// Passes boundary `tick` whose control is still being computed: the next
+    /// boundary is set, and the tick at which the control will land is returned, for
+    /// [`DelayLine::fulfil`]. [`DelayLine::submit`] is the two at once.
+    pub fn defer(&mut self, tick: u64) -> u64 {
         let period = u64::from(self.timing.period_ticks.max(1));
-        self.in_flight
-            .push((tick + u64::from(self.timing.latency_ticks), control));
         self.next_boundary = tick + period;
+        tick + u64::from(self.timing.latency_ticks)
+    }
+
+    /// Hands in a deferred control, landing at `landing` ([`DelayLine::defer`]'s
+    /// answer). Deferred controls are handed in in the order of their boundaries, each
+    /// before [`DelayLine::control_for_step`] of its landing tick.
+    pub fn fulfil(&mut self, landing: u64, control: VehicleControl) {
+        self.in_flight.push((landing, control));
     }
 
     /// The control in force during the step `tick -> tick + 1`. Call once per
@@ -176,6 +190,43 @@ mod tests {
                 (c.brake == 1.0).then_some(c.throttle as u64)
             })
             .collect()
+    }
+
+    /// A control handed in late, after its boundary was passed with `defer` but before
+    /// its landing tick, gives the timeline of `submit` at the boundary (what the loop
+    /// relies on when the policy computes beside it).
+    #[test]
+    fn a_deferred_control_fulfilled_before_it_lands_is_a_submitted_one() {
+        for delay_ms in [25.0, 50.0, 100.0, 150.0] {
+            let timing = DelayTiming::time_param(delay_ms, DT);
+            let mut submitted = DelayLine::new(timing);
+            let mut deferred = DelayLine::new(timing);
+            let mut owed: Option<(u64, VehicleControl)> = None;
+            for t in 0..40 {
+                let c = VehicleControl {
+                    brake: 1.0,
+                    ..stamped(t)
+                };
+                if submitted.is_boundary(t) {
+                    submitted.submit(t, c);
+                }
+                if deferred.is_boundary(t) {
+                    if let Some((landing, c)) = owed.take() {
+                        deferred.fulfil(landing, c);
+                    }
+                    owed = Some((deferred.defer(t), c));
+                }
+                if let Some((landing, c)) = owed.filter(|(landing, _)| *landing <= t) {
+                    deferred.fulfil(landing, c);
+                    owed = None;
+                }
+                assert_eq!(
+                    submitted.control_for_step(t),
+                    deferred.control_for_step(t),
+                    "D = {delay_ms} ms, tick {t}"
+                );
+            }
+        }
     }
 
     #[test]

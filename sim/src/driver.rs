@@ -78,7 +78,7 @@ pub struct DriverNeeds {
 
 /// Anything that turns observations into controls: the expert, a CNN policy,
 /// a replay of recorded controls.
-pub trait Driver {
+pub trait Driver: Send {
     /// A short name for result records and logs.
     fn name(&self) -> String;
     /// What the loop must provide.

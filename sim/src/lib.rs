@@ -17,6 +17,7 @@ pub mod expert;
 pub mod moment;
 pub mod monitors;
 pub mod observe;
+mod overlap;
 pub mod picture;
 pub mod record;
 pub mod recorder;

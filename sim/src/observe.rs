@@ -75,6 +75,14 @@ pub trait RunObserver {
         view: &TickView<'_>,
         camera: Option<&mut dyn Camera>,
     ) -> Result<(), RunError>;
+
+    /// Whether it reads [`TickView::computed`]. Only then must the loop have each
+    /// boundary's control at the boundary's own tick; otherwise a driver that needs
+    /// only the camera may compute it beside the loop (`crate::overlap`). Say `false`
+    /// only for an observer that never looks at `computed`.
+    fn reads_computed(&self) -> bool {
+        true
+    }
 }
 
 /// The world at one tick: every actor (ego first) and every light's state.
@@ -179,6 +187,9 @@ impl<F: FnMut(&RunProgress)> RunObserver for Progress<F> {
         }
         Ok(())
     }
+    fn reads_computed(&self) -> bool {
+        false
+    }
 }
 
 /// Renders the rig at every camera tick even when nothing consumes the
@@ -197,6 +208,9 @@ impl RunObserver for RenderEveryFrame {
                 .map_err(RunError::Camera)?;
         }
         Ok(())
+    }
+    fn reads_computed(&self) -> bool {
+        false
     }
 }
 

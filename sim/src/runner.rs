@@ -42,6 +42,7 @@ use crate::monitors::{
     ContactKind, EgoContact, EgoPose, EgoTick, Infraction, InfractionKind, Monitors,
 };
 use crate::observe::{RunObserver, TickView, TimedCamera};
+use crate::overlap::{Overlap, Seen};
 use crate::record::{
     Provenance, RealisedTraffic, RunPerf, RunRecord, RunResult, RunSettings, count_by_kind,
 };
@@ -427,6 +428,54 @@ struct Boundary<'r> {
 }
 
 impl Boundary<'_> {
+    /// The selector's scale at `now` (given the driver's `hint`), put in force with its
+    /// latency and counted.
+    fn select(
+        &self,
+        now: &Now<'_>,
+        selector: &mut dyn ResolutionSelector,
+        hint: Option<f32>,
+        controls: &mut Controls,
+    ) -> f64 {
+        let input = selector_input(self.route, now.route_index, now.ego, self.stops, hint);
+        let new_scale = f64::from(selector.select(&input));
+        controls.retime(self.scenario, new_scale);
+        *controls
+            .scale_counts
+            .entry(controls.scale.to_bits())
+            .or_default() += 1;
+        controls.scale
+    }
+
+    /// Runs the boundary at `now` for a driver that needs only the camera, the control
+    /// computed beside the loop where it lands later (`crate::overlap`): the same
+    /// scale, image and control as [`Boundary::act`].
+    fn act_beside<'scope, 'd: 'scope>(
+        &mut self,
+        now: &Now<'_>,
+        selector: &mut dyn ResolutionSelector,
+        camera: &mut TimedCamera<'_>,
+        lanes: &mut Overlap<'scope, '_, 'd>,
+        controls: &mut Controls,
+        driver_s: &mut f64,
+    ) -> Result<(), RunError> {
+        let scale = self.select(now, selector, None, controls);
+        let frame = CameraFrame {
+            ego: now.ego,
+            actors: now.actors,
+            lights: &now.world.light_states,
+        };
+        let image = camera.render(&frame, scale).map_err(RunError::Camera)?;
+        let seen = Seen {
+            time_s: now.tick as f64 * self.scenario.timing.tick_s,
+            speed_mps: now.ego.speed_mps,
+            command: self.route.command_ahead(now.route_index, 0.0),
+            scale: scale as f32,
+        };
+        lanes.act(now.tick, image, seen, &mut controls.delay, driver_s);
+        Ok(())
+    }
+
     /// Runs the boundary at `now`; returns the control computed (it lands
     /// after the latency in force) and adds the driver's time to `driver_s`.
     fn act(
@@ -438,17 +487,7 @@ impl Boundary<'_> {
         controls: &mut Controls,
         driver_s: &mut f64,
     ) -> Result<VehicleControl, RunError> {
-        let input = selector_input(
-            self.route,
-            now.route_index,
-            now.ego,
-            self.stops,
-            driver.scale_hint(),
-        );
-        let new_scale = f64::from(selector.select(&input));
-        controls.retime(self.scenario, new_scale);
-        let scale = controls.scale;
-        *controls.scale_counts.entry(scale.to_bits()).or_default() += 1;
+        let scale = self.select(now, selector, driver.scale_hint(), controls);
         let mut labelled = false;
         let image = match camera {
             Some(cam) if self.needs.camera => {
@@ -618,119 +657,151 @@ pub fn run(
     let mut tick: u64 = 0;
     let trace_every = ((crate::record::TRACE_EVERY_S / tick_s).round() as u64).max(1);
     let mut trace: Vec<[f64; 4]> = Vec::new();
+    // The driver acts beside the loop where nothing waits for its answer (crate::overlap).
+    let beside = needs
+        == (crate::driver::DriverNeeds {
+            camera: true,
+            privileged: false,
+            labels: false,
+        })
+        && driver.trigger().is_none()
+        && scenario.timing.latency == LatencyModel::Fixed
+        && observers.iter().all(|o| !o.reads_computed());
 
-    while tick < max_ticks {
-        world.traffic.snapshots(&mut snapshots);
-        let ego = *snapshots
-            .first()
-            .ok_or_else(|| RunError::Setup("the ego was not spawned".into()))?;
-        let route_index = monitors.route.index();
-
-        // 1. A control boundary: the scale, the observation, the control.
-        let computed = if controls.delay.is_boundary(tick) {
-            let now = Now {
-                tick,
-                world: &world,
-                ego: &ego,
-                actors: &snapshots,
-                route_index,
-            };
-            Some(boundary.act(
-                &now,
-                &mut *selector,
-                camera.as_mut(),
-                &mut *driver,
-                &mut controls,
-                &mut perf.driver_s,
-            )?)
-        } else {
-            None
-        };
-
-        // 2. The control in force for this step drives the ego.
-        let control: VehicleControl = controls.delay.control_for_step(tick);
-        world.traffic.set_ego_control(control);
-
-        // 3. NPCs, pedestrians and physics.
-        let prev = EgoPose::from(&ego);
-        let started = Instant::now();
-        world.step(&mut contacts);
-        perf.traffic_s += started.elapsed().as_secs_f64();
-        tick += 1;
-
-        // 4. The monitors count.
-        let started = Instant::now();
-        let render_before = camera.as_ref().map_or(0.0, |c| c.spent_s);
-        let e = world
-            .traffic
-            .ego()
-            .ok_or_else(|| RunError::Setup("the ego vanished".into()))?;
-        let now = EgoPose {
-            position: e.state.position.extend(e.z),
-            heading: e.state.yaw,
-        };
-        let ego_tick = EgoTick {
-            tick,
-            time_s: tick as f64 * tick_s,
-            prev,
-            now,
-            speed_mps: e.state.speed_mps,
-            size_m: (vehicle.length_m, vehicle.width_m),
-            throttle: control.throttle,
-            contacts: &contacts,
-            lights: &world.light_states,
-            dt_s: tick_s,
-        };
-        if tick.is_multiple_of(trace_every) {
-            trace.push(crate::record::trace_point(
-                ego_tick.time_s,
-                now.ground().to_array(),
-                controls.scale,
-            ));
-        }
-        new_infractions.clear();
-        monitors.observe(&ego_tick, &mut new_infractions);
-        if let Some(end) = new_infractions.iter().find(|i| i.kind.terminates()) {
-            termination = Some(end.kind);
-        }
-
-        // 5. The observers watch.
-        if !observers.is_empty() {
+    std::thread::scope(|scope| -> Result<(), RunError> {
+        let mut lanes = Overlap::new(scope, &mut *driver);
+        while tick < max_ticks {
             world.traffic.snapshots(&mut snapshots);
+            let ego = *snapshots
+                .first()
+                .ok_or_else(|| RunError::Setup("the ego was not spawned".into()))?;
             let route_index = monitors.route.index();
-            let view = TickView {
+
+            // 1. A control boundary: the scale, the observation, the control.
+            let computed = if controls.delay.is_boundary(tick) {
+                let now = Now {
+                    tick,
+                    world: &world,
+                    ego: &ego,
+                    actors: &snapshots,
+                    route_index,
+                };
+                match (beside, camera.as_mut()) {
+                    (true, Some(camera)) => {
+                        boundary.act_beside(
+                            &now,
+                            &mut *selector,
+                            camera,
+                            &mut lanes,
+                            &mut controls,
+                            &mut perf.driver_s,
+                        )?;
+                        None
+                    }
+                    _ => {
+                        let driver = lanes.driver(&mut controls.delay, &mut perf.driver_s);
+                        Some(boundary.act(
+                            &now,
+                            &mut *selector,
+                            camera.as_mut(),
+                            driver,
+                            &mut controls,
+                            &mut perf.driver_s,
+                        )?)
+                    }
+                }
+            } else {
+                None
+            };
+            lanes.settle(tick, &mut controls.delay, &mut perf.driver_s);
+
+            // 2. The control in force for this step drives the ego.
+            let control: VehicleControl = controls.delay.control_for_step(tick);
+            world.traffic.set_ego_control(control);
+
+            // 3. NPCs, pedestrians and physics.
+            let prev = EgoPose::from(&ego);
+            let started = Instant::now();
+            world.step(&mut contacts);
+            perf.traffic_s += started.elapsed().as_secs_f64();
+            tick += 1;
+
+            // 4. The monitors count.
+            let started = Instant::now();
+            let render_before = camera.as_ref().map_or(0.0, |c| c.spent_s);
+            let e = world
+                .traffic
+                .ego()
+                .ok_or_else(|| RunError::Setup("the ego vanished".into()))?;
+            let now = EgoPose {
+                position: e.state.position.extend(e.z),
+                heading: e.state.yaw,
+            };
+            let ego_tick = EgoTick {
                 tick,
                 time_s: tick as f64 * tick_s,
-                camera_frame: tick.is_multiple_of(ticks_per_frame),
-                town: &town,
-                route,
-                route_index,
-                route_s: route_s_at(route, route_index, now.ground()),
-                command: route.command_ahead(route_index, 0.0),
-                completion_pct: monitors.route.completion_pct(),
-                actors: &snapshots,
+                prev,
+                now,
+                speed_mps: e.state.speed_mps,
+                size_m: (vehicle.length_m, vehicle.width_m),
+                throttle: control.throttle,
+                contacts: &contacts,
                 lights: &world.light_states,
-                scale: controls.scale,
-                latency_ms: controls.latency_ms,
-                control,
-                computed,
-                infractions: &new_infractions,
+                dt_s: tick_s,
             };
-            for o in observers.iter_mut() {
-                o.on_tick(&view, camera.as_mut().map(|c| c as &mut dyn Camera))?;
+            if tick.is_multiple_of(trace_every) {
+                trace.push(crate::record::trace_point(
+                    ego_tick.time_s,
+                    now.ground().to_array(),
+                    controls.scale,
+                ));
+            }
+            new_infractions.clear();
+            monitors.observe(&ego_tick, &mut new_infractions);
+            if let Some(end) = new_infractions.iter().find(|i| i.kind.terminates()) {
+                termination = Some(end.kind);
+            }
+
+            // 5. The observers watch.
+            if !observers.is_empty() {
+                world.traffic.snapshots(&mut snapshots);
+                let route_index = monitors.route.index();
+                let view = TickView {
+                    tick,
+                    time_s: tick as f64 * tick_s,
+                    camera_frame: tick.is_multiple_of(ticks_per_frame),
+                    town: &town,
+                    route,
+                    route_index,
+                    route_s: route_s_at(route, route_index, now.ground()),
+                    command: route.command_ahead(route_index, 0.0),
+                    completion_pct: monitors.route.completion_pct(),
+                    actors: &snapshots,
+                    lights: &world.light_states,
+                    scale: controls.scale,
+                    latency_ms: controls.latency_ms,
+                    control,
+                    computed,
+                    infractions: &new_infractions,
+                };
+                for o in observers.iter_mut() {
+                    o.on_tick(&view, camera.as_mut().map(|c| c as &mut dyn Camera))?;
+                }
+            }
+            infractions.append(&mut new_infractions);
+            let render_in_observers = camera.as_ref().map_or(0.0, |c| c.spent_s) - render_before;
+            perf.other_s += started.elapsed().as_secs_f64() - render_in_observers;
+
+            // 6. The lights advance.
+            world.step_lights(tick_s);
+
+            if termination.is_some() || monitors.route.succeeded(now.ground()) {
+                break;
             }
         }
-        infractions.append(&mut new_infractions);
-        let render_in_observers = camera.as_ref().map_or(0.0, |c| c.spent_s) - render_before;
-        perf.other_s += started.elapsed().as_secs_f64() - render_in_observers;
-
-        // 6. The lights advance.
-        world.step_lights(tick_s);
-
-        if termination.is_some() || monitors.route.succeeded(now.ground()) {
-            break;
-        }
-    }
+        lanes.join(&mut controls.delay, &mut perf.driver_s);
+        Ok(())
+    })?;
 
     monitors.finish(&mut infractions);
     let final_position = world.traffic.ego().map_or(Vec2::ZERO, |e| e.state.position);
