@@ -12,6 +12,9 @@
 //! `policy::conv` registers these with burn (its backend extension) and tests them against
 //! burn's own convolutions.
 
+use crate::gemm::micro::{GatherLhs, GatherRhs, PackedLhs, Panel, Tile};
+use crate::gemm::{KC, MR, NR, kernel_on};
+use crate::isa::Isa;
 use crate::{Mat, gemm as matmul};
 use rayon::prelude::*;
 use std::cell::RefCell;
@@ -90,6 +93,12 @@ impl Geometry {
         MIN_COLS
             .div_ceil(self.p().max(1))
             .clamp(1, self.batch.max(1))
+    }
+
+    /// Whether [`forward`] reads the (padded) input in place instead of building a column
+    /// matrix: stride 1, and output rows at least half a 32-pixel panel wide.
+    fn in_place(&self) -> bool {
+        self.stride == [1, 1] && !self.direct() && self.ow >= NR / 2
     }
 
     /// Whether the input itself is the column matrix (a 1x1 kernel, stride 1, no padding).
@@ -234,6 +243,18 @@ pub fn forward(x: &[f32], w: &[f32], g: &Geometry) -> Vec<f32> {
     if out.is_empty() {
         return out;
     }
+    if g.in_place() {
+        let weights = pack_rows(w, g.cout, k);
+        out.par_chunks_mut(g.cout * p)
+            .enumerate()
+            .for_each(|(b, chunk)| {
+                SCRATCH.with_borrow_mut(|(padded, _)| {
+                    let offsets = pad_sample(x, g, b, padded);
+                    forward_in_place(padded, &offsets, &weights, g, chunk);
+                });
+            });
+        return out;
+    }
     out.par_chunks_mut(per * g.cout * p)
         .enumerate()
         .for_each(|(i, chunk)| {
@@ -264,6 +285,175 @@ pub fn forward(x: &[f32], w: &[f32], g: &Geometry) -> Vec<f32> {
             });
         });
     out
+}
+
+/// `w [rows, k]` (row-major) packed in panels of [`MR`] rows, each `k` deep:
+/// `packed[(panel * k + kk) * MR + i]`, rows past the last zero.
+fn pack_rows(w: &[f32], rows: usize, k: usize) -> Vec<f32> {
+    let mut packed = vec![0.0; rows.div_ceil(MR) * MR * k];
+    for r in 0..rows {
+        let (panel, i) = (r / MR, r % MR);
+        for (kk, &v) in w[r * k..][..k].iter().enumerate() {
+            packed[(panel * k + kk) * MR + i] = v;
+        }
+    }
+    packed
+}
+
+/// Sample `b` of `x`, zero-padded by the geometry's padding into `buf` (planes of
+/// `(h + 2 ph) x (w + 2 pw)`, then [`NR`] floats of slack: a panel row near the end of
+/// the last row reads past it, into lanes that are dropped). Returns the offset of
+/// each inner index `(c, ky, kx)` from an output pixel's window in the padded planes.
+fn pad_sample(x: &[f32], g: &Geometry, b: usize, buf: &mut Vec<f32>) -> Vec<u32> {
+    let (hp, wp) = (g.h + 2 * g.pad[0], g.w + 2 * g.pad[1]);
+    let plane = hp * wp;
+    buf.clear();
+    buf.resize(g.cin * plane + NR, 0.0);
+    for c in 0..g.cin {
+        let src = &x[(b * g.cin + c) * g.h * g.w..][..g.h * g.w];
+        for y in 0..g.h {
+            let at = c * plane + (y + g.pad[0]) * wp + g.pad[1];
+            buf[at..at + g.w].copy_from_slice(&src[y * g.w..][..g.w]);
+        }
+    }
+    (0..g.cin)
+        .flat_map(|c| (0..g.kh).flat_map(move |ky| (0..g.kw).map(move |kx| (c, ky, kx))))
+        .map(|(c, ky, kx)| (c * plane + ky * wp + kx) as u32)
+        .collect()
+}
+
+/// One sample of [`forward`] for a stride-1 convolution, reading its padded input in
+/// place: each output row is cut into runs of [`NR`] pixels, and tap `(c, ky, kx)` of a
+/// run is [`NR`] consecutive floats of the padded plane. Each output is the chain over
+/// the inner index in the order of the column matrix's rows, so the bits are those of
+/// im2col and [`gemm`](crate::gemm) (tested).
+fn forward_in_place(
+    padded: &[f32],
+    offsets: &[u32],
+    weights: &[f32],
+    g: &Geometry,
+    out: &mut [f32],
+) {
+    let (k, p) = (g.k(), g.p());
+    let wp = g.w + 2 * g.pad[1];
+    let isa = Isa::current();
+    let mut edge = [0.0f32; MR * NR];
+    for pc in (0..k).step_by(KC) {
+        let kc = KC.min(k - pc);
+        let load = pc > 0;
+        for oy in 0..g.oh {
+            for ox0 in (0..g.ow).step_by(NR) {
+                let width = NR.min(g.ow - ox0);
+                let b = GatherRhs {
+                    x: padded.as_ptr(),
+                    base: oy * wp + ox0,
+                    offsets: offsets[pc..].as_ptr(),
+                };
+                for panel in 0..g.cout.div_ceil(MR) {
+                    let (r0, rows) = (panel * MR, MR.min(g.cout - panel * MR));
+                    let a = PackedLhs(weights[(panel * k + pc) * MR..][..kc * MR].as_ptr());
+                    let at = r0 * p + oy * g.ow + ox0;
+                    if rows == MR && width == NR {
+                        let tile = Tile {
+                            c: out[at..].as_mut_ptr(),
+                            ldc: p,
+                        };
+                        // SAFETY: the panel holds kc * MR packed floats; every gathered
+                        // row is NR floats inside `padded` (its slack covers the last
+                        // row's overrun); the tile's MR rows of NR floats, P apart, end at
+                        // (r0 + MR - 1) * P + (oh - 1) * ow + ow <= cout * P.
+                        unsafe { kernel_on(isa, kc, &a, &b, &tile, load) };
+                    } else {
+                        for i in 0..rows {
+                            edge[i * NR..][..width].copy_from_slice(&out[at + i * p..][..width]);
+                        }
+                        let tile = Tile {
+                            c: edge.as_mut_ptr(),
+                            ldc: NR,
+                        };
+                        // SAFETY: as above, into the MR x NR edge tile.
+                        unsafe { kernel_on(isa, kc, &a, &b, &tile, load) };
+                        for i in 0..rows {
+                            out[at + i * p..][..width].copy_from_slice(&edge[i * NR..][..width]);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Samples `samples` of [`weight_grad`] for a stride-1 convolution, added to
+/// `dwt [K, cout]`, reading the padded input in place: row `(c, ky, kx)` of the column
+/// matrix at pixel `px` is the padded plane at the tap's offset plus the pixel's window.
+/// The chain runs over the samples and their pixels in order, as over the column
+/// matrix's columns, so the bits are the column matrix's (tested).
+fn weight_grad_in_place(
+    x: &[f32],
+    dy: &[f32],
+    g: &Geometry,
+    samples: std::ops::Range<usize>,
+    dwt: &mut [f32],
+    padded: &mut Vec<f32>,
+    packed: &mut Vec<f32>,
+) {
+    let (k, p) = (g.k(), g.p());
+    let wp = g.w + 2 * g.pad[1];
+    let windows: Vec<u32> = (0..p)
+        .map(|px| ((px / g.ow) * wp + px % g.ow) as u32)
+        .collect();
+    let isa = Isa::current();
+    let mut edge = [0.0f32; MR * NR];
+    packed.resize(KC * NR, 0.0);
+    for b in samples {
+        let offsets = pad_sample(x, g, b, padded);
+        let dyb = Mat::transposed(&dy[b * g.cout * p..][..g.cout * p], p);
+        for pc in (0..p).step_by(KC) {
+            let kc = KC.min(p - pc);
+            for c0 in (0..g.cout).step_by(NR) {
+                let width = NR.min(g.cout - c0);
+                crate::gemm::pack::rhs_panel(dyb, pc..pc + kc, c0..c0 + width, packed);
+                let panel = Panel {
+                    b: packed.as_ptr(),
+                    ldb: NR,
+                };
+                for r0 in (0..k).step_by(MR) {
+                    let rows = MR.min(k - r0);
+                    let a = GatherLhs {
+                        x: padded.as_ptr(),
+                        rows: std::array::from_fn(|i| offsets[r0 + i.min(rows - 1)] as usize),
+                        offsets: windows[pc..].as_ptr(),
+                    };
+                    let at = r0 * g.cout + c0;
+                    if rows == MR && width == NR {
+                        let tile = Tile {
+                            c: dwt[at..].as_mut_ptr(),
+                            ldc: g.cout,
+                        };
+                        // SAFETY: every tap offset plus every window lies in the padded
+                        // planes; the packed panel holds kc rows of NR; the tile's MR rows
+                        // of NR, cout apart, end inside `dwt` (K x cout).
+                        unsafe { kernel_on(isa, kc, &a, &panel, &tile, true) };
+                    } else {
+                        for i in 0..rows {
+                            edge[i * NR..][..width]
+                                .copy_from_slice(&dwt[at + i * g.cout..][..width]);
+                        }
+                        let tile = Tile {
+                            c: edge.as_mut_ptr(),
+                            ldc: NR,
+                        };
+                        // SAFETY: as above, into the MR x NR edge tile.
+                        unsafe { kernel_on(isa, kc, &a, &panel, &tile, true) };
+                        for i in 0..rows {
+                            dwt[at + i * g.cout..][..width]
+                                .copy_from_slice(&edge[i * NR..][..width]);
+                        }
+                    }
+                }
+            }
+        }
+    }
 }
 
 /// This group's slice of `dy` as `[cout, n * P]`: a view when the group is one sample,
@@ -356,6 +546,10 @@ pub fn weight_grad(x: &[f32], dy: &[f32], g: &Geometry) -> Vec<f32> {
             let last = ((l + 1) * groups / lanes * per).min(g.batch);
             let mut dwt = vec![0.0; k * g.cout];
             SCRATCH.with_borrow_mut(|(col, tmp)| {
+                if g.in_place() {
+                    weight_grad_in_place(x, dy, g, first..last, &mut dwt, col, tmp);
+                    return;
+                }
                 for b0 in (first..last).step_by(per) {
                     let n = per.min(last - b0);
                     let cols = n * p;
@@ -401,4 +595,108 @@ pub fn backward(
         want_dx.then(|| input_grad(w, dy, g)),
         want_dw.then(|| weight_grad(x, dy, g)),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gemm::tests::noise;
+
+    /// The column-matrix forward of one sample: im2col, then the product.
+    fn through_columns(x: &[f32], w: &[f32], g: &Geometry, b: usize) -> Vec<f32> {
+        let (k, p) = (g.k(), g.p());
+        let mut col = vec![0.0; k * p];
+        im2col(x, g, b, 1, &mut col);
+        let mut y = vec![f32::NAN; g.cout * p];
+        matmul(
+            &mut y,
+            (g.cout, k, p),
+            Mat::rows(w, k),
+            Mat::rows(&col, p),
+            false,
+        );
+        y
+    }
+
+    /// The weight gradient read in place gives the column matrix's bits: the sum over
+    /// the batch of `col_b x dy_b^T`, one chain over samples and pixels.
+    #[test]
+    fn the_weight_gradient_read_in_place_gives_the_column_matrix_bits() {
+        for (case, (batch, cin, h, w, cout, k, pad)) in [
+            (1, 32, 12, 30, 32, 3, 1),
+            (2, 9, 7, 20, 40, 3, 1),
+            (1, 3, 6, 18, 8, 3, 0),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let g =
+                Geometry::new([batch, cin, h, w], [cout, cin, k, k], [1, 1], [pad, pad]).unwrap();
+            assert!(g.in_place());
+            let x = noise(batch * cin * h * w, 41 + case as u32);
+            let dy = noise(batch * cout * g.p(), 51 + case as u32);
+            let got = weight_grad(&x, &dy, &g);
+            // The column matrix's way, one sample after another in one lane.
+            let (kd, p) = (g.k(), g.p());
+            let mut dwt = vec![0.0; kd * cout];
+            for b in 0..batch {
+                let mut col = vec![0.0; kd * p];
+                im2col(&x, &g, b, 1, &mut col);
+                let dyb = &dy[b * cout * p..][..cout * p];
+                matmul(
+                    &mut dwt,
+                    (kd, p, cout),
+                    Mat::rows(&col, p),
+                    Mat::transposed(dyb, p),
+                    true,
+                );
+            }
+            // One lane here (the batch is one group); with several, lanes add their
+            // parts at the end (the policy fingerprint covers that).
+            assert_eq!(LANES.min(batch.div_ceil(g.group())), 1, "case {case}");
+            for q in 0..kd {
+                for o in 0..cout {
+                    assert_eq!(
+                        got[o * kd + q].to_bits(),
+                        dwt[q * cout + o].to_bits(),
+                        "case {case}: dW[{o}, {q}]"
+                    );
+                }
+            }
+        }
+    }
+
+    /// A stride-1 convolution read in place gives the column matrix's bits: the
+    /// network's 3x3 layers at both scales' widths, a row of exactly one panel, rows cut
+    /// short, more than one depth block, channels not a multiple of a panel, a 5x5 kernel.
+    #[test]
+    fn reading_the_input_in_place_gives_the_column_matrix_bits() {
+        // batch, cin, h, w, cout, k, pad
+        let cases = [
+            (2, 32, 24, 60, 32, 3, 1),
+            (1, 32, 18, 45, 32, 3, 1),
+            (1, 64, 12, 30, 64, 3, 1),
+            (1, 9, 7, 32, 40, 3, 1),
+            (2, 16, 10, 33, 12, 5, 2),
+            (1, 3, 6, 18, 8, 3, 0),
+        ];
+        for (case, (batch, cin, h, w, cout, k, pad)) in cases.into_iter().enumerate() {
+            let g =
+                Geometry::new([batch, cin, h, w], [cout, cin, k, k], [1, 1], [pad, pad]).unwrap();
+            assert!(g.in_place(), "case {case} should read in place");
+            let x = noise(batch * cin * h * w, 21 + case as u32);
+            let wt = noise(cout * g.k(), 31 + case as u32);
+            let y = forward(&x, &wt, &g);
+            for b in 0..batch {
+                let want = through_columns(&x, &wt, &g, b);
+                let got = &y[b * cout * g.p()..][..cout * g.p()];
+                if let Some(i) = (0..want.len()).find(|&i| got[i].to_bits() != want[i].to_bits()) {
+                    panic!(
+                        "case {case}, sample {b}, value {i}: {} against {}",
+                        got[i], want[i]
+                    );
+                }
+            }
+        }
+    }
 }

@@ -15,11 +15,46 @@ pub(crate) struct Tile {
     pub ldc: usize,
 }
 
+/// How a kernel reads its right operand: row `kk`'s `NR` consecutive floats.
+pub(crate) trait Rhs {
+    /// Where row `kk < kc` starts.
+    ///
+    /// # Safety
+    /// `kk` is inside the rows the caller handed over.
+    unsafe fn row(&self, kk: usize) -> *const f32;
+}
+
 /// The right operand's panel: `kc` rows of `NR` floats, `ldb` floats apart (`NR` when
 /// packed; the matrix's row stride when read in place).
 pub(crate) struct Panel {
     pub b: *const f32,
     pub ldb: usize,
+}
+
+impl Rhs for Panel {
+    #[inline(always)]
+    unsafe fn row(&self, kk: usize) -> *const f32 {
+        // SAFETY: the caller's panel holds kc rows, ldb apart.
+        unsafe { self.b.add(kk * self.ldb) }
+    }
+}
+
+/// Rows gathered in place from an image: row `kk` is `NR` floats from
+/// `x[base + offsets[kk]]` (a convolution's tap `kk` under `NR` neighbouring output
+/// pixels of one row, stride 1).
+pub(crate) struct GatherRhs {
+    pub x: *const f32,
+    pub base: usize,
+    pub offsets: *const u32,
+}
+
+impl Rhs for GatherRhs {
+    #[inline(always)]
+    unsafe fn row(&self, kk: usize) -> *const f32 {
+        // SAFETY: the caller's offsets hold kc entries, each NR floats inside the image
+        // from `base`.
+        unsafe { self.x.add(self.base + *self.offsets.add(kk) as usize) }
+    }
 }
 
 /// How a kernel reads its `MR` rows of the left operand: element `(i, kk)`.
@@ -78,7 +113,7 @@ impl Lhs for GatherLhs {
 /// # Safety
 /// `a` reads `MR` rows of `kc` elements, the panel's `kc` rows of `NR` floats and the
 /// tile's `MR` rows of `NR` floats each lie inside one allocation.
-pub(crate) unsafe fn scalar<A: Lhs>(kc: usize, a: &A, p: &Panel, t: &Tile, load: bool) {
+pub(crate) unsafe fn scalar<A: Lhs, B: Rhs>(kc: usize, a: &A, p: &B, t: &Tile, load: bool) {
     let mut acc = [[0.0f32; NR]; MR];
     if load {
         for (i, row) in acc.iter_mut().enumerate() {
@@ -90,7 +125,7 @@ pub(crate) unsafe fn scalar<A: Lhs>(kc: usize, a: &A, p: &Panel, t: &Tile, load:
     }
     for kk in 0..kc {
         // SAFETY: kk < kc, so the panel row lies inside the panel.
-        let bk = unsafe { p.b.add(kk * p.ldb) };
+        let bk = unsafe { p.row(kk) };
         for (i, row) in acc.iter_mut().enumerate() {
             // SAFETY: i < MR, kk < kc.
             let ai = unsafe { a.at(i, kk) };
@@ -114,7 +149,7 @@ pub(crate) unsafe fn scalar<A: Lhs>(kc: usize, a: &A, p: &Panel, t: &Tile, load:
 /// As [`scalar`], on a CPU with AVX-512F.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-pub(crate) unsafe fn avx512<A: Lhs>(kc: usize, a: &A, p: &Panel, t: &Tile, load: bool) {
+pub(crate) unsafe fn avx512<A: Lhs, B: Rhs>(kc: usize, a: &A, p: &B, t: &Tile, load: bool) {
     use std::arch::x86_64::*;
     const _: () = assert!(MR == 8 && NR == 32);
     // SAFETY: every pointer below stays inside the caller's panels and tile.
@@ -127,8 +162,9 @@ pub(crate) unsafe fn avx512<A: Lhs>(kc: usize, a: &A, p: &Panel, t: &Tile, load:
             }
         }
         for kk in 0..kc {
-            let b0 = _mm512_loadu_ps(p.b.add(kk * p.ldb));
-            let b1 = _mm512_loadu_ps(p.b.add(kk * p.ldb + 16));
+            let bk = p.row(kk);
+            let b0 = _mm512_loadu_ps(bk);
+            let b1 = _mm512_loadu_ps(bk.add(16));
             for (i, row) in acc.iter_mut().enumerate() {
                 let ai = _mm512_set1_ps(a.at(i, kk));
                 row[0] = _mm512_fmadd_ps(ai, b0, row[0]);
@@ -149,7 +185,7 @@ pub(crate) unsafe fn avx512<A: Lhs>(kc: usize, a: &A, p: &Panel, t: &Tile, load:
 /// As [`scalar`], on a CPU with AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-pub(crate) unsafe fn avx2<A: Lhs>(kc: usize, a: &A, p: &Panel, t: &Tile, load: bool) {
+pub(crate) unsafe fn avx2<A: Lhs, B: Rhs>(kc: usize, a: &A, p: &B, t: &Tile, load: bool) {
     use std::arch::x86_64::*;
     const _: () = assert!(MR == 8 && NR == 32);
     // SAFETY: every pointer below stays inside the caller's panels and tile.
@@ -165,8 +201,9 @@ pub(crate) unsafe fn avx2<A: Lhs>(kc: usize, a: &A, p: &Panel, t: &Tile, load: b
                     }
                 }
                 for kk in 0..kc {
-                    let b0 = _mm256_loadu_ps(p.b.add(kk * p.ldb + c0));
-                    let b1 = _mm256_loadu_ps(p.b.add(kk * p.ldb + c0 + 8));
+                    let bk = p.row(kk).add(c0);
+                    let b0 = _mm256_loadu_ps(bk);
+                    let b1 = _mm256_loadu_ps(bk.add(8));
                     for (i, row) in acc.iter_mut().enumerate() {
                         let ai = _mm256_set1_ps(a.at(r0 + i, kk));
                         row[0] = _mm256_fmadd_ps(ai, b0, row[0]);

@@ -26,7 +26,7 @@
 //! Tiles cut short by the matrix's edge run on a zero-padded copy.
 
 pub(crate) mod micro;
-mod pack;
+pub(crate) mod pack;
 
 use crate::isa::Isa;
 use micro::{Lhs, PackedLhs, Panel, RowsLhs, Tile};
@@ -358,11 +358,11 @@ unsafe fn kernel(isa: Isa, kc: usize, a: &[f32], b: &Panel, tile: &Tile, load: b
 /// # Safety
 /// `a` reads `MR x kc` elements inside its data, the panel holds `kc` rows, the tile
 /// lies in one allocation, and `isa` is one this CPU has.
-pub(crate) unsafe fn kernel_on<A: Lhs>(
+pub(crate) unsafe fn kernel_on<A: Lhs, B: micro::Rhs>(
     isa: Isa,
     kc: usize,
     a: &A,
-    b: &Panel,
+    b: &B,
     tile: &Tile,
     load: bool,
 ) {

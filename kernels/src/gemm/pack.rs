@@ -13,7 +13,7 @@ pub(super) fn lhs_panel(lhs: Mat, rows: Range<usize>, ks: Range<usize>, dst: &mu
 /// Rows `ks` and columns `cols` (at most [`NR`]) of `rhs` into `dst` as
 /// `dst[kk * NR + j]`; columns past the matrix are zeros: the left operand's packing
 /// applied to the transposed view.
-pub(super) fn rhs_panel(rhs: Mat, ks: Range<usize>, cols: Range<usize>, dst: &mut [f32]) {
+pub(crate) fn rhs_panel(rhs: Mat, ks: Range<usize>, cols: Range<usize>, dst: &mut [f32]) {
     let transposed = Mat {
         data: rhs.data,
         row_stride: rhs.col_stride,
