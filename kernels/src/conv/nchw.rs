@@ -95,10 +95,24 @@ impl Geometry {
             .clamp(1, self.batch.max(1))
     }
 
-    /// Whether [`forward`] reads the (padded) input in place instead of building a column
-    /// matrix: stride 1, and output rows at least half a 32-pixel panel wide.
+    /// Whether [`forward`] and [`weight_grad`] read the (padded) input in place instead
+    /// of building a column matrix: strides of 1 or 2, and output rows at least half a
+    /// 32-pixel panel wide.
     fn in_place(&self) -> bool {
-        self.stride == [1, 1] && !self.direct() && self.ow >= NR / 2
+        let strides = (1..=2).contains(&self.stride[0]) && (1..=2).contains(&self.stride[1]);
+        strides && !self.direct() && self.ow >= NR / 2
+    }
+
+    /// The padded input's columns per phase: with stride `s` along a row, the padded
+    /// planes are split into `s` phases of every `s`-th column, so a tap's input under
+    /// neighbouring output pixels is contiguous ([`pad_sample`]).
+    fn phase_width(&self) -> usize {
+        (self.w + 2 * self.pad[1]).div_ceil(self.stride[1])
+    }
+
+    /// Where output pixel `(oy, ox)`'s window starts in [`pad_sample`]'s phase planes.
+    fn window(&self, oy: usize, ox: usize) -> usize {
+        oy * self.stride[0] * self.phase_width() + ox
     }
 
     /// Whether the input itself is the column matrix (a 1x1 kernel, stride 1, no padding).
@@ -300,31 +314,41 @@ fn pack_rows(w: &[f32], rows: usize, k: usize) -> Vec<f32> {
     packed
 }
 
-/// Sample `b` of `x`, zero-padded by the geometry's padding into `buf` (planes of
-/// `(h + 2 ph) x (w + 2 pw)`, then [`NR`] floats of slack: a panel row near the end of
-/// the last row reads past it, into lanes that are dropped). Returns the offset of
-/// each inner index `(c, ky, kx)` from an output pixel's window in the padded planes.
+/// Sample `b` of `x`, zero-padded by the geometry's padding into `buf`, its columns
+/// split into `stride` phases (phase `q` holds padded columns `q, q + s, ...`; one phase
+/// at stride 1): planes `[phase][c][h + 2 ph][phase width]`, then [`NR`] floats of slack
+/// (a panel row near the end of the last row reads past it, into lanes that are
+/// dropped). Returns the offset of each inner index `(c, ky, kx)` from an output pixel's
+/// window ([`Geometry::window`]).
 fn pad_sample(x: &[f32], g: &Geometry, b: usize, buf: &mut Vec<f32>) -> Vec<u32> {
-    let (hp, wp) = (g.h + 2 * g.pad[0], g.w + 2 * g.pad[1]);
-    let plane = hp * wp;
+    let (hp, sw, wq) = (g.h + 2 * g.pad[0], g.stride[1], g.phase_width());
+    let plane = hp * wq;
+    let phase = g.cin * plane;
     buf.clear();
-    buf.resize(g.cin * plane + NR, 0.0);
+    buf.resize(sw * phase + NR, 0.0);
     for c in 0..g.cin {
         let src = &x[(b * g.cin + c) * g.h * g.w..][..g.h * g.w];
         for y in 0..g.h {
-            let at = c * plane + (y + g.pad[0]) * wp + g.pad[1];
-            buf[at..at + g.w].copy_from_slice(&src[y * g.w..][..g.w]);
+            let row = c * plane + (y + g.pad[0]) * wq;
+            if sw == 1 {
+                buf[row + g.pad[1]..][..g.w].copy_from_slice(&src[y * g.w..][..g.w]);
+            } else {
+                for (ix, &v) in src[y * g.w..][..g.w].iter().enumerate() {
+                    let xp = ix + g.pad[1];
+                    buf[(xp % sw) * phase + row + xp / sw] = v;
+                }
+            }
         }
     }
     (0..g.cin)
         .flat_map(|c| (0..g.kh).flat_map(move |ky| (0..g.kw).map(move |kx| (c, ky, kx))))
-        .map(|(c, ky, kx)| (c * plane + ky * wp + kx) as u32)
+        .map(|(c, ky, kx)| ((kx % sw) * phase + c * plane + ky * wq + kx / sw) as u32)
         .collect()
 }
 
-/// One sample of [`forward`] for a stride-1 convolution, reading its padded input in
-/// place: each output row is cut into runs of [`NR`] pixels, and tap `(c, ky, kx)` of a
-/// run is [`NR`] consecutive floats of the padded plane. Each output is the chain over
+/// One sample of [`forward`] reading its padded input in place: each output row is cut
+/// into runs of [`NR`] pixels, and tap `(c, ky, kx)` of a run is [`NR`] consecutive
+/// floats of a padded phase plane. Each output is the chain over
 /// the inner index in the order of the column matrix's rows, so the bits are those of
 /// im2col and [`gemm`](crate::gemm) (tested).
 fn forward_in_place(
@@ -335,7 +359,6 @@ fn forward_in_place(
     out: &mut [f32],
 ) {
     let (k, p) = (g.k(), g.p());
-    let wp = g.w + 2 * g.pad[1];
     let isa = Isa::current();
     let mut edge = [0.0f32; MR * NR];
     for pc in (0..k).step_by(KC) {
@@ -346,7 +369,7 @@ fn forward_in_place(
                 let width = NR.min(g.ow - ox0);
                 let b = GatherRhs {
                     x: padded.as_ptr(),
-                    base: oy * wp + ox0,
+                    base: g.window(oy, ox0),
                     offsets: offsets[pc..].as_ptr(),
                 };
                 for panel in 0..g.cout.div_ceil(MR) {
@@ -383,7 +406,7 @@ fn forward_in_place(
     }
 }
 
-/// Samples `samples` of [`weight_grad`] for a stride-1 convolution, added to
+/// Samples `samples` of [`weight_grad`], added to
 /// `dwt [K, cout]`, reading the padded input in place: row `(c, ky, kx)` of the column
 /// matrix at pixel `px` is the padded plane at the tap's offset plus the pixel's window.
 /// The chain runs over the samples and their pixels in order, as over the column
@@ -398,9 +421,8 @@ fn weight_grad_in_place(
     packed: &mut Vec<f32>,
 ) {
     let (k, p) = (g.k(), g.p());
-    let wp = g.w + 2 * g.pad[1];
     let windows: Vec<u32> = (0..p)
-        .map(|px| ((px / g.ow) * wp + px % g.ow) as u32)
+        .map(|px| g.window(px / g.ow, px % g.ow) as u32)
         .collect();
     let isa = Isa::current();
     let mut edge = [0.0f32; MR * NR];
@@ -626,12 +648,15 @@ mod tests {
             (1, 32, 12, 30, 32, 3, 1),
             (2, 9, 7, 20, 40, 3, 1),
             (1, 3, 6, 18, 8, 3, 0),
+            (1, 3, 24, 60, 32, 7, 3),
         ]
         .into_iter()
         .enumerate()
         {
+            // The last case has stride 2 (the stem's shape).
+            let s = if case == 3 { 2 } else { 1 };
             let g =
-                Geometry::new([batch, cin, h, w], [cout, cin, k, k], [1, 1], [pad, pad]).unwrap();
+                Geometry::new([batch, cin, h, w], [cout, cin, k, k], [s, s], [pad, pad]).unwrap();
             assert!(g.in_place());
             let x = noise(batch * cin * h * w, 41 + case as u32);
             let dy = noise(batch * cout * g.p(), 51 + case as u32);
@@ -679,10 +704,14 @@ mod tests {
             (1, 9, 7, 32, 40, 3, 1),
             (2, 16, 10, 33, 12, 5, 2),
             (1, 3, 6, 18, 8, 3, 0),
+            // Stride 2: the stem (7x7, 3 channels) and a 3x3 downsample.
+            (1, 3, 24, 60, 32, 7, 3),
+            (2, 32, 12, 33, 64, 3, 1),
         ];
         for (case, (batch, cin, h, w, cout, k, pad)) in cases.into_iter().enumerate() {
+            let s = if case >= 6 { 2 } else { 1 };
             let g =
-                Geometry::new([batch, cin, h, w], [cout, cin, k, k], [1, 1], [pad, pad]).unwrap();
+                Geometry::new([batch, cin, h, w], [cout, cin, k, k], [s, s], [pad, pad]).unwrap();
             assert!(g.in_place(), "case {case} should read in place");
             let x = noise(batch * cin * h * w, 21 + case as u32);
             let wt = noise(cout * g.k(), 31 + case as u32);
