@@ -178,8 +178,15 @@ fn cpuinfo_field(cpuinfo: &str, key: &str) -> Option<String> {
 /// period `max(Tc, delay)` (docs/protocol.md §1). With `latency = "measured"` the
 /// loop replaces `Lexec` by the driver's real compute time at each boundary.
 pub fn timing_at(scenario: &Scenario, scale: f64) -> (DelayTiming, f64) {
+    timing_for(scenario, scenario.latency_ms_at(scale))
+}
+
+/// The one rule of the achieved loop (docs/protocol.md §1): an execution latency of
+/// `exec_ms` puts `max(D, exec_ms)` in force as the delay, with the period
+/// `max(Tc, delay)`. Returns the timing and the delay (milliseconds).
+fn timing_for(scenario: &Scenario, exec_ms: f64) -> (DelayTiming, f64) {
     let t = &scenario.timing;
-    let latency_ms = t.delay_ms.max(scenario.latency_ms_at(scale));
+    let latency_ms = t.delay_ms.max(exec_ms);
     (
         DelayTiming::from_period_and_latency(t.control_period_ms, latency_ms, t.tick_s),
         latency_ms,
@@ -318,11 +325,7 @@ impl Controls {
         let changed = new_scale != self.scale;
         self.scale = new_scale;
         if let Some(j) = self.jitter.as_mut() {
-            let t = &scenario.timing;
-            let l = t
-                .delay_ms
-                .max(scenario.latency_ms_at(new_scale) * j.factor());
-            let timing = DelayTiming::from_period_and_latency(t.control_period_ms, l, t.tick_s);
+            let (timing, l) = timing_for(scenario, scenario.latency_ms_at(new_scale) * j.factor());
             self.set_latency(timing, l);
         } else if changed {
             let (t, l) = timing_at(scenario, new_scale);
@@ -570,12 +573,7 @@ impl Boundary<'_> {
         *driver_s += compute_s;
         if self.scenario.timing.latency == LatencyModel::Measured {
             // The control lands after the time it really took (at least D).
-            let l = self.scenario.timing.delay_ms.max(compute_s * 1000.0);
-            let t = DelayTiming::from_period_and_latency(
-                self.scenario.timing.control_period_ms,
-                l,
-                self.scenario.timing.tick_s,
-            );
+            let (t, l) = timing_for(self.scenario, compute_s * 1000.0);
             controls.set_latency(t, l);
         }
         controls.delay.submit(now.tick, control);
