@@ -12,8 +12,8 @@
 //! `policy::conv` registers these with burn (its backend extension) and tests them against
 //! burn's own convolutions.
 
-use crate::gemm::micro::{GatherLhs, GatherRhs, PackedLhs, Panel, Tile};
-use crate::gemm::{KC, MR, NR, kernel_on};
+use crate::gemm::micro::{GatherLhs, GatherRhs, PackedLhs, Panel};
+use crate::gemm::{Dest, KC, MR, NR, tile_on};
 use crate::isa::Isa;
 use crate::{Mat, gemm as matmul};
 use rayon::prelude::*;
@@ -360,7 +360,6 @@ fn forward_in_place(
 ) {
     let (k, p) = (g.k(), g.p());
     let isa = Isa::current();
-    let mut edge = [0.0f32; MR * NR];
     for pc in (0..k).step_by(KC) {
         let kc = KC.min(k - pc);
         let load = pc > 0;
@@ -375,31 +374,16 @@ fn forward_in_place(
                 for panel in 0..g.cout.div_ceil(MR) {
                     let (r0, rows) = (panel * MR, MR.min(g.cout - panel * MR));
                     let a = PackedLhs(weights[(panel * k + pc) * MR..][..kc * MR].as_ptr());
-                    let at = r0 * p + oy * g.ow + ox0;
-                    if rows == MR && width == NR {
-                        let tile = Tile {
-                            c: out[at..].as_mut_ptr(),
-                            ldc: p,
-                        };
-                        // SAFETY: the panel holds kc * MR packed floats; every gathered
-                        // row is NR floats inside `padded` (its slack covers the last
-                        // row's overrun); the tile's MR rows of NR floats, P apart, end at
-                        // (r0 + MR - 1) * P + (oh - 1) * ow + ow <= cout * P.
-                        unsafe { kernel_on(isa, kc, &a, &b, &tile, load) };
-                    } else {
-                        for i in 0..rows {
-                            edge[i * NR..][..width].copy_from_slice(&out[at + i * p..][..width]);
-                        }
-                        let tile = Tile {
-                            c: edge.as_mut_ptr(),
-                            ldc: NR,
-                        };
-                        // SAFETY: as above, into the MR x NR edge tile.
-                        unsafe { kernel_on(isa, kc, &a, &b, &tile, load) };
-                        for i in 0..rows {
-                            out[at + i * p..][..width].copy_from_slice(&edge[i * NR..][..width]);
-                        }
-                    }
+                    let dest = Dest {
+                        out: &mut *out,
+                        at: r0 * p + oy * g.ow + ox0,
+                        ldc: p,
+                        rows,
+                        width,
+                    };
+                    // SAFETY: the panel holds kc * MR packed floats; every gathered row is
+                    // NR floats inside `padded` (its slack covers the last row's overrun).
+                    unsafe { tile_on(isa, kc, &a, &b, dest, load) };
                 }
             }
         }
@@ -425,7 +409,6 @@ fn weight_grad_in_place(
         .map(|px| g.window(px / g.ow, px % g.ow) as u32)
         .collect();
     let isa = Isa::current();
-    let mut edge = [0.0f32; MR * NR];
     packed.resize(KC * NR, 0.0);
     for b in samples {
         let offsets = pad_sample(x, g, b, padded);
@@ -446,32 +429,16 @@ fn weight_grad_in_place(
                         rows: std::array::from_fn(|i| offsets[r0 + i.min(rows - 1)] as usize),
                         offsets: windows[pc..].as_ptr(),
                     };
-                    let at = r0 * g.cout + c0;
-                    if rows == MR && width == NR {
-                        let tile = Tile {
-                            c: dwt[at..].as_mut_ptr(),
-                            ldc: g.cout,
-                        };
-                        // SAFETY: every tap offset plus every window lies in the padded
-                        // planes; the packed panel holds kc rows of NR; the tile's MR rows
-                        // of NR, cout apart, end inside `dwt` (K x cout).
-                        unsafe { kernel_on(isa, kc, &a, &panel, &tile, true) };
-                    } else {
-                        for i in 0..rows {
-                            edge[i * NR..][..width]
-                                .copy_from_slice(&dwt[at + i * g.cout..][..width]);
-                        }
-                        let tile = Tile {
-                            c: edge.as_mut_ptr(),
-                            ldc: NR,
-                        };
-                        // SAFETY: as above, into the MR x NR edge tile.
-                        unsafe { kernel_on(isa, kc, &a, &panel, &tile, true) };
-                        for i in 0..rows {
-                            dwt[at + i * g.cout..][..width]
-                                .copy_from_slice(&edge[i * NR..][..width]);
-                        }
-                    }
+                    let dest = Dest {
+                        out: &mut *dwt,
+                        at: r0 * g.cout + c0,
+                        ldc: g.cout,
+                        rows,
+                        width,
+                    };
+                    // SAFETY: every tap offset plus every window lies in the padded planes;
+                    // the packed panel holds kc rows of NR.
+                    unsafe { tile_on(isa, kc, &a, &panel, dest, true) };
                 }
             }
         }

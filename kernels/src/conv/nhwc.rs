@@ -7,8 +7,8 @@
 //! matrix is written. Each output is the chain over `kk` in that order, the same bits
 //! as [`gemm`](crate::gemm) over an im2col matrix with the same column order (tested).
 
-use crate::gemm::micro::{GatherLhs, Panel, Tile};
-use crate::gemm::{KC, MR, NR, PackedRhs, kernel_on};
+use crate::gemm::micro::{GatherLhs, Panel};
+use crate::gemm::{Dest, KC, MR, NR, PackedRhs, tile_on};
 use crate::isa::Isa;
 use std::ops::Range;
 
@@ -140,7 +140,6 @@ pub fn conv2d_nhwc_on(
         return;
     }
     let isa = isa.min(Isa::best());
-    let mut edge = [0.0f32; MR * NR];
     for pc in (0..kdim).step_by(KC) {
         let kc = KC.min(kdim - pc);
         let offsets = x.offsets[pc..].as_ptr();
@@ -159,33 +158,16 @@ pub fn conv2d_nhwc_on(
                     rows: std::array::from_fn(|i| x.window(pixels.start + i0 + i.min(rows - 1))),
                     offsets,
                 };
-                let load = pc > 0;
-                if rows == MR && width == NR {
-                    let tile = Tile {
-                        c: out[i0 * n + j0..].as_mut_ptr(),
-                        ldc: n,
-                    };
-                    // SAFETY: every window plus every offset lies in the padded image
-                    // (the output size is derived from it), the panel holds kc rows, the
-                    // tile's MR rows of NR end inside `out` (m x n).
-                    unsafe { kernel_on(isa, kc, &a, &panel, &tile, load) };
-                } else {
-                    if load {
-                        for i in 0..rows {
-                            edge[i * NR..][..width]
-                                .copy_from_slice(&out[(i0 + i) * n + j0..][..width]);
-                        }
-                    }
-                    let tile = Tile {
-                        c: edge.as_mut_ptr(),
-                        ldc: NR,
-                    };
-                    // SAFETY: as above, into the MR x NR edge tile.
-                    unsafe { kernel_on(isa, kc, &a, &panel, &tile, load) };
-                    for i in 0..rows {
-                        out[(i0 + i) * n + j0..][..width].copy_from_slice(&edge[i * NR..][..width]);
-                    }
-                }
+                let dest = Dest {
+                    out: &mut out[..m * n],
+                    at: i0 * n + j0,
+                    ldc: n,
+                    rows,
+                    width,
+                };
+                // SAFETY: every window plus every offset lies in the padded image (the
+                // output size is derived from it); the panel holds kc rows of NR.
+                unsafe { tile_on(isa, kc, &a, &panel, dest, pc > 0) };
             }
         }
     }

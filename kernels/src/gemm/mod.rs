@@ -196,9 +196,9 @@ enum Rhs<'a> {
 }
 
 thread_local! {
-    /// Per-thread packing buffers: the left block, the right block, an edge tile.
-    static BUFFERS: std::cell::RefCell<(Vec<f32>, Vec<f32>, Vec<f32>)> =
-        const { std::cell::RefCell::new((Vec::new(), Vec::new(), Vec::new())) };
+    /// Per-thread packing buffers: the left block, the right block.
+    static BUFFERS: std::cell::RefCell<(Vec<f32>, Vec<f32>)> =
+        const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
 }
 
 /// The blocked loops (BLIS's order: column blocks, depth blocks, row blocks, then
@@ -227,9 +227,8 @@ fn run(
         return;
     }
     let isa = isa.min(Isa::best());
-    BUFFERS.with_borrow_mut(|(abuf, bbuf, edge)| {
+    BUFFERS.with_borrow_mut(|(abuf, bbuf)| {
         abuf.resize(MC * KC, 0.0);
-        edge.resize(MR * NR, 0.0);
         for jc in (0..n).step_by(NC) {
             let nc = NC.min(n - jc);
             let panels = nc.div_ceil(NR);
@@ -298,42 +297,24 @@ fn run(
                                 x: lhs.data[rows_at..].as_ptr(),
                                 lda: lhs.row_stride,
                             };
-                            if rows == MR && cols == NR {
-                                let tile = Tile {
-                                    c: out[i0 * n + j0..].as_mut_ptr(),
-                                    ldc: n,
-                                };
-                                // SAFETY: the tile's MR rows of NR floats end at
-                                // (i0 + MR - 1) * n + j0 + NR <= m * n <= out.len(); rows
-                                // read in place lie in the view (checked by `holds`).
-                                unsafe {
-                                    match in_place {
-                                        true => kernel_on(isa, kc, &a_rows, &panel, &tile, load),
-                                        false => kernel(isa, kc, a, &panel, &tile, load),
+                            let dest = Dest {
+                                out: &mut out[..m * n],
+                                at: i0 * n + j0,
+                                ldc: n,
+                                rows,
+                                width: cols,
+                            };
+                            // SAFETY: the packed panel holds kc * MR floats; rows read in
+                            // place lie in the view (checked by `holds`); the right panel
+                            // holds kc rows of NR; `tile_on` checks the destination.
+                            unsafe {
+                                match in_place {
+                                    true => tile_on(isa, kc, &a_rows, &panel, dest, load),
+                                    false => {
+                                        tile_on(isa, kc, &PackedLhs(a.as_ptr()), &panel, dest, load)
                                     }
-                                };
-                            } else {
-                                // An edge tile: through a full-size copy.
-                                for i in 0..rows {
-                                    let src = &out[(i0 + i) * n + j0..][..cols];
-                                    edge[i * NR..][..cols].copy_from_slice(src);
                                 }
-                                let tile = Tile {
-                                    c: edge.as_mut_ptr(),
-                                    ldc: NR,
-                                };
-                                // SAFETY: `edge` holds MR x NR floats; as above.
-                                unsafe {
-                                    match in_place {
-                                        true => kernel_on(isa, kc, &a_rows, &panel, &tile, load),
-                                        false => kernel(isa, kc, a, &panel, &tile, load),
-                                    }
-                                };
-                                for i in 0..rows {
-                                    out[(i0 + i) * n + j0..][..cols]
-                                        .copy_from_slice(&edge[i * NR..][..cols]);
-                                }
-                            }
+                            };
                         }
                     }
                 }
@@ -342,15 +323,66 @@ fn run(
     });
 }
 
-/// One micro-kernel call on `isa` with a packed left panel.
+/// Where a micro-kernel call writes: `rows x width` outputs of `out` from `at`, rows
+/// `ldc` apart (at most an `MR x NR` tile).
+pub(crate) struct Dest<'o> {
+    pub out: &'o mut [f32],
+    pub at: usize,
+    pub ldc: usize,
+    pub rows: usize,
+    pub width: usize,
+}
+
+/// One micro-kernel call into `dest`: in place when it is a whole `MR x NR` tile, else
+/// through a zero-padded `MR x NR` copy (loaded from `dest` first when `load`). The
+/// outputs' chains are the same either way.
 ///
 /// # Safety
-/// The panel holds `kc` rows, the tile lies in one allocation, and `isa` is one this
-/// CPU has.
-unsafe fn kernel(isa: Isa, kc: usize, a: &[f32], b: &Panel, tile: &Tile, load: bool) {
-    assert!(a.len() >= kc * MR);
-    // SAFETY: as the caller's, with `a` holding kc * MR floats (asserted).
-    unsafe { kernel_on(isa, kc, &PackedLhs(a.as_ptr()), b, tile, load) }
+/// `a` reads `MR x kc` elements inside its data, `b` holds `kc` rows, and `isa` is one
+/// this CPU has (the destination is checked here).
+pub(crate) unsafe fn tile_on<A: Lhs, B: micro::Rhs>(
+    isa: Isa,
+    kc: usize,
+    a: &A,
+    b: &B,
+    dest: Dest<'_>,
+    load: bool,
+) {
+    let Dest {
+        out,
+        at,
+        ldc,
+        rows,
+        width,
+    } = dest;
+    if rows == MR && width == NR {
+        assert!(
+            at + (MR - 1) * ldc + NR <= out.len(),
+            "a tile leaves its output"
+        );
+        let tile = Tile {
+            c: out[at..].as_mut_ptr(),
+            ldc,
+        };
+        // SAFETY: the caller's operands; the tile's MR rows of NR lie in `out` (asserted).
+        unsafe { kernel_on(isa, kc, a, b, &tile, load) };
+        return;
+    }
+    let mut edge = [0.0f32; MR * NR];
+    if load {
+        for i in 0..rows {
+            edge[i * NR..][..width].copy_from_slice(&out[at + i * ldc..][..width]);
+        }
+    }
+    let tile = Tile {
+        c: edge.as_mut_ptr(),
+        ldc: NR,
+    };
+    // SAFETY: the caller's operands, into the MR x NR copy.
+    unsafe { kernel_on(isa, kc, a, b, &tile, load) };
+    for i in 0..rows {
+        out[at + i * ldc..][..width].copy_from_slice(&edge[i * NR..][..width]);
+    }
 }
 
 /// One micro-kernel call on `isa`, any left operand.
