@@ -16,6 +16,7 @@
 //! | path | what |
 //! | --- | --- |
 //! | [`action`] | WoR's 28 actions and the command and speed-bin counts |
+//! | [`cache`] | where the study's datasets and the training runs' state live, outside the work tree (`$MRDRIVE_CACHE`) |
 //! | [`decode`] | from the head's logits to a control: speed interpolation, then WoR's decoding to steer, throttle and brake |
 //! | [`noise`] | the expert with noise, the driver of collection |
 //! | [`collect`] | planned episodes, the observer that keeps frames, writing shards |
@@ -24,6 +25,7 @@
 //! | [`label_driver`] | a driver that drives by the action values (do the labels say how to drive?) |
 
 pub mod action;
+pub mod cache;
 pub mod collect;
 pub mod decode;
 pub mod format;

@@ -25,6 +25,10 @@ pub struct Dataset {
     pub dir: PathBuf,
     /// Episodes to collect.
     pub episodes: u32,
+    /// Collected and labelled this many episodes at a time, so that the first
+    /// slices can be trained on (and a learning curve drawn) while the rest is
+    /// collected.
+    pub slice: u32,
     /// Each episode's length cap (simulated seconds).
     pub max_s: f64,
 }
@@ -65,11 +69,15 @@ pub struct BarDriver {
     pub scale: String,
 }
 
-/// The training pipeline's configuration; paths under `base` are the outputs.
+/// The training pipeline's configuration; paths under `base` are the outputs,
+/// the datasets and the run folders live in the cache (`dataset::cache`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrainPlan {
-    /// The folder whose `models/`, `runs/` and `out/bar/` the pipeline writes.
+    /// The folder whose `models/` and `out/bar/` the pipeline writes.
     pub base: PathBuf,
+    /// The folder of the training runs' state (`mrdrive train --runs`):
+    /// `<cache>/runs` for the study, `<base>/runs` for the quick plan.
+    pub runs: PathBuf,
     /// The datasets (the Original's first, then the retargeting set).
     pub datasets: Vec<Dataset>,
     /// The Original's phases, each continuing the one before it.
@@ -101,12 +109,13 @@ fn strings(s: &[&str]) -> Vec<String> {
 }
 
 impl TrainPlan {
-    /// The study's pipeline into `base`: about 250k frames for the Original (the
-    /// paper pre-trains on 270k), the retargeting set at TimeParam's 50k; the
-    /// retargeting stages in two lanes when `parallel_lanes` (on 2 cores two
-    /// single-threaded stages make 1.39-1.46x the samples/s of one stage on two
-    /// threads, docs/training.md).
-    pub fn full(base: &Path, parallel_lanes: bool) -> Self {
+    /// The study's pipeline into `base`, its datasets and run folders in `cache`
+    /// (`<cache>/data/original`, `<cache>/data/retarget`, `<cache>/runs`): about
+    /// 250k frames for the Original (the paper pre-trains on 270k), the
+    /// retargeting set at TimeParam's 50k; the retargeting stages in two lanes
+    /// when `parallel_lanes` (on 2 cores two single-threaded stages make
+    /// 1.39-1.46x the samples/s of one stage on two threads, docs/training.md).
+    pub fn full(base: &Path, cache: &Path, parallel_lanes: bool) -> Self {
         let retarget = |name: &str, stage: &str, options: &[&str]| Retarget {
             name: name.into(),
             stage: stage.into(),
@@ -119,17 +128,20 @@ impl TrainPlan {
         };
         TrainPlan {
             base: base.to_path_buf(),
+            runs: cache.join("runs"),
             datasets: vec![
                 Dataset {
                     preset: "original".into(),
-                    dir: "data/original".into(),
+                    dir: cache.join("data/original"),
                     episodes: 760,
+                    slice: 40,
                     max_s: 90.0,
                 },
                 Dataset {
                     preset: "retarget".into(),
-                    dir: "data/retarget".into(),
+                    dir: cache.join("data/retarget"),
                     episodes: 150,
+                    slice: 50,
                     max_s: 90.0,
                 },
             ],
@@ -201,12 +213,15 @@ impl TrainPlan {
     }
 
     /// The same plumbing at toy size (minutes): datasets of 2 episodes of 20 s in
-    /// `data/*-quick`, 4 steps a stage of batch 4, one route and one density for the bar.
-    pub fn quick(base: &Path, parallel_lanes: bool) -> Self {
-        let mut plan = Self::full(base, parallel_lanes);
+    /// `<cache>/data/*-quick`, run folders in `<base>/runs`, 4 steps a stage of
+    /// batch 4, one route and one density for the bar.
+    pub fn quick(base: &Path, cache: &Path, parallel_lanes: bool) -> Self {
+        let mut plan = Self::full(base, cache, parallel_lanes);
+        plan.runs = base.join("runs");
         for d in &mut plan.datasets {
             d.dir = PathBuf::from(format!("{}-quick", d.dir.display()));
             d.episodes = 2;
+            d.slice = 1;
             d.max_s = 20.0;
         }
         plan.bar_scenarios.truncate(1);
@@ -217,29 +232,35 @@ impl TrainPlan {
         plan
     }
 
-    /// The commands that make the datasets.
+    /// The commands that make the datasets: each dataset collected and labelled
+    /// a slice at a time (`collect --episodes` counts the episodes in all, so each
+    /// collect goes on from the last slice), then summarised.
     pub fn data_steps(&self) -> Vec<Step> {
         let mut steps = Vec::new();
         for d in &self.datasets {
             let dir = d.dir.display().to_string();
-            steps.push(Step::new(
-                format!("collect {dir}"),
-                vec![
-                    "collect".into(),
-                    "--preset".into(),
-                    d.preset.clone(),
-                    "--out".into(),
-                    dir.clone(),
-                    "--episodes".into(),
-                    d.episodes.to_string(),
-                    "--max-s".into(),
-                    d.max_s.to_string(),
-                ],
-            ));
-            steps.push(Step::new(
-                format!("label {dir}"),
-                vec!["label".into(), dir.clone()],
-            ));
+            let slice = d.slice.max(1);
+            let ends = (1..=d.episodes.div_ceil(slice)).map(|k| (k * slice).min(d.episodes));
+            for end in ends {
+                steps.push(Step::new(
+                    format!("collect {dir} (episodes to {end} of {})", d.episodes),
+                    vec![
+                        "collect".into(),
+                        "--preset".into(),
+                        d.preset.clone(),
+                        "--out".into(),
+                        dir.clone(),
+                        "--episodes".into(),
+                        end.to_string(),
+                        "--max-s".into(),
+                        d.max_s.to_string(),
+                    ],
+                ));
+                steps.push(Step::new(
+                    format!("label {dir} (episodes to {end})"),
+                    vec!["label".into(), dir.clone()],
+                ));
+            }
             steps.push(Step {
                 may_fail: true,
                 ..Step::new(
@@ -256,7 +277,7 @@ impl TrainPlan {
     }
 
     fn runs(&self) -> String {
-        self.base.join("runs").display().to_string()
+        self.runs.display().to_string()
     }
 
     fn sweeps(&self) -> String {
@@ -525,23 +546,34 @@ mod tests {
 
     #[test]
     fn the_full_plan_chains_the_phases_and_trains_the_lanes_on_one_thread_each() {
-        let plan = TrainPlan::full(Path::new("out/scratch"), true);
+        let plan = TrainPlan::full(Path::new("out/scratch"), Path::new("/c"), true);
         let data: Vec<String> = plan.data_steps().iter().map(|s| s.args.join(" ")).collect();
+        // Slices of 40 episodes, each collected then labelled: 19 slices, then `data info`.
         assert_eq!(
             data[0],
-            "collect --preset original --out data/original --episodes 760 --max-s 90"
+            "collect --preset original --out /c/data/original --episodes 40 --max-s 90"
         );
-        assert_eq!(data[1], "label data/original");
+        assert_eq!(data[1], "label /c/data/original");
+        assert_eq!(
+            data[36],
+            "collect --preset original --out /c/data/original --episodes 760 --max-s 90"
+        );
+        assert_eq!(data[38], "data info /c/data/original");
+        // The retargeting set's last slice is the remainder: 50, 100, 150.
+        assert_eq!(
+            data[43],
+            "collect --preset retarget --out /c/data/retarget --episodes 150 --max-s 90"
+        );
         let groups = plan.train_steps();
         assert_eq!(
             joined(&groups[0])[0],
-            "train --stage original --data data/original --runs out/scratch/runs/wor \
-             --out out/scratch/runs/wor --steps 2300"
+            "train --stage original --data /c/data/original --runs /c/runs/wor \
+             --out /c/runs/wor --steps 2300"
         );
         assert_eq!(
             joined(&groups[2])[0],
-            "train --stage original --data data/original --runs out/scratch/runs \
-             --out out/scratch/models --steps 800 --init out/scratch/runs/balanced/original.safetensors \
+            "train --stage original --data /c/data/original --runs /c/runs \
+             --out out/scratch/models --steps 800 --init /c/runs/balanced/original.safetensors \
              --standing-keep 0.25 --balanced true --pedestrian-repeat 8"
         );
         let Group::Lanes(lanes) = &groups[3] else {
@@ -556,7 +588,7 @@ mod tests {
         );
         assert_eq!(
             lanes[0][0].args.join(" "),
-            "train --stage ra --data data/retarget --runs out/scratch/runs --out out/scratch/models"
+            "train --stage ra --data /c/data/retarget --runs /c/runs --out out/scratch/models"
         );
         // Six bar sweeps, the table, then RA5.
         assert_eq!(groups.len(), 3 + 1 + 6 + 1 + 1);
@@ -566,10 +598,12 @@ mod tests {
 
     #[test]
     fn one_lane_runs_the_stages_in_the_tables_order_and_quick_is_toy_sized() {
-        let plan = TrainPlan::quick(Path::new("out/train-quick"), false);
+        let plan = TrainPlan::quick(Path::new("out/train-quick"), Path::new("c"), false);
         let groups = plan.train_steps();
         let stages: Vec<String> = groups[3..6].iter().map(|g| joined(g)[0].clone()).collect();
-        assert!(stages[0].starts_with("train --stage nra-0.75 --data data/retarget-quick"));
+        assert!(stages[0].starts_with(
+            "train --stage nra-0.75 --data c/data/retarget-quick --runs out/train-quick/runs"
+        ));
         assert!(stages[1].starts_with("train --stage nra-1.0"));
         assert!(stages[2].starts_with("train --stage ra "));
         assert!(
@@ -580,9 +614,14 @@ mod tests {
         assert!(bar.starts_with("sweep scenarios/paper/town01_route0.toml --delays 0"));
         assert!(bar.contains("--densities 0:0 "));
         let data: Vec<String> = plan.data_steps().iter().map(|s| s.args.join(" ")).collect();
+        // Slices of one episode: collect 1, label, collect 2, label, info; then the retargeting set.
         assert_eq!(
-            data[3],
-            "collect --preset retarget --out data/retarget-quick --episodes 2 --max-s 20"
+            data[5],
+            "collect --preset retarget --out c/data/retarget-quick --episodes 1 --max-s 20"
+        );
+        assert_eq!(
+            data[7],
+            "collect --preset retarget --out c/data/retarget-quick --episodes 2 --max-s 20"
         );
     }
 

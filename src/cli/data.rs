@@ -20,15 +20,16 @@ pub enum DataCommand {
     Info(InfoArgs),
     /// Draw one frame and its label to a PNG, for a person to check.
     Show(ShowArgs),
-    /// Collect and label the study's two datasets into data/original and data/retarget
-    /// (resumable: finished episodes and labels are kept; `cargo xtask data`).
+    /// Collect and label the study's two datasets into <cache>/data/original and
+    /// <cache>/data/retarget (the cache: $MRDRIVE_CACHE, else ~/.cache/mrdrive;
+    /// resumable: finished episodes and labels are kept; `cargo xtask data`).
     Study(StudyArgs),
 }
 
 /// `data study` arguments.
 #[derive(Args)]
 pub struct StudyArgs {
-    /// Two episodes of 20 s each into data/*-quick: the plumbing, in minutes.
+    /// Two episodes of 20 s each into <cache>/data/*-quick: the plumbing, in minutes.
     #[arg(long)]
     pub quick: bool,
 }
@@ -60,11 +61,17 @@ pub struct ShowArgs {
 pub fn run(c: DataCommand) -> anyhow::Result<()> {
     match c {
         DataCommand::Study(a) => {
+            let cache = dataset::cache::root();
             let plan = if a.quick {
-                TrainPlan::quick(Path::new("."), false)
+                TrainPlan::quick(Path::new("."), &cache, false)
             } else {
-                TrainPlan::full(Path::new("."), false)
+                TrainPlan::full(Path::new("."), &cache, false)
             };
+            eprintln!(
+                "data study: into {} (${} sets another folder)",
+                cache.join("data").display(),
+                dataset::cache::ENV
+            );
             let groups: Vec<Group> = plan.data_steps().into_iter().map(Group::One).collect();
             let exe = std::env::current_exe().context("finding this program")?;
             pipeline::execute(&exe, Path::new("."), &groups, &|s| {

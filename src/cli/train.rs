@@ -34,7 +34,8 @@ pub struct TrainArgs {
     /// (the default on 2 or more cores), 1 one after another on every thread.
     #[arg(long, requires = "all", value_parser = clap::value_parser!(u8).range(1..=2))]
     lanes: Option<u8>,
-    /// The labelled dataset [default: data/original for the Original, data/retarget otherwise].
+    /// The labelled dataset [default: <cache>/data/original for the Original,
+    /// <cache>/data/retarget otherwise; the cache: $MRDRIVE_CACHE, else ~/.cache/mrdrive].
     #[arg(long)]
     data: Option<PathBuf>,
     /// The teacher of a retargeting stage [default: <out>/original.safetensors].
@@ -234,11 +235,18 @@ fn run_all(args: &TrainArgs) -> Result<()> {
     };
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let lanes = args.lanes.unwrap_or(if cores >= 2 { 2 } else { 1 });
+    let cache = dataset::cache::root();
     let plan = if args.quick {
-        TrainPlan::quick(&base, lanes == 2)
+        TrainPlan::quick(&base, &cache, lanes == 2)
     } else {
-        TrainPlan::full(&base, lanes == 2)
+        TrainPlan::full(&base, &cache, lanes == 2)
     };
+    eprintln!(
+        "train --all: data and run state in {} (${} sets another folder), models into {}",
+        cache.display(),
+        dataset::cache::ENV,
+        base.join("models").display()
+    );
     let mut groups: Vec<Group> = plan.data_steps().into_iter().map(Group::One).collect();
     groups.extend(plan.train_steps());
     let exe = std::env::current_exe().context("finding this program")?;

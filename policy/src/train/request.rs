@@ -17,8 +17,8 @@ pub struct StageRequest {
     pub preset: Preset,
     /// The scale set R of `ra` (fractions of S0).
     pub scales: Vec<f32>,
-    /// The labelled dataset; `None`: `data/original` for the Original,
-    /// `data/retarget` for a retargeting stage.
+    /// The labelled dataset; `None`: the cache's `data/original` for the
+    /// Original, `data/retarget` for a retargeting stage (`dataset::cache`).
     pub data: Option<PathBuf>,
     /// The teacher of a retargeting stage; it must exist.
     pub teacher: PathBuf,
@@ -121,18 +121,22 @@ impl StageRequest {
     /// The recipe of the stage named [`StageRequest::stage`].
     fn recipe(&self) -> Result<StageSpec, SpecError> {
         let stage = self.stage.as_str();
-        let data_or = |d: &str| self.data.clone().unwrap_or_else(|| PathBuf::from(d));
+        let data_or = |d: &str| {
+            self.data
+                .clone()
+                .unwrap_or_else(|| dataset::cache::dataset(d))
+        };
         let retarget = |scales: &[f32]| {
             StageSpec::retarget(
                 stage,
                 scales,
-                &data_or("data/retarget"),
+                &data_or("retarget"),
                 &self.teacher,
                 self.preset,
             )
         };
         if stage == "original" {
-            Ok(StageSpec::original(&data_or("data/original"), self.preset))
+            Ok(StageSpec::original(&data_or("original"), self.preset))
         } else if stage == "ra" {
             Ok(retarget(&self.scales))
         } else if let Some(r) = stage.strip_prefix("nra-") {
@@ -256,7 +260,7 @@ mod tests {
         let original = request("original", &teacher).spec().unwrap();
         assert_eq!(
             original,
-            StageSpec::original(Path::new("data/original"), Preset::Tiny)
+            StageSpec::original(&dataset::cache::dataset("original"), Preset::Tiny)
         );
         let nra = request("nra-0.75", &teacher).spec().unwrap();
         assert_eq!(
@@ -264,7 +268,7 @@ mod tests {
             StageSpec::retarget(
                 "nra-0.75",
                 &[0.75],
-                Path::new("data/retarget"),
+                &dataset::cache::dataset("retarget"),
                 &teacher,
                 Preset::Tiny
             )
