@@ -7,7 +7,8 @@
 //! every density could not catch an NPC regression.
 //!
 //! Runs are deterministic, so counts are exact: any change shows as a
-//! readable line diff. After a deliberate change, `cargo xtask bless`
+//! readable line diff (collisions under both counting rules: `counts` holds
+//! the paper's, `lb1.0` leaderboard 1.0's). After a deliberate change, `cargo xtask bless`
 //! rewrites the golden files (it sets `MRDRIVE_BLESS=1`). The golden lines
 //! record the render backend of each run ("none" for the expert, which draws
 //! nothing). One golden file holds on every x86-64 CPU with AVX2 and FMA:
@@ -35,8 +36,10 @@ fn golden_line(record: &serde_json::Value) -> String {
     let s = &r["settings"];
     let counts = r["counts"].as_object().expect("counts");
     let counts: Vec<String> = counts.iter().map(|(k, v)| format!("{k}={v}")).collect();
+    // Collisions under leaderboard 1.0's rule beside the paper's (in `counts`).
+    let lb1 = &r["collisions"]["leaderboard-1.0"];
     format!(
-        "D={:>3} v={:>2} p={:>2} | realised {}/{} | success={} completion={:.2} score={:.2} outside_lane={:.2}% ticks={} end={} | {} | backend={}",
+        "D={:>3} v={:>2} p={:>2} | realised {}/{} | success={} completion={:.2} score={:.2} outside_lane={:.2}% ticks={} end={} | {} | lb1.0 p={} v={} s={} | backend={}",
         s["delay_ms"],
         s["vehicles"],
         s["pedestrians"],
@@ -49,6 +52,9 @@ fn golden_line(record: &serde_json::Value) -> String {
         r["ticks"],
         r["termination"].as_str().unwrap_or("-"),
         counts.join(" "),
+        lb1["pedestrian"],
+        lb1["vehicle"],
+        lb1["static"],
         r["provenance"]["render_backend"].as_str().unwrap_or("?"),
     )
 }

@@ -517,6 +517,8 @@ pub(crate) mod tests {
                     scale_share: [("0.75".to_string(), 1.0 - high), ("1".to_string(), high)].into(),
                     max_latency_ms: 100.0,
                     infractions: Vec::new(),
+                    collisions: Default::default(),
+                    contacts: Vec::new(),
                     trace: Vec::new(),
                 },
                 perf: RunPerf::default(),

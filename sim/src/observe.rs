@@ -48,6 +48,9 @@ pub struct TickView<'a> {
     pub computed: Option<VehicleControl>,
     /// Infractions the monitors counted this tick.
     pub infractions: &'a [Infraction],
+    /// The ego's touches of this tick (`monitors::contacts`): each contact's start
+    /// and repeats, each kerb. Their `left_tick` is not known yet (`None`).
+    pub touches: &'a [crate::monitors::contacts::Touch],
 }
 
 impl<'a> TickView<'a> {

@@ -280,13 +280,23 @@ fn header(img: &mut RgbImage, r: &RunResult) {
         r.settings.pedestrians,
         r.settings.seed,
     ));
+    let rules: Vec<String> = r
+        .collisions
+        .iter()
+        .map(|(rule, c)| format!("{rule} {}", c.total()))
+        .collect();
     let line2 = fit(format!(
-        "{outcome}: {:.1} % of the {:.0} m route in {:.1} s{}",
+        "{outcome}: {:.1} % of the {:.0} m route in {:.1} s{}{}",
         r.completion_pct,
         r.route_length_m,
         r.sim_time_s,
         r.termination
-            .map_or(String::new(), |k| format!(", ended by {}", k.name()))
+            .map_or(String::new(), |k| format!(", ended by {}", k.name())),
+        if rules.is_empty() {
+            String::new()
+        } else {
+            format!(" | collisions: {}", rules.join(", "))
+        }
     ));
     let outcome_rgb = if r.success {
         [90, 230, 90]

@@ -11,6 +11,8 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use crate::monitors::contacts::Touch;
+use crate::monitors::counting::{CollisionCounts, CountingRule, collision_kind};
 use crate::monitors::{Infraction, InfractionKind};
 
 /// One run's record, as written by `mrdrive run --json` and by sweeps.
@@ -35,12 +37,14 @@ pub struct RunResult {
     pub completion_pct: f64,
     /// >= 99 % completion and within 10 m of the final route point.
     pub success: bool,
-    /// Leaderboard-1.0 driving score (percent).
+    /// Leaderboard-1.0 driving score (percent), its collisions counted by
+    /// leaderboard 1.0's rule.
     pub driving_score: f64,
     /// Share of the route progress made outside the driving lanes or against them
     /// (percent; the leaderboard's `OutsideRouteLanesTest`, `monitors::outside_lane`).
     pub outside_lane_pct: f64,
-    /// Number of infractions of each kind (every kind listed, zeros included).
+    /// Number of infractions of each kind (every kind listed, zeros included);
+    /// collisions as the paper's scorer counts them (`monitors::counting::paper`).
     pub counts: BTreeMap<InfractionKind, u32>,
     /// What ended the run early, if anything.
     pub termination: Option<InfractionKind>,
@@ -54,14 +58,49 @@ pub struct RunResult {
     pub scale_share: BTreeMap<String, f64>,
     /// The largest latency in force during the run (milliseconds).
     pub max_latency_ms: f64,
-    /// Every infraction, in order.
+    /// Every infraction, in order (collisions under the `paper` rule).
     pub infractions: Vec<Infraction>,
+    /// Collisions under each named counting rule (`paper`, `leaderboard-1.0`;
+    /// `monitors::counting`). Empty (and left out of the JSON) in records made
+    /// before it.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub collisions: BTreeMap<String, CollisionCounts>,
+    /// Every contact of the ego, kerbs included (`monitors::contacts`): any
+    /// counting rule can be applied to them afterwards. Left out of the JSON
+    /// when there was none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub contacts: Vec<Touch>,
     /// Where the ego was, every [`TRACE_EVERY_S`] of simulated time and at the end:
     /// `[time (s), x (m), y (m), input scale in force]`, positions to the centimetre.
     /// What a picture of the run draws (`sim::picture`). Empty (and left out of the
     /// JSON) in records made before it.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub trace: Vec<[f64; 4]>,
+}
+
+/// The collisions of a run's touches under every named rule, keyed by the rule's name.
+pub fn collisions_by_rule(touches: &[Touch]) -> BTreeMap<String, CollisionCounts> {
+    CountingRule::ALL
+        .into_iter()
+        .map(|r| (r.name().to_string(), r.count(touches)))
+        .collect()
+}
+
+/// The kinds of a run's infractions with its collisions counted by leaderboard
+/// 1.0's rule instead of the paper's: what leaderboard 1.0's driving score reads.
+pub fn leaderboard_kinds<'a>(
+    infractions: &'a [Infraction],
+    touches: &'a [Touch],
+) -> impl Iterator<Item = InfractionKind> + 'a {
+    let collisions = CountingRule::Leaderboard1
+        .counted(touches)
+        .into_iter()
+        .map(|i| collision_kind(&touches[i]));
+    infractions
+        .iter()
+        .map(|i| i.kind)
+        .filter(|k| !k.is_collision())
+        .chain(collisions)
 }
 
 /// Simulated seconds between two points of a record's trace ([`RunResult::trace`]).
@@ -264,10 +303,27 @@ impl RunRecord {
         if let Some(t) = r.termination {
             let _ = writeln!(out, "ended by      {}", t.name());
         }
-        let _ = writeln!(out, "infractions");
+        let _ = writeln!(
+            out,
+            "infractions   (collisions as the paper's scorer counts them)"
+        );
         for (kind, n) in &r.counts {
             if !kind.terminates() || *n > 0 {
                 let _ = writeln!(out, "  {:<22} {n}", kind.name());
+            }
+        }
+        if !r.collisions.is_empty() {
+            let _ = writeln!(
+                out,
+                "collisions    by rule (pedestrian / vehicle / static), from {} contacts recorded",
+                r.contacts.len()
+            );
+            for (rule, c) in &r.collisions {
+                let _ = writeln!(
+                    out,
+                    "  {rule:<22} {} / {} / {}",
+                    c.pedestrian, c.vehicle, c.static_
+                );
             }
         }
         let _ = writeln!(
@@ -390,5 +446,30 @@ mod tests {
         assert!(table.contains("  red_light              2\n"), "{table}");
         assert!(!table.contains("ended by"), "{table}");
         assert!(table.ends_with("other 0.00 s\n"), "{table}");
+        // A kerb mount: a static collision for the paper, none for leaderboard 1.0.
+        let mut record = crate::sweep::fixtures::fake_record(&spec);
+        record.result.contacts = vec![Touch {
+            tick: 10,
+            time_s: 0.25,
+            with: crate::monitors::contacts::TouchWith::Kerb,
+            actor: None,
+            what: "kerb up".into(),
+            position: [1.0, 2.0],
+            speed_mps: 3.0,
+            repeat: false,
+            kerb: None,
+            left_tick: None,
+        }];
+        record.result.collisions = collisions_by_rule(&record.result.contacts);
+        let table = record.table();
+        assert!(table.contains("from 1 contacts recorded\n"), "{table}");
+        assert!(
+            table.contains("  paper                  0 / 0 / 1\n"),
+            "{table}"
+        );
+        assert!(
+            table.contains("  leaderboard-1.0        0 / 0 / 0\n"),
+            "{table}"
+        );
     }
 }

@@ -744,6 +744,8 @@ pub fn run(
                 size_m: (vehicle.length_m, vehicle.width_m),
                 throttle: control.throttle,
                 contacts: &contacts,
+                kerbs: &e.kerbs,
+                route_progress_m: 0.0,
                 lights: &world.light_states,
                 dt_s: tick_s,
             };
@@ -755,6 +757,7 @@ pub fn run(
                 ));
             }
             new_infractions.clear();
+            let touches_before = monitors.collisions.touches().len();
             monitors.observe(&ego_tick, &mut new_infractions);
             if let Some(end) = new_infractions.iter().find(|i| i.kind.terminates()) {
                 termination = Some(end.kind);
@@ -781,6 +784,7 @@ pub fn run(
                     control,
                     computed,
                     infractions: &new_infractions,
+                    touches: &monitors.collisions.touches()[touches_before..],
                 };
                 for o in observers.iter_mut() {
                     o.on_tick(&view, camera.as_mut().map(|c| c as &mut dyn Camera))?;
@@ -812,6 +816,9 @@ pub fn run(
     }
     let completion_pct = monitors.route.completion_pct();
     let success = monitors.route.succeeded(final_position) && termination.is_none();
+    let outside_lane_pct = monitors.outside_lane.outside_pct();
+    let contacts = monitors.collisions.into_touches();
+    let collisions = crate::record::collisions_by_rule(&contacts);
     perf.render_s = camera.as_ref().map_or(0.0, |c| c.spent_s);
     let result = RunResult {
         provenance: Provenance {
@@ -846,10 +853,10 @@ pub fn run(
         success,
         driving_score: driving_score(
             completion_pct,
-            infractions.iter().map(|i| i.kind),
-            monitors.outside_lane.outside_pct(),
+            crate::record::leaderboard_kinds(&infractions, &contacts),
+            outside_lane_pct,
         ),
-        outside_lane_pct: monitors.outside_lane.outside_pct(),
+        outside_lane_pct,
         counts: count_by_kind(&infractions),
         termination,
         route_length_m: f64::from(route.length_m),
@@ -858,6 +865,8 @@ pub fn run(
         scale_share: controls.scale_share(),
         max_latency_ms: controls.max_latency_ms,
         infractions,
+        collisions,
+        contacts,
         trace,
     };
     perf.wall_s = wall.elapsed().as_secs_f64();

@@ -3,18 +3,27 @@
 //! footprints), so a marking or a red-light crossing means one thing
 //! everywhere (docs/protocol.md §3).
 //!
+//! Every monitor implements [`Monitor`] and [`Monitors`] observes them in one
+//! fixed order, the order of this table:
+//!
 //! | monitor | counts |
 //! | --- | --- |
-//! | [`collision`] | collisions by other actor's kind, once per actor, with a cooldown |
+//! | [`route`] | route completion, success, deviation from the route |
+//! | [`collision`] | every contact recorded as a touch ([`contacts`]); collisions under the paper's rule ([`counting`]) |
 //! | [`lane_crossing`] | every painted marking the footprint crosses |
 //! | [`red_light`] | passages over a red light's stop line |
-//! | [`outside_lane`] | the share of the distance driven off the driving lanes (or against them) |
-//! | [`route`] | route completion, success, deviation from the route |
 //! | [`blocked`] | stuck, low-speed (not counting time held by a red light) and route timeouts |
-//! | [`score`] | leaderboard-1.0's driving score from the counts above |
+//! | [`outside_lane`] | the share of the route progress made off the driving lanes (or against them) |
+//! | [`on_sidewalk`] | each stretch driven on a sidewalk (informative) |
+//!
+//! Beside them: [`contacts`] (the touches), [`counting`] (the named rules
+//! that count collisions from touches: `paper`, `leaderboard-1.0`) and
+//! [`score`] (leaderboard-1.0's driving score from the counts).
 
 pub mod blocked;
 pub mod collision;
+pub mod contacts;
+pub mod counting;
 pub mod lane_crossing;
 pub mod on_sidewalk;
 pub mod outside_lane;
@@ -25,6 +34,7 @@ pub mod score;
 use serde::{Deserialize, Serialize};
 pub use world::EgoPose;
 use world::LightState;
+use world::agents::kerb::KerbCrossing;
 use world::road::geometry::OrientedBox;
 
 /// What the other body in a collision was.
@@ -69,6 +79,11 @@ pub struct EgoTick<'a> {
     pub throttle: f32,
     /// Bodies the ego touched during the step.
     pub contacts: &'a [EgoContact],
+    /// The kerbs the ego's axles went up or down during the step, front axle first.
+    pub kerbs: &'a [KerbCrossing],
+    /// The route distance reached after the step (metres). The route monitor
+    /// measures it: [`Monitors::observe`] fills it in for the monitors after it.
+    pub route_progress_m: f32,
     /// The state of every light, indexed by `LightIdx`.
     pub lights: &'a [LightState],
     /// The tick's length (seconds).
@@ -93,10 +108,14 @@ pub trait Monitor {
     /// Looks at one tick and pushes what it counts to `out`, which already
     /// holds what the monitors before it pushed for this tick.
     fn observe(&mut self, tick: &EgoTick<'_>, out: &mut Vec<Infraction>);
+
+    /// Reports what was still in progress when the run ended.
+    fn finish(&mut self, _out: &mut Vec<Infraction>) {}
 }
 
-/// Every monitor of a run, observed in a fixed order (the blocked monitor
-/// last: standing after a collision counted this tick is stuck).
+/// Every monitor of a run, observed in the module table's order (the
+/// blocked monitor after the collisions: standing after a collision counted
+/// this tick is stuck).
 #[derive(Debug, Clone)]
 pub struct Monitors {
     /// Route completion, success and deviation.
@@ -107,11 +126,12 @@ pub struct Monitors {
     pub lane_crossings: lane_crossing::LaneCrossingMonitor,
     /// Red lights run.
     pub red_lights: red_light::RedLightMonitor,
-    /// Distance driven off the lanes.
-    pub outside_lane: outside_lane::OutsideLaneMonitor,
-    pub on_sidewalk: on_sidewalk::OnSidewalkMonitor,
     /// Stuck, low speed, route timeout.
     pub blocked: blocked::BlockedMonitor,
+    /// Route progress made off the lanes.
+    pub outside_lane: outside_lane::OutsideLaneMonitor,
+    /// Stretches on the sidewalk.
+    pub on_sidewalk: on_sidewalk::OnSidewalkMonitor,
 }
 
 impl Monitors {
@@ -138,23 +158,34 @@ impl Monitors {
 
     /// Every monitor looks at the tick, in order; their reports go to `out`.
     pub fn observe(&mut self, tick: &EgoTick<'_>, out: &mut Vec<Infraction>) {
-        let all: [&mut dyn Monitor; 5] = [
-            &mut self.route,
-            &mut self.collisions,
-            &mut self.lane_crossings,
-            &mut self.red_lights,
-            &mut self.blocked,
-        ];
-        for m in all {
-            m.observe(tick, out);
+        self.route.observe(tick, out);
+        let tick = EgoTick {
+            route_progress_m: self.route.progress_m(),
+            ..*tick
+        };
+        for m in self.after_route() {
+            m.observe(&tick, out);
         }
-        self.outside_lane.observe(tick, self.route.progress_m());
-        self.on_sidewalk.observe(tick, out);
     }
 
     /// Reports what was still in progress when the run ended (a stretch on the sidewalk).
     pub fn finish(&mut self, out: &mut Vec<Infraction>) {
-        self.on_sidewalk.finish(out);
+        self.route.finish(out);
+        for m in self.after_route() {
+            m.finish(out);
+        }
+    }
+
+    /// The monitors after the route monitor, in order.
+    fn after_route(&mut self) -> [&mut dyn Monitor; 6] {
+        [
+            &mut self.collisions,
+            &mut self.lane_crossings,
+            &mut self.red_lights,
+            &mut self.blocked,
+            &mut self.outside_lane,
+            &mut self.on_sidewalk,
+        ]
     }
 }
 
@@ -199,6 +230,14 @@ impl InfractionKind {
         Self::LowSpeedTimeout,
         Self::RouteTimeout,
     ];
+
+    /// Whether this is a collision (with a pedestrian, a vehicle or the map).
+    pub fn is_collision(self) -> bool {
+        matches!(
+            self,
+            Self::CollisionPedestrian | Self::CollisionVehicle | Self::CollisionStatic
+        )
+    }
 
     /// Whether this event ends the run.
     pub fn terminates(self) -> bool {
@@ -291,6 +330,8 @@ pub(crate) mod scripted {
                 size_m: (4.79, 2.16),
                 throttle: 0.5,
                 contacts: &[],
+                kerbs: &[],
+                route_progress_m: 0.0,
                 lights,
                 dt_s: 0.025,
             };

@@ -12,7 +12,7 @@ use std::sync::Arc;
 use world::Town;
 use world::rules::RuleBook;
 
-use super::{EgoTick, Infraction, InfractionKind};
+use super::{EgoTick, Infraction, InfractionKind, Monitor};
 
 /// The stretch on the sidewalk in progress: where and when it began, how far so far.
 #[derive(Debug, Clone, Copy)]
@@ -53,10 +53,12 @@ impl OnSidewalkMonitor {
                     .iter()
                     .any(|c| sidewalks.under(*c).is_some()))
     }
+}
 
+impl Monitor for OnSidewalkMonitor {
     /// Adds this tick's distance to the stretch on the sidewalk, or ends it (an
     /// event) when the ego left the sidewalk.
-    pub fn observe(&mut self, tick: &EgoTick<'_>, out: &mut Vec<Infraction>) {
+    fn observe(&mut self, tick: &EgoTick<'_>, out: &mut Vec<Infraction>) {
         let d = f64::from(tick.now.ground().distance(tick.prev.ground()));
         match (self.on_sidewalk(tick), &mut self.stretch) {
             (true, Some(s)) => s.distance_m += d,
@@ -73,7 +75,7 @@ impl OnSidewalkMonitor {
     }
 
     /// Ends a stretch in progress (at the end of the run).
-    pub fn finish(&mut self, out: &mut Vec<Infraction>) {
+    fn finish(&mut self, out: &mut Vec<Infraction>) {
         if let Some(s) = self.stretch.take() {
             out.push(Infraction {
                 tick: s.tick,

@@ -15,7 +15,7 @@ use std::sync::Arc;
 use world::Town;
 use world::rules::{LaneStanding, RuleBook};
 
-use super::EgoTick;
+use super::{EgoTick, Infraction, Monitor};
 
 /// Accumulates the route progress made outside the lanes.
 #[derive(Debug, Clone)]
@@ -52,11 +52,14 @@ impl OutsideLaneMonitor {
             0.0
         }
     }
+}
 
-    /// Adds the route progress since the last tick (`progress_m`: the route distance
-    /// reached, metres), to the outside share when the ego stands outside the lanes
-    /// or against them after the step.
-    pub fn observe(&mut self, tick: &EgoTick<'_>, progress_m: f32) {
+impl Monitor for OutsideLaneMonitor {
+    /// Adds the route progress since the last tick (`tick.route_progress_m`) to
+    /// the outside share when the ego stands outside the lanes or against them
+    /// after the step. It reports no event: the share is read at the run's end.
+    fn observe(&mut self, tick: &EgoTick<'_>, _out: &mut Vec<Infraction>) {
+        let progress_m = tick.route_progress_m;
         let d = f64::from((progress_m - self.last_progress_m).max(0.0));
         self.last_progress_m = self.last_progress_m.max(progress_m);
         if d == 0.0 {
@@ -88,7 +91,11 @@ mod tests {
     /// Drives `poses`, the route progress being the distance along +x from x = 20.
     fn drive(m: &mut OutsideLaneMonitor, poses: &[world::EgoPose]) {
         scripted::drive(poses, 4.0, &[], |t| {
-            m.observe(t, (t.now.position.x - 20.0).max(0.0))
+            let tick = EgoTick {
+                route_progress_m: (t.now.position.x - 20.0).max(0.0),
+                ..*t
+            };
+            m.observe(&tick, &mut Vec::new())
         });
     }
 
@@ -115,7 +122,7 @@ mod tests {
     fn no_route_progress_adds_nothing() {
         let mut m = monitor();
         let poses = scripted::straight(30.0, -5.0, 0.0, 100);
-        scripted::drive(&poses, 0.0, &[], |t| m.observe(t, 0.0));
+        scripted::drive(&poses, 0.0, &[], |t| m.observe(t, &mut Vec::new()));
         assert_eq!(m.outside_pct(), 0.0);
     }
 }

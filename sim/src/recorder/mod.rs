@@ -16,8 +16,11 @@
 //! | `/ego` | `mrdrive.EgoState` | speed, route command, active scale, latency in force |
 //! | `/infractions` | `foxglove.Log` | every infraction, as a log line |
 //! | `/infractions/events` | `mrdrive.Infraction` | every infraction, as data |
+//! | `/contacts` | `mrdrive.Touch` | every contact of the ego, kerbs included (`monitors::contacts`) |
 //!
-//! The final result record is written as MCAP metadata named `result`.
+//! The final result record is written as MCAP metadata named `result`; its
+//! `contacts` carry each touch's `left_tick` too, and `collisions` the counts
+//! under each named rule.
 //!
 //! Chunks are zstd-compressed, single-threaded at a fixed level, so a
 //! deterministic run gives byte-identical files. The writer streams chunks to

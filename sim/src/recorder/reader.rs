@@ -248,7 +248,8 @@ mod tests {
         assert_eq!(count("/bev/image"), Some(0));
         let tf = s.topics.iter().find(|x| x.topic == "/tf").unwrap();
         assert_eq!(tf.schema, "foxglove.FrameTransform");
-        assert_eq!(s.topics.len(), 10);
+        assert_eq!(count("/contacts"), Some(1));
+        assert_eq!(s.topics.len(), 11);
         // The map at t = 0, the last tick at 39 * 25 ms.
         assert!((s.duration_s() - 0.975).abs() < 1e-9, "{}", s.duration_s());
         assert_eq!(s.result().unwrap()["completion_pct"], 100.0);

@@ -32,6 +32,9 @@ const EGO_SCHEMA: &str = r#"{"title":"mrdrive.EgoState","type":"object","propert
 const INFRACTION_SCHEMA: &str = r#"{"title":"mrdrive.Infraction","type":"object","properties":{
 "tick":{"type":"integer"},"time_s":{"type":"number"},"kind":{"type":"string"},"position":{"type":"array","items":{"type":"number"}},"detail":{"type":"string"}}}"#;
 
+const TOUCH_SCHEMA: &str = r#"{"title":"mrdrive.Touch","type":"object","properties":{
+"tick":{"type":"integer"},"time_s":{"type":"number"},"with":{"type":"string","enum":["vehicle","pedestrian","map","kerb"]},"actor":{"type":["integer","null"]},"what":{"type":"string"},"position":{"type":"array","items":{"type":"number"}},"speed_mps":{"type":"number"},"repeat":{"type":"boolean"},"kerb":{"type":"object","properties":{"front_axle":{"type":"boolean"},"height_m":{"type":"number"},"angle_deg":{"type":"number"},"speed_mps":{"type":"array","items":{"type":"number"}}}},"left_tick":{"type":["integer","null"]}}}"#;
+
 /// Side of the square bird's-eye view image (pixels).
 pub const BEV_SIZE_PX: u32 = 192;
 /// Width of ground the bird's-eye view covers, centred on the ego (metres).
@@ -84,6 +87,7 @@ struct Channels {
     ego: u16,
     log: u16,
     events: u16,
+    touches: u16,
 }
 
 /// Writes one run's MCAP log.
@@ -215,6 +219,7 @@ impl<W: Write + Seek> Recorder<W> {
                 "mrdrive.Infraction",
                 INFRACTION_SCHEMA,
             )?,
+            touches: channel("/contacts", "mrdrive.Touch", TOUCH_SCHEMA)?,
         };
         let mut recorder = Self {
             writer,
@@ -433,6 +438,17 @@ impl<W: Write + Seek> Recorder<W> {
         self.write(channel, t_ns, &data)
     }
 
+    /// Logs one touch of the ego (`/contacts`).
+    pub fn touch(
+        &mut self,
+        t_ns: u64,
+        touch: &crate::monitors::contacts::Touch,
+    ) -> Result<(), RecordError> {
+        let data = serde_json::to_value(touch).map_err(|e| io_error(&self.path, e))?;
+        let channel = self.channels.touches;
+        self.write(channel, t_ns, &data)
+    }
+
     /// Writes the result record as metadata `result` and closes the file.
     pub fn finish(mut self, result: &impl serde::Serialize) -> Result<W, RecordError> {
         let text = serde_json::to_string(result).map_err(|e| io_error(&self.path, e))?;
@@ -484,6 +500,9 @@ impl<W: Write + Seek> RunObserver for Recorder<W> {
         let t_ns = (v.time_s * NS as f64).round() as u64;
         for i in v.infractions {
             self.infraction(t_ns, i)?;
+        }
+        for t in v.touches {
+            self.touch(t_ns, t)?;
         }
         self.control(t_ns, v.computed, v.control)?;
         if !v.camera_frame {
@@ -609,6 +628,21 @@ pub(crate) mod tests {
                     detail: "light 3".into(),
                 };
                 rec.infraction(t, &i).unwrap();
+            }
+            if tick == 9 {
+                let touch = crate::monitors::contacts::Touch {
+                    tick,
+                    time_s: t as f64 / NS as f64,
+                    with: crate::monitors::contacts::TouchWith::Kerb,
+                    actor: None,
+                    what: "kerb up".into(),
+                    position: [0.9, 0.0],
+                    speed_mps: 4.0,
+                    repeat: false,
+                    kerb: None,
+                    left_tick: None,
+                };
+                rec.touch(t, &touch).unwrap();
             }
             if tick % 2 == 0 {
                 rec.camera(t, &image).unwrap();

@@ -97,6 +97,8 @@ pub(crate) mod fixtures {
                 scale_share: BTreeMap::new(),
                 max_latency_ms: 0.0,
                 infractions,
+                collisions: Default::default(),
+                contacts: Vec::new(),
                 trace: Vec::new(),
             },
             perf: RunPerf::default(),

@@ -126,6 +126,8 @@ pub struct Ego {
     pub control: VehicleControl,
     /// The lane it is on (lane, arc length), if any.
     pub lane: Option<(LaneIdx, f32)>,
+    /// The kerbs its axles went up or down during the last tick, front axle first.
+    pub kerbs: Vec<crate::agents::kerb::KerbCrossing>,
 }
 
 /// Ego, NPC vehicles and pedestrians in one physics world (see the module docs).

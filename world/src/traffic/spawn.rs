@@ -206,6 +206,7 @@ impl Traffic {
                 .lanes
                 .lane_under(&self.town, start.position, start.yaw)
                 .map(|lp| (lp.lane, lp.s)),
+            kerbs: Vec::new(),
         });
         self.refresh_views();
     }

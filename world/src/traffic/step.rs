@@ -118,7 +118,7 @@ impl Traffic {
             if out.hit.is_some() {
                 s.speed_mps *= out.fraction;
             }
-            kerb::cross_kerbs(&mut s, &vp, before, sidewalks);
+            e.kerbs = kerb::cross_kerbs(&mut s, &vp, before, sidewalks);
             e.z = road_z + kerb::ride_height_m(sidewalks, s.position);
             e.state = s;
         }
