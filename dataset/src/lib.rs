@@ -20,6 +20,7 @@
 //! | [`decode`] | from the head's logits to a control: speed interpolation, then WoR's decoding to steer, throttle and brake |
 //! | [`noise`] | the expert with noise, the driver of collection |
 //! | [`collect`] | planned episodes, the observer that keeps frames, writing shards |
+//! | [`hashes`] | the SHA-256 of a dataset's files, and a check against a committed list |
 //! | [`format`] | the on-disk dataset: index and safetensors shards, and their reader |
 //! | [`labels`] | world-on-rails action values: grid, static and per-step maps, the vehicle model's dynamics, the backward recursion, episodes |
 //! | [`label_driver`] | a driver that drives by the action values (do the labels say how to drive?) |
@@ -29,6 +30,7 @@ pub mod cache;
 pub mod collect;
 pub mod decode;
 pub mod format;
+pub mod hashes;
 pub mod info;
 pub mod label_driver;
 pub mod labels;

@@ -440,6 +440,36 @@ pub struct StepError {
     pub command: String,
     /// What went wrong (its exit status and where its output is, or why it did not start).
     pub what: String,
+    /// It stopped at the job's time limit (exit status [`STOPPED_AT_TIME_LIMIT`]) or
+    /// was not started because the limit had passed: not a failure, the plan goes on
+    /// when run again.
+    pub time_limit: bool,
+}
+
+impl StepError {
+    /// Whether the plan stopped at its time limit rather than failed.
+    pub fn stopped_at_time_limit(&self) -> bool {
+        self.time_limit
+    }
+}
+
+/// The exit status of a step stopped at the job's time limit (`mrdrive train
+/// --hours`; BSD's `EX_TEMPFAIL`).
+pub const STOPPED_AT_TIME_LIMIT: i32 = 75;
+
+/// Hands every training step of `groups` the job's time limit (`--until-unix`,
+/// seconds since 1970), so a stage in progress checkpoints and stops at it.
+pub fn limit_training(groups: &mut [Group], until_unix: u64) {
+    let steps = groups.iter_mut().flat_map(|g| match g {
+        Group::One(s) => std::slice::from_mut(s).iter_mut().collect::<Vec<_>>(),
+        Group::Lanes(lanes) => lanes.iter_mut().flatten().collect(),
+    });
+    for step in steps {
+        if step.args.first().map(String::as_str) == Some("train") {
+            step.args
+                .extend(["--until-unix".to_string(), until_unix.to_string()]);
+        }
+    }
 }
 
 /// Runs one step with `exe` in `dir`.
@@ -448,6 +478,7 @@ fn run_step(exe: &Path, dir: &Path, step: &Step) -> Result<(), StepError> {
         step: step.name.clone(),
         command: format!("{} {}", exe.display(), step.args.join(" ")),
         what,
+        time_limit: false,
     };
     let mut cmd = Command::new(exe);
     cmd.args(&step.args).current_dir(dir);
@@ -470,6 +501,10 @@ fn run_step(exe: &Path, dir: &Path, step: &Step) -> Result<(), StepError> {
     }
     match cmd.status() {
         Ok(s) if s.success() => Ok(()),
+        Ok(s) if s.code() == Some(STOPPED_AT_TIME_LIMIT) => Err(StepError {
+            time_limit: true,
+            ..fail("stopped at the time limit".into())
+        }),
         Ok(s) => Err(fail(match &step.log {
             Some(log) => format!("failed ({s}); its output is in {}", log.display()),
             None => format!("failed ({s})"),
@@ -487,13 +522,34 @@ pub fn execute(
     groups: &[Group],
     note: &(dyn Fn(&str) + Sync),
 ) -> Result<(), StepError> {
+    execute_until(exe, dir, groups, None, note)
+}
+
+/// [`execute`] within a time limit: no step starts once `stop_at` has passed (the
+/// error then says so, [`StepError::stopped_at_time_limit`]), and a step that stops
+/// at the limit ends the plan the same way.
+pub fn execute_until(
+    exe: &Path,
+    dir: &Path,
+    groups: &[Group],
+    stop_at: Option<std::time::SystemTime>,
+    note: &(dyn Fn(&str) + Sync),
+) -> Result<(), StepError> {
     let one = |step: &Step| -> Result<(), StepError> {
+        if stop_at.is_some_and(|t| std::time::SystemTime::now() >= t) {
+            return Err(StepError {
+                step: step.name.clone(),
+                command: format!("{} {}", exe.display(), step.args.join(" ")),
+                what: "not started: the time limit has passed".into(),
+                time_limit: true,
+            });
+        }
         note(&match &step.log {
             Some(log) => format!("{} (log {})", step.name, log.display()),
             None => step.name.clone(),
         });
         match run_step(exe, dir, step) {
-            Err(e) if step.may_fail => {
+            Err(e) if step.may_fail && !e.time_limit => {
                 note(&format!("{e} (going on)"));
                 Ok(())
             }
@@ -521,6 +577,7 @@ pub fn execute(
                                     step: "a training lane".into(),
                                     command: String::new(),
                                     what: "panicked".into(),
+                                    time_limit: false,
                                 })
                             })
                         })
@@ -649,5 +706,43 @@ mod tests {
         assert!(notes.iter().any(|n| n.contains("(going on)")));
         assert!(notes.iter().any(|n| n == "lane one done"));
         assert!(!notes.iter().any(|n| n == "never"));
+    }
+
+    #[test]
+    fn a_time_limit_stops_the_plan_without_calling_it_a_failure() {
+        let dir = tempfile::tempdir().unwrap();
+        let note = |_: &str| {};
+        let groups = vec![
+            Group::One(Step::new("stops at its limit", strings(&["-c", "exit 75"]))),
+            Group::One(Step::new("never", strings(&["-c", "true"]))),
+        ];
+        let e = execute(Path::new("/bin/sh"), dir.path(), &groups, &note).unwrap_err();
+        assert!(
+            e.stopped_at_time_limit() && e.step == "stops at its limit",
+            "{e}"
+        );
+        // A limit already passed: nothing starts.
+        let marker = dir.path().join("ran");
+        let touch = format!("touch {}", marker.display());
+        let groups = vec![Group::One(Step::new("touch", strings(&["-c", &touch])))];
+        let past = Some(std::time::SystemTime::UNIX_EPOCH);
+        let e = execute_until(Path::new("/bin/sh"), dir.path(), &groups, past, &note).unwrap_err();
+        assert!(e.stopped_at_time_limit() && !marker.exists(), "{e}");
+        // A real failure is not a time limit.
+        let groups = vec![Group::One(Step::new("fails", strings(&["-c", "exit 2"])))];
+        let e = execute(Path::new("/bin/sh"), dir.path(), &groups, &note).unwrap_err();
+        assert!(!e.stopped_at_time_limit());
+        // Every training step, in lanes too, gets the limit; the others do not.
+        let mut plan = TrainPlan::quick(Path::new("q"), Path::new("c"), true).train_steps();
+        limit_training(&mut plan, 1_800_000_000);
+        let all: Vec<String> = plan.iter().flat_map(joined).collect();
+        for a in &all {
+            assert_eq!(
+                a.starts_with("train "),
+                a.ends_with("--until-unix 1800000000"),
+                "{a}"
+            );
+        }
+        assert!(all.iter().any(|a| a.starts_with("sweep ")));
     }
 }

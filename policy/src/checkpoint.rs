@@ -280,16 +280,91 @@ pub fn load(weights: &Path, device: &Device) -> Result<(PolicyNet, ModelCard), C
 }
 
 fn open_weights(path: &Path) -> Result<SafetensorsStore, CheckpointError> {
-    if let Err(source) = std::fs::metadata(path) {
-        return Err(CheckpointError::Io {
+    let bytes = std::fs::read(path).map_err(|source| CheckpointError::Io {
+        path: path.to_path_buf(),
+        source,
+        fix: "give the path of an existing .safetensors file",
+    })?;
+    // A half-precision checkpoint is widened to the f32 the network computes in.
+    let bytes = convert_floats(&bytes, safetensors::Dtype::F16, safetensors::Dtype::F32).map_err(
+        |problem| CheckpointError::Weights {
             path: path.to_path_buf(),
-            source,
-            fix: "give the path of an existing .safetensors file",
-        });
-    }
-    Ok(SafetensorsStore::from_file(path)
+            problem,
+            fix: "give a checkpoint written by mrdrive (`mrdrive train`, `policy init`)".into(),
+        },
+    )?;
+    Ok(SafetensorsStore::from_bytes(Some(bytes))
         .validate(false)
         .allow_partial(true))
+}
+
+/// Saves `net` like [`save`], its floating-point tensors in half precision (IEEE
+/// binary16, rounded to nearest): half the bytes, for checkpoints kept in the
+/// repository. [`load`] widens them back to f32; a value keeps about 3 significant
+/// digits (relative error at most 2^-11 for normal values).
+pub fn save_f16(net: &PolicyNet, card: &ModelCard, weights: &Path) -> Result<(), CheckpointError> {
+    save(net, card, weights)?;
+    let fail = |problem: String| CheckpointError::Weights {
+        path: weights.to_path_buf(),
+        problem,
+        fix: "check the folder exists and is writable".into(),
+    };
+    let bytes = std::fs::read(weights).map_err(|e| fail(format!("could not read back: {e}")))?;
+    let half =
+        convert_floats(&bytes, safetensors::Dtype::F32, safetensors::Dtype::F16).map_err(fail)?;
+    std::fs::write(weights, half).map_err(|e| fail(format!("could not write: {e}")))
+}
+
+/// A safetensors file (`bytes`) with every tensor of dtype `from` (F32 or F16) stored
+/// as `to` (F16 or F32), the metadata kept in key order; the bytes unchanged when it
+/// holds no tensor of `from`.
+fn convert_floats(
+    bytes: &[u8],
+    from: safetensors::Dtype,
+    to: safetensors::Dtype,
+) -> Result<Vec<u8>, String> {
+    use safetensors::{Dtype, SafeTensors, tensor::TensorView};
+    let file = SafeTensors::deserialize(bytes).map_err(|e| format!("unreadable: {e}"))?;
+    if file.tensors().iter().all(|(_, t)| t.dtype() != from) {
+        return Ok(bytes.to_vec());
+    }
+    let (_, meta) = SafeTensors::read_metadata(bytes).map_err(|e| format!("unreadable: {e}"))?;
+    let mut data: Vec<(String, Dtype, Vec<usize>, Vec<u8>)> = Vec::new();
+    for (name, t) in file.tensors() {
+        let raw = t.data();
+        let converted = match (t.dtype(), from, to) {
+            (d, f, Dtype::F16) if d == f && f == Dtype::F32 => raw
+                .chunks_exact(4)
+                .flat_map(|c| {
+                    let v = f32::from_le_bytes(c.try_into().expect("4 bytes"));
+                    half::f16::from_f32(v).to_le_bytes()
+                })
+                .collect(),
+            (d, f, Dtype::F32) if d == f && f == Dtype::F16 => raw
+                .chunks_exact(2)
+                .flat_map(|c| {
+                    let v = half::f16::from_le_bytes(c.try_into().expect("2 bytes"));
+                    v.to_f32().to_le_bytes()
+                })
+                .collect(),
+            (d, f, _) if d == f => return Err(format!("cannot convert {d:?} to {to:?}")),
+            _ => raw.to_vec(),
+        };
+        let dtype = if t.dtype() == from { to } else { t.dtype() };
+        data.push((name, dtype, t.shape().to_vec(), converted));
+    }
+    let views: Vec<(String, TensorView<'_>)> = data
+        .iter()
+        .map(|(name, dtype, shape, raw)| {
+            TensorView::new(*dtype, shape.clone(), raw)
+                .map(|v| (name.clone(), v))
+                .map_err(|e| format!("tensor {name}: {e}"))
+        })
+        .collect::<Result<_, _>>()?;
+    let metadata = meta.metadata().clone();
+    let mut out = safetensors::serialize(views, metadata).map_err(|e| format!("{e}"))?;
+    sort_metadata(&mut out)?;
+    Ok(out)
 }
 
 /// Applies the store to `net`; every tensor `required` must be present, every unused tensor
@@ -520,6 +595,72 @@ mod tests {
         assert_eq!(back.config, tiny());
         let bad = tiny().with_scales(Vec::new());
         assert!(save_random_init(&bad, 5, &init).is_err());
+    }
+
+    #[test]
+    fn a_half_precision_checkpoint_is_half_the_size_and_loads_as_f32() {
+        let device = Device::flex();
+        device.seed(6);
+        let dir = tempfile::tempdir().unwrap();
+        let (full, half) = (
+            dir.path().join("f.safetensors"),
+            dir.path().join("h.safetensors"),
+        );
+        let net = tiny().init(&device);
+        save(&net, &ModelCard::random_init(6), &full).unwrap();
+        save_f16(&net, &ModelCard::random_init(6), &half).unwrap();
+        let (a, b) = (std::fs::read(&full).unwrap(), std::fs::read(&half).unwrap());
+        assert!(
+            b.len() * 10 < a.len() * 6,
+            "{} vs {} bytes",
+            b.len(),
+            a.len()
+        );
+        let file = safetensors::SafeTensors::deserialize(&b).unwrap();
+        assert!(
+            file.tensors()
+                .iter()
+                .any(|(_, t)| t.dtype() == safetensors::Dtype::F16)
+        );
+        assert!(
+            file.tensors()
+                .iter()
+                .all(|(_, t)| t.dtype() != safetensors::Dtype::F32)
+        );
+        // Every weight within f16's rounding of the f32 one; the same file twice.
+        let (back, card) = load(&half, &device).unwrap();
+        assert_eq!(card, ModelCard::random_init(6));
+        let widened = dir.path().join("w.safetensors");
+        save(&back, &card, &widened).unwrap();
+        let w = std::fs::read(&widened).unwrap();
+        let wf = safetensors::SafeTensors::deserialize(&w).unwrap();
+        let mut n = 0;
+        let orig = safetensors::SafeTensors::deserialize(&a).unwrap();
+        for (name, t) in file.tensors() {
+            let (o, r) = (orig.tensor(&name).unwrap(), wf.tensor(&name).unwrap());
+            if o.dtype() != safetensors::Dtype::F32 {
+                continue;
+            }
+            assert_eq!(t.shape(), o.shape());
+            for (x, y) in o.data().chunks_exact(4).zip(r.data().chunks_exact(4)) {
+                let (x, y) = (
+                    f32::from_le_bytes(x.try_into().unwrap()),
+                    f32::from_le_bytes(y.try_into().unwrap()),
+                );
+                assert!((x - y).abs() <= x.abs() * 1e-3 + 1e-7, "{name}: {x} vs {y}");
+                n += 1;
+            }
+        }
+        let orig = safetensors::SafeTensors::deserialize(&a).unwrap();
+        let f32s: usize = orig
+            .tensors()
+            .iter()
+            .filter(|(_, t)| t.dtype() == safetensors::Dtype::F32)
+            .map(|(_, t)| t.data().len() / 4)
+            .sum();
+        assert_eq!(n, f32s);
+        save_f16(&net, &ModelCard::random_init(6), &widened).unwrap();
+        assert!(std::fs::read(&widened).unwrap() == b);
     }
 
     /// The record of `models/ra.json`, with a stopped-vehicle repeat of 3.

@@ -7,7 +7,9 @@
 use burn::prelude::*;
 use dataset::synthetic::{self, SyntheticSpec};
 use policy::checkpoint;
-use policy::train::stage::{FINAL_FILE, LOSSES_FILE, StageSpec, run_stage};
+use policy::train::stage::{
+    FINAL_FILE, LOSSES_FILE, StageSpec, run_stage, run_stage_until, snapshot,
+};
 use policy::train::{Preset, TrainConfig};
 use std::path::Path;
 use std::sync::Mutex;
@@ -37,6 +39,25 @@ fn rows(dir: &Path) -> Vec<String> {
         .lines()
         .map(String::from)
         .collect()
+}
+
+/// The final checkpoints of two run folders hold the same tensors, bit for bit.
+fn same_tensors(a: &Path, b: &Path) {
+    let a = std::fs::read(a.join(FINAL_FILE)).unwrap();
+    let b = std::fs::read(b.join(FINAL_FILE)).unwrap();
+    let (a, b) = (
+        safetensors::SafeTensors::deserialize(&a).unwrap(),
+        safetensors::SafeTensors::deserialize(&b).unwrap(),
+    );
+    let mut names = a.names();
+    names.sort();
+    assert!(names.len() > 20);
+    for name in names {
+        assert!(
+            a.tensor(name).unwrap().data() == b.tensor(name).unwrap().data(),
+            "{name} differs"
+        );
+    }
 }
 
 #[test]
@@ -73,21 +94,34 @@ fn a_killed_stage_resumes_bit_for_bit_and_a_done_stage_is_skipped() {
             .collect()
     };
     assert_eq!(strip(rows(killed.path())), strip(rows(straight.path())));
-    let a = std::fs::read(straight.path().join(FINAL_FILE)).unwrap();
-    let b = std::fs::read(killed.path().join(FINAL_FILE)).unwrap();
-    let (a, b) = (
-        safetensors::SafeTensors::deserialize(&a).unwrap(),
-        safetensors::SafeTensors::deserialize(&b).unwrap(),
+    same_tensors(straight.path(), killed.path());
+    // A time limit already passed: one step, a checkpoint, nothing published; run
+    // again (twice more), it finishes with the uninterrupted run's rows and bits.
+    let runs = tempfile::tempdir().unwrap();
+    let limited = runs.path().join("original");
+    let past = Some(std::time::SystemTime::UNIX_EPOCH);
+    let first = run_stage_until(&spec, &limited, &device, past, |_| {}).unwrap();
+    assert_eq!((first.stopped_at, first.steps_now), (Some(1), 1));
+    assert!(!limited.join(FINAL_FILE).exists());
+    let second = run_stage_until(&spec, &limited, &device, past, |_| {}).unwrap();
+    assert_eq!(second.stopped_at, Some(2));
+    // The job's end: the run's network at step 2 in half precision, to commit.
+    let out = runs.path().join("state/train-state.safetensors");
+    let snap = snapshot(runs.path(), &out)
+        .unwrap()
+        .expect("a run with a state");
+    assert_eq!((snap.run.clone(), snap.progress.step), (limited.clone(), 2));
+    assert!(snap.last_losses.unwrap().starts_with("1,"));
+    let (_, card) = checkpoint::load(&out, &Device::flex()).unwrap();
+    assert!(
+        card.source.ends_with("after 2 of 6 steps"),
+        "{}",
+        card.source
     );
-    let mut names = a.names();
-    names.sort();
-    assert!(names.len() > 20);
-    for name in names {
-        assert!(
-            a.tensor(name).unwrap().data() == b.tensor(name).unwrap().data(),
-            "{name} differs"
-        );
-    }
+    let rest = run_stage(&spec, &limited, &device, |_| {}).unwrap();
+    assert_eq!((rest.stopped_at, rest.steps_now), (None, 4));
+    assert_eq!(strip(rows(&limited)), strip(rows(straight.path())));
+    same_tensors(straight.path(), &limited);
     // Done: nothing to do.
     let again = run_stage(&spec, killed.path(), &device, |_| {}).unwrap();
     assert_eq!(again.steps_now, 0);

@@ -24,7 +24,29 @@ pub enum DataCommand {
     /// <cache>/data/retarget (the cache: $MRDRIVE_CACHE, else ~/.cache/mrdrive;
     /// resumable: finished episodes and labels are kept; `cargo xtask data`).
     Study(StudyArgs),
+    /// The SHA-256 of datasets' shard and label files (`sha256sum`'s format): write the
+    /// list to commit beside the plan, or check regenerated data against it.
+    Hashes(HashesArgs),
 }
+
+/// `data hashes` arguments.
+#[derive(Args)]
+pub struct HashesArgs {
+    /// The dataset directories (e.g. <cache>/data/original <cache>/data/retarget).
+    #[arg(required = true)]
+    pub dirs: Vec<PathBuf>,
+    /// Write the list to this file (replaced).
+    #[arg(long, conflicts_with = "check")]
+    pub out: Option<PathBuf>,
+    /// Check the datasets against this list: every listed file present must match;
+    /// exits 1 if one differs.
+    #[arg(long)]
+    pub check: Option<PathBuf>,
+}
+
+/// The study's data hash list, committed with the training chain's state
+/// (`mrdrive data hashes --out`); `data study` checks what it made against it.
+pub const DATA_HASHES: &str = "models/train-state/data.sha256";
 
 /// `data study` arguments.
 #[derive(Args)]
@@ -77,7 +99,18 @@ pub fn run(c: DataCommand) -> anyhow::Result<()> {
             pipeline::execute(&exe, Path::new("."), &groups, &|s| {
                 eprintln!("data study: {s}")
             })?;
+            // Regenerated data must be the data the committed list was made from.
+            let list = Path::new(DATA_HASHES);
+            if !a.quick && list.exists() {
+                let dirs = plan.datasets.iter().map(|d| d.dir.clone()).collect();
+                hashes(&HashesArgs {
+                    dirs,
+                    out: None,
+                    check: Some(list.to_path_buf()),
+                })?;
+            }
         }
+        DataCommand::Hashes(a) => hashes(&a)?,
         DataCommand::Info(a) => {
             let summary = Summary::of(&a.dir, &mut towns_from_maps())?;
             print!("{summary}");
@@ -155,5 +188,47 @@ pub fn run_bench(c: BenchCommand) -> anyhow::Result<()> {
         train_steps,
     };
     bench::report::loader_bench(&dir, set, &config, &run, &mut std::io::stdout())?;
+    Ok(())
+}
+
+/// `mrdrive data hashes`: write or check a dataset hash list.
+fn hashes(a: &HashesArgs) -> anyhow::Result<()> {
+    let mut found = std::collections::BTreeMap::new();
+    for dir in &a.dirs {
+        found.extend(dataset::hashes::of_dataset(dir)?);
+    }
+    let text = dataset::hashes::to_text(&found);
+    match (&a.out, &a.check) {
+        (Some(out), _) => {
+            std::fs::write(out, text).with_context(|| format!("writing {}", out.display()))?;
+            println!("wrote {} ({} files)", out.display(), found.len());
+        }
+        (None, Some(list)) => {
+            let listed = std::fs::read_to_string(list)
+                .with_context(|| format!("reading {}", list.display()))?;
+            let listed = dataset::hashes::from_text(&listed, list).map_err(anyhow::Error::msg)?;
+            let c = dataset::hashes::check(&found, &listed);
+            println!(
+                "{}: {} files the same, {} differ, {} listed but missing (collect and label again), {} not listed",
+                list.display(),
+                c.same.len(),
+                c.differ.len(),
+                c.missing.len(),
+                c.new.len()
+            );
+            for f in &c.differ {
+                println!("  differs: {f}");
+            }
+            if !c.differ.is_empty() {
+                anyhow::bail!(
+                    "{} files differ from {}: this data is not the data the list was made from \
+                     (another build, Mesa or plan); regenerate it with the build the list names",
+                    c.differ.len(),
+                    list.display()
+                );
+            }
+        }
+        (None, None) => print!("{text}"),
+    }
     Ok(())
 }

@@ -8,10 +8,11 @@ use experiments::loss_plot::{loss_curves, loss_title};
 use experiments::pipeline::{self, Group, TrainPlan};
 use policy::device::{self, DeviceKind};
 use policy::train::publish::{LOSSES_PLOT_FILE, publish, published_checkpoint};
-use policy::train::stage::{LOSSES_FILE, run_stage};
+use policy::train::stage::{LOSSES_FILE, run_stage_until};
 use policy::train::synthetic::{SmokeRun, train_on_toy_batch};
 use policy::train::{Preset, RecipeChanges, StageRequest};
 use std::path::{Path, PathBuf};
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 /// `mrdrive train ...`
 #[derive(Debug, Args)]
@@ -106,6 +107,39 @@ pub struct TrainArgs {
     /// Train on a synthetic toy batch (a smoke run: the loss must fall).
     #[arg(long)]
     synthetic: bool,
+    /// This job's time limit (hours from now): a stage checkpoints and stops after
+    /// the step in progress once it has passed, `--all` starts no step after it;
+    /// the command then exits with status 75 and running it again goes on.
+    #[arg(long)]
+    hours: Option<f64>,
+    /// The same as an absolute time (seconds since 1970, UTC): what `--all` hands its
+    /// training steps so that they share one limit.
+    #[arg(long)]
+    until_unix: Option<u64>,
+    /// With `--all`: at the job's end (done, stopped at the time limit, or failed),
+    /// write the newest run's network in half precision to FILE (+ .json), to commit,
+    /// and add a line to FILE's log (the same name ending in `.log.md`).
+    #[arg(long, requires = "all")]
+    snapshot: Option<PathBuf>,
+}
+
+/// The exit status of a job stopped at its time limit (BSD's `EX_TEMPFAIL`: run it
+/// again to go on).
+pub const STOPPED_AT_TIME_LIMIT: u8 = 75;
+
+/// The job's time limit: the earlier of `--hours` from now and `--until-unix`.
+fn deadline(args: &TrainArgs) -> Result<Option<SystemTime>> {
+    let from_hours = match args.hours {
+        Some(h) if h.is_finite() && h > 0.0 => {
+            Some(SystemTime::now() + Duration::from_secs_f64(h * 3600.0))
+        }
+        Some(h) => {
+            bail!("--hours {h}: give a positive number of hours (e.g. 2.5 for a 3-hour slot)")
+        }
+        None => None,
+    };
+    let until = args.until_unix.map(|s| UNIX_EPOCH + Duration::from_secs(s));
+    Ok(from_hours.into_iter().chain(until).min())
 }
 
 /// The stage asked for by `--stage` and the flags that change its recipe.
@@ -171,7 +205,8 @@ pub fn run_train(args: TrainArgs) -> Result<()> {
     let losses = run_dir.join(LOSSES_FILE);
     let png = run_dir.join(LOSSES_PLOT_FILE);
     let mut first = true;
-    let outcome = run_stage(&spec, &run_dir, &dev, |u| {
+    let stop_at = deadline(&args)?;
+    let outcome = run_stage_until(&spec, &run_dir, &dev, stop_at, |u| {
         if std::mem::take(&mut first) {
             for s in u.skipped {
                 let line = format!("warning: training without {}: {}", s.path.display(), s.why);
@@ -211,6 +246,16 @@ pub fn run_train(args: TrainArgs) -> Result<()> {
     })?;
     bar.finish_and_clear();
     loss_curves(&losses, &png, &loss_title(&name, &spec.name))?;
+    if let Some(step) = outcome.stopped_at {
+        eprintln!(
+            "stage {}: stopped at the time limit after step {step} of {} (state checkpointed in {}); \
+             run the same command to go on",
+            spec.name,
+            spec.steps,
+            run_dir.display()
+        );
+        std::process::exit(i32::from(STOPPED_AT_TIME_LIMIT));
+    }
     publish(&run_dir, &args.out, &name)?;
     println!(
         "stage {}: done ({} steps now, {:.0} s of training in all); checkpoint {}",
@@ -249,15 +294,100 @@ fn run_all(args: &TrainArgs) -> Result<()> {
     );
     let mut groups: Vec<Group> = plan.data_steps().into_iter().map(Group::One).collect();
     groups.extend(plan.train_steps());
+    let stop_at = deadline(args)?;
+    if let Some(t) = stop_at {
+        let secs = t.duration_since(UNIX_EPOCH).map_or(0, |d| d.as_secs());
+        pipeline::limit_training(&mut groups, secs);
+    }
     let exe = std::env::current_exe().context("finding this program")?;
-    pipeline::execute(&exe, Path::new("."), &groups, &|s| {
+    let started = std::time::Instant::now();
+    let ran = pipeline::execute_until(&exe, Path::new("."), &groups, stop_at, &|s| {
         eprintln!("train --all: {s}")
-    })?;
+    });
+    if let Some(file) = &args.snapshot {
+        let how = match &ran {
+            Ok(()) => "done".to_string(),
+            Err(e) if e.stopped_at_time_limit() => "stopped at the time limit".to_string(),
+            Err(e) => format!("failed at {}", e.step),
+        };
+        end_of_job(&plan.runs, file, &how, started.elapsed().as_secs_f64())?;
+    }
+    match ran {
+        Err(e) if e.stopped_at_time_limit() => {
+            eprintln!(
+                "train --all: stopped at the time limit ({}); run the same command to go on",
+                e.step
+            );
+            std::process::exit(i32::from(STOPPED_AT_TIME_LIMIT));
+        }
+        other => other?,
+    }
     eprintln!(
         "train --all: done; the closed-loop table is {}",
         base.join("models/closed-loop.md").display()
     );
     Ok(())
+}
+
+/// A job's end (`--snapshot FILE`): the newest run's network in half precision to
+/// FILE, and a line in its log (`.log.md`): when, where, how the job ended, what was
+/// trained and its last losses.
+fn end_of_job(runs: &Path, file: &Path, how: &str, wall_s: f64) -> Result<()> {
+    let snap = policy::train::stage::snapshot(runs, file)?;
+    let log = file.with_extension("log.md");
+    let fresh = !log.exists();
+    let mut f = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(&log)
+        .with_context(|| format!("opening {}", log.display()))?;
+    use std::io::Write;
+    if fresh {
+        writeln!(
+            f,
+            "# The training chain's jobs\n\nOne line per job of `mrdrive train --all --snapshot`: \
+             its end, the machine, the job's wall time and how it ended, the run it left in \
+             progress (its step), and that run's last row of `losses.csv` \
+             (step,epoch,loss,act,seg,kd,feat,per scale...,unfrozen,samples/s,wall_s).\n\n\
+             | job ended (UTC) | machine | job | ended | run in progress | last losses |\n\
+             | --- | --- | --- | --- | --- | --- |"
+        )?;
+    }
+    let now = time_utc(SystemTime::now());
+    let (run, losses) = match &snap {
+        Some(s) => (
+            format!("{} at step {}", s.run.display(), s.progress.step),
+            s.last_losses.clone().unwrap_or_default(),
+        ),
+        None => ("none yet".into(), String::new()),
+    };
+    writeln!(
+        f,
+        "| {now} | {} | {:.2} h | {how} | {run} | `{losses}` |",
+        policy::train::stage::machine(),
+        wall_s / 3600.0
+    )?;
+    match snap {
+        Some(s) => eprintln!(
+            "train --all: the state of {} (step {}) is in {} (half precision); commit it with {}",
+            s.run.display(),
+            s.progress.step,
+            file.display(),
+            log.display()
+        ),
+        None => eprintln!(
+            "train --all: no run has a state yet; {} noted the job",
+            log.display()
+        ),
+    }
+    Ok(())
+}
+
+/// `YYYY-MM-DD HH:MM` of a time, UTC.
+fn time_utc(t: SystemTime) -> String {
+    chrono::DateTime::<chrono::Utc>::from(t)
+        .format("%Y-%m-%d %H:%M")
+        .to_string()
 }
 
 /// `mrdrive train --synthetic`: a smoke run on one toy batch.

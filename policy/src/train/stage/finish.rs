@@ -24,6 +24,9 @@ pub struct StageOutcome {
     pub steps_now: usize,
     /// Training wall time over every session (seconds).
     pub wall_s: f64,
+    /// Stopped at the time limit before its last step (`Some(steps done)`): the state
+    /// is checkpointed, nothing is published, and running the stage again goes on.
+    pub stopped_at: Option<usize>,
 }
 
 impl Session<'_> {
@@ -39,6 +42,7 @@ impl Session<'_> {
         let checkpoint = self.run_dir.join(FINAL_FILE);
         checkpoint::save(&net, &card, &checkpoint)?;
         Ok(StageOutcome {
+            stopped_at: None,
             checkpoint,
             steps_now: steps - self.done,
             wall_s,

@@ -27,6 +27,7 @@
 //! | `finish.rs` | the BN recalibration and the trained checkpoint |
 //! | `cards.rs` | the cards written on `latest.safetensors` and `final.safetensors` |
 //! | `run_folder.rs` | the files of a run folder, written so that a kill leaves them whole |
+//! | `snapshot.rs` | a job's end: the newest run's network in half precision, to commit |
 //! | `error.rs` | [`StageError`]: why a stage could not run, and the fix |
 //!
 //! The stage's settings are [`StageSpec`] (`crate::train::spec`); a finished run is
@@ -36,10 +37,12 @@ mod cards;
 mod error;
 mod finish;
 mod run_folder;
+mod snapshot;
 mod start;
 mod train_loop;
 
 use std::path::Path;
+use std::time::SystemTime;
 
 use burn::prelude::*;
 
@@ -48,6 +51,7 @@ pub use cards::machine;
 pub use error::StageError;
 pub use finish::StageOutcome;
 pub use run_folder::{FINAL_FILE, LATEST_FILE, LOSSES_FILE, Progress, losses_header};
+pub use snapshot::{Snapshot, run_folders, snapshot};
 pub use train_loop::StepUpdate;
 
 use start::{ResumePoint, Session, resume_point};
@@ -58,6 +62,20 @@ pub fn run_stage(
     spec: &StageSpec,
     run_dir: &Path,
     device: &Device,
+    on_step: impl FnMut(&StepUpdate<'_>),
+) -> Result<StageOutcome, StageError> {
+    run_stage_until(spec, run_dir, device, None, on_step)
+}
+
+/// [`run_stage`] within a time limit, as a job of a chain (a Slurm time limit, a
+/// preemptible machine): once `stop_at` has passed, the stage checkpoints its state
+/// after the step in progress and returns with [`StageOutcome::stopped_at`] set;
+/// running it again goes on from there, bit for bit as if it had not stopped.
+pub fn run_stage_until(
+    spec: &StageSpec,
+    run_dir: &Path,
+    device: &Device,
+    stop_at: Option<SystemTime>,
     mut on_step: impl FnMut(&StepUpdate<'_>),
 ) -> Result<StageOutcome, StageError> {
     let progress = match resume_point(spec, run_dir)? {
@@ -66,12 +84,22 @@ pub fn run_stage(
                 checkpoint: run_dir.join(FINAL_FILE),
                 steps_now: 0,
                 wall_s: p.wall_s,
+                stopped_at: None,
             });
         }
         ResumePoint::From(progress) => progress,
     };
     let mut session = Session::start(spec, run_dir, device, progress)?;
-    let wall_s = session.train(device, &mut on_step)?;
+    let done_before = session.done;
+    let (wall_s, stopped_at) = session.train(device, stop_at, &mut on_step)?;
+    if let Some(step) = stopped_at {
+        return Ok(StageOutcome {
+            checkpoint: run_dir.join(LATEST_FILE),
+            steps_now: step - done_before,
+            wall_s,
+            stopped_at,
+        });
+    }
     session.finish(device, wall_s)
 }
 

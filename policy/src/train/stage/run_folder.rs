@@ -23,7 +23,7 @@ pub(super) const SPEC_FILE: &str = "spec.json";
 /// The SHA-256 of the checkpoints a run started from, by field (`teacher`, `init`).
 const INPUTS_FILE: &str = "inputs.json";
 pub(super) const STATE_DIR: &str = "state";
-const PROGRESS_FILE: &str = "progress.json";
+pub(super) const PROGRESS_FILE: &str = "progress.json";
 /// The loss log of a run folder.
 pub const LOSSES_FILE: &str = "losses.csv";
 /// The trained checkpoint of a run folder.

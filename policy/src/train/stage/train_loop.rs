@@ -2,7 +2,7 @@
 //! the run state (with `latest.safetensors`) when one is due, to the last step.
 
 use std::io::Write;
-use std::time::Instant;
+use std::time::{Instant, SystemTime};
 
 use burn::prelude::*;
 
@@ -31,13 +31,16 @@ pub struct StepUpdate<'a> {
 }
 
 impl Session<'_> {
-    /// Trains from the steps done to the spec's last; `on_step` sees every step.
-    /// Returns the training wall time over every session (seconds).
+    /// Trains from the steps done to the spec's last, or until `stop_at` has passed
+    /// (then it checkpoints after the step in progress and stops); `on_step` sees
+    /// every step. Returns the training wall time over every session (seconds) and,
+    /// when it stopped early, the steps done.
     pub(super) fn train(
         &mut self,
         device: &Device,
+        stop_at: Option<SystemTime>,
         on_step: &mut impl FnMut(&StepUpdate<'_>),
-    ) -> Result<f64, StageError> {
+    ) -> Result<(f64, Option<usize>), StageError> {
         let spec = self.spec;
         let (mut loader, per_epoch) = self.start_loader();
         let started = Instant::now();
@@ -55,19 +58,24 @@ impl Session<'_> {
             self.log(step, step / per_epoch, &report, samples_per_s, wall_s)?;
             let last = step + 1 == spec.steps;
             let due = spec.checkpoint_every > 0 && (step + 1) % spec.checkpoint_every == 0;
-            if last || due {
+            let out_of_time = !last && stop_at.is_some_and(|t| SystemTime::now() >= t);
+            if last || due || out_of_time {
                 self.checkpoint(step + 1, wall_s)?;
             }
             on_step(&StepUpdate {
                 report: &report,
                 steps: spec.steps,
                 samples_per_s,
-                checkpointed: last || due,
+                checkpointed: last || due || out_of_time,
                 skipped: &self.set.skipped,
             });
+            if out_of_time {
+                drop(loader);
+                return Ok((wall_s, Some(step + 1)));
+            }
         }
         drop(loader);
-        Ok(self.wall_before_s + started.elapsed().as_secs_f64())
+        Ok((self.wall_before_s + started.elapsed().as_secs_f64(), None))
     }
 
     /// The loader of the stage's batches from the steps done on (the same batches
