@@ -148,7 +148,7 @@ impl Monitors {
             route: route::RouteMonitor::new(route, deviation_m),
             collisions: collision::CollisionMonitor::default(),
             lane_crossings: lane_crossing::LaneCrossingMonitor::new(town),
-            red_lights: red_light::RedLightMonitor::new(rules.clone()),
+            red_lights: red_light::RedLightMonitor::new(town.clone(), rules.clone()),
             outside_lane: outside_lane::OutsideLaneMonitor::new(town.clone(), rules.clone()),
             on_sidewalk: on_sidewalk::OnSidewalkMonitor::new(town.clone(), rules.clone()),
             blocked: blocked::BlockedMonitor::new(stuck_s, low_speed_s, timeout_s)

@@ -3,8 +3,9 @@
 //! As CARLA's `RunningRedLightTest`, a vehicle has passed a stop line once
 //! a point near its tail, 0.8 half-lengths behind its centre, is over it: a
 //! car that stopped with its nose over the line has not passed it. The
-//! red-light monitor counts a crossing of that point; the expert waits for
-//! every stop line that point has not yet passed.
+//! paper's red-light test starts its tail segment there
+//! ([`super::stop_lines::tail_segment`]); the expert waits for every stop line
+//! that point has not yet passed.
 
 use glam::Vec2;
 

@@ -45,7 +45,7 @@ pub use lights::{YELLOW_SLACK_M, light_state, must_stop};
 pub use pursuit::pursuit_lookahead_m;
 pub use route::{nearest_route_point, route_ahead, route_point_at, route_s_at};
 pub use sidewalks::{OnSidewalk, SidewalkGrid};
-pub use stop_lines::{RouteStop, RouteStops, StopLineEntry, StopLines};
+pub use stop_lines::{RouteStop, RouteStops, StopLineEntry, StopLines, tail_segment};
 pub use yielding::{
     GIVE_WAY_HORIZON_S, GIVE_WAY_MIN_M, YIELD_RANGE_M, approaching, junction_signalled,
     junction_yield, must_give_way,

@@ -10,8 +10,9 @@
 
 use glam::Vec2;
 
-use super::{crossing_point, heading_agrees, light_state, must_stop};
+use super::{crossing_point, heading_agrees, light_state, must_stop, nearest_lane};
 use crate::map::town::{LaneIdx, LightIdx, LightState, Town};
+use crate::road::geometry::segments_intersect;
 use crate::route::dense::DenseRoute;
 
 /// One stop line of a town, as the table lists it.
@@ -30,6 +31,54 @@ pub struct StopLineEntry {
     /// The line's ends (metres, ground plane): left end first, right end
     /// second, seen in the driving direction.
     pub ends: [Vec2; 2],
+}
+
+/// How far behind the rear bumper the paper's tail segment reaches (metres;
+/// TimeParam `wor_common.py` `_vehicle_tail_segment`: `extent + 1.5`).
+pub const TAIL_BEYOND_REAR_M: f32 = 1.5;
+/// Half the paper's stop-line segment, in lane widths (TimeParam `_stop_line_segment`:
+/// `0.6 * lane_width` each way). A town's stop lines span half a lane width each way.
+pub const RED_LINE_HALF_LANES: f32 = 0.6;
+
+/// The paper's tail segment of a vehicle (TimeParam `_vehicle_tail_segment`): from its
+/// crossing point ([`crossing_point`], 0.8 half-lengths behind the centre) back to
+/// [`TAIL_BEYOND_REAR_M`] behind the rear bumper.
+pub fn tail_segment(position: Vec2, heading: f32, length_m: f32) -> (Vec2, Vec2) {
+    let back = Vec2::from_angle(heading);
+    (
+        crossing_point(position, heading, length_m),
+        position - back * (length_m / 2.0 + TAIL_BEYOND_REAR_M),
+    )
+}
+
+impl StopLineEntry {
+    /// Whether a vehicle at `position` (metres) heading `heading` (radians), `length_m`
+    /// long, stands over this line as the paper's scorer tests it each tick
+    /// (TimeParam `_check_red_light`, docs/protocol.md §3): it faces the line's lane
+    /// direction (a positive dot product), its tail segment ([`tail_segment`])
+    /// crosses the line widened to [`RED_LINE_HALF_LANES`] lane widths each way, and
+    /// the driving lane nearest the segment's far end is on the line's road and
+    /// OpenDRIVE lane. The light's state is the caller's to check.
+    pub fn under_tail(&self, town: &Town, position: Vec2, heading: f32, length_m: f32) -> bool {
+        if Vec2::from_angle(self.heading).dot(Vec2::from_angle(heading)) <= 0.0 {
+            return false;
+        }
+        let (close, far) = tail_segment(position, heading, length_m);
+        let widen = RED_LINE_HALF_LANES / 0.5;
+        let a = self.position + (self.ends[0] - self.position) * widen;
+        let b = self.position + (self.ends[1] - self.position) * widen;
+        if !segments_intersect(close, far, a, b) {
+            return false;
+        }
+        let (Some(line_lane), Some(lp)) = (
+            town.lanes.get(self.lane.0 as usize),
+            nearest_lane(town, far, None),
+        ) else {
+            return false;
+        };
+        let under = &town.lanes[lp.lane.0 as usize];
+        (&under.road_id, under.od_lane) == (&line_lane.road_id, line_lane.od_lane)
+    }
 }
 
 /// Every stop line of a town, and for each lane its stop lines by arc length.
