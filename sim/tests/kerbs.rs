@@ -107,12 +107,25 @@ fn a_car_drifting_into_a_kerb_at_a_shallow_angle_rides_onto_the_sidewalk_and_kee
     let town = testtown::grid(3, 1, 100.0);
     let route = [Vec2::new(15.0, -1.75), Vec2::new(65.0, -7.0)];
     let (r, at) = cruise(town, &route, 5.0, 9.0);
+    // Both axles' climbs are recorded; the mount is one static collision as the
+    // paper's scorer counts (the sidewalk is map geometry, CARLA's actor 0) and none
+    // as leaderboard 1.0 counts (sidewalk contacts dropped).
+    let ups: Vec<bool> = r
+        .result
+        .contacts
+        .iter()
+        .filter(|t| t.what == "kerb up")
+        .map(|t| t.kerb.expect("a kerb touch").front_axle)
+        .collect();
+    assert_eq!(ups, [true, false], "{:?}", r.result.contacts);
     assert_eq!(
         count(&r, InfractionKind::CollisionStatic),
-        0,
+        1,
         "{:?}",
         r.result.infractions
     );
+    assert_eq!(r.result.collisions["paper"].static_, 1);
+    assert_eq!(r.result.collisions["leaderboard-1.0"].total(), 0);
     assert!(at.y < -3.5, "the car is up on the sidewalk: {at}");
     assert!(at.x > 45.0, "and kept going: {at}");
     assert_eq!(
@@ -167,6 +180,11 @@ fn a_car_driven_square_into_a_building_wall_records_one_static_collision() {
         .unwrap();
     assert!((56.0..=58.0).contains(&hit.position[0]), "{hit:?}");
     assert!(at.x < 60.0 - 2.3, "the car stops at the wall: {at}");
+    // Pressed against the wall, the contact goes on: repeats, but one collision
+    // under either rule (the paper: one map actor; leaderboard 1.0: within 3 m).
+    assert!(r.result.contacts.len() > 1, "{:?}", r.result.contacts);
+    assert!(r.result.contacts.iter().all(|t| t.what == "building"));
+    assert_eq!(r.result.collisions["leaderboard-1.0"].static_, 1);
 }
 
 #[test]
