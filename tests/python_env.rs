@@ -5,10 +5,11 @@
 
 mod common;
 
+use sim::build::Overrides;
 use sim::build::{self, Drivers, Extras, FactoryError, RunRequest};
 use sim::driver::{Driver, DriverNeeds, Observation, VehicleControl};
 use sim::record::RunRecord;
-use sim::runner::{Overrides, Prepared};
+use sim::runner::Prepared;
 use sim::scenario::{DriverKind, DriverSpec, Scenario};
 use world::testdata::{self, Needs};
 

@@ -18,13 +18,14 @@ use std::sync::Arc;
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use sim::build::Overrides;
 use sim::build::{self, Drivers, Extras, RunRequest};
 use sim::camera::Camera;
 use sim::expert::{Expert, ExpertParams};
 use sim::observe::{RunObserver, TickView};
 use sim::render::classes::to_wor;
 use sim::render::{EgoPose, Renderer, RigConfig};
-use sim::runner::{Overrides, Prepared, RunError};
+use sim::runner::{Prepared, RunError};
 use sim::scenario::{MapSpec, RouteSpec as ScenarioRoute, Scenario};
 use sim::selector::Fixed;
 use world::map::{LoadOptions, UnsignalledJunctions, load_xodr_file};

@@ -49,12 +49,12 @@ pub fn run_paper(
         if !opts.mixed_builds {
             same_build(
                 &existing.provenance(|p| &p.build),
-                &sim::runner::build_id(),
+                &sim::output::provenance::build_id(),
                 &opts.out,
             )?;
         }
         let cpus = existing.cpus();
-        if let Some(note) = other_cpus(&cpus, sim::runner::cpu_model().as_deref()) {
+        if let Some(note) = other_cpus(&cpus, sim::output::provenance::cpu_model().as_deref()) {
             eprintln!("paper: {note}");
         }
         // Logged as each run finishes, so a kill loses only the runs in flight.

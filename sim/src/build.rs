@@ -15,12 +15,50 @@ use crate::observe::{Progress, RenderEveryFrame, RunObserver, RunProgress};
 use crate::record::RunRecord;
 use crate::recorder::{RecordError, RecordOptions, Recorder};
 use crate::render::{RenderError, Renderer, RigConfig};
-use crate::runner::{self, Overrides, Prepared, RunError, RunInputs};
+use crate::runner::{self, Prepared, RunError, RunInputs};
 use crate::scenario::{DriverKind, RigKind, Scenario, ScenarioError, SelectorKind};
 use crate::selector::{
     Fixed, LatencyBudget, LatencyTable, LatencyTableError, Learned, Lookahead, Oracle,
     ResolutionSelector,
 };
+
+/// Settings given on the command line over the scenario's.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Overrides {
+    /// Injected delay (milliseconds).
+    pub delay_ms: Option<f64>,
+    /// Traffic seed.
+    pub seed: Option<u64>,
+    /// Target vehicles.
+    pub vehicles: Option<u32>,
+    /// Target pedestrians.
+    pub pedestrians: Option<u32>,
+    /// Who drives, over the scenario's `[driver]` (paths relative to the working folder).
+    pub driver: Option<crate::scenario::DriverSpec>,
+}
+
+impl Overrides {
+    /// The scenario with the overrides applied.
+    pub fn apply(&self, scenario: &Scenario) -> Scenario {
+        let mut s = scenario.clone();
+        if let Some(d) = self.delay_ms {
+            s.timing.delay_ms = d;
+        }
+        if let Some(seed) = self.seed {
+            s.traffic.seed = seed;
+        }
+        if let Some(v) = self.vehicles {
+            s.traffic.vehicles = v;
+        }
+        if let Some(p) = self.pedestrians {
+            s.traffic.pedestrians = p;
+        }
+        if let Some(d) = &self.driver {
+            s.driver = d.clone();
+        }
+        s
+    }
+}
 
 /// Any error a [`DriverFactory`] reports (it comes from another crate).
 pub type FactoryError = Box<dyn std::error::Error + Send + Sync>;

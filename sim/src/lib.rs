@@ -4,9 +4,11 @@
 //! program registers.
 //!
 //! From a scenario file to a result: [`scenario`] reads it, [`build`] makes
-//! its driver, selector and camera, [`runner`] drives the loop, [`record`]
-//! holds the result, [`picture`] draws it, [`sweep`] runs many and tabulates them;
-//! [`moment`] drives a run to a moment and draws its camera's picture there.
+//! its driver, selector and camera (with the command line's [`build::Overrides`]),
+//! [`runner`] drives the loop, [`output`] holds what a run gives (the record, the
+//! log, the picture, a moment's picture), [`sweep`] runs many and tabulates them.
+//! [`record`], [`recorder`], [`picture`] and [`moment`] are [`output`]'s, re-exported
+//! here under their short names.
 
 pub mod build;
 pub mod camera;
@@ -14,13 +16,10 @@ pub mod delay;
 pub mod driver;
 pub mod error;
 pub mod expert;
-pub mod moment;
 pub mod monitors;
 pub mod observe;
+pub mod output;
 mod overlap;
-pub mod picture;
-pub mod record;
-pub mod recorder;
 pub mod remote;
 pub mod render;
 pub mod runner;
@@ -29,3 +28,4 @@ pub mod selector;
 pub mod sweep;
 
 pub use driver::*;
+pub use output::{moment, picture, record, recorder};

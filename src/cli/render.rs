@@ -224,7 +224,7 @@ fn render_at(a: &RenderAtArgs) -> Result<()> {
             "--top-down {px}: give the view's side in pixels, 1 to 8192, e.g. --top-down 256"
         );
     }
-    let overrides = sim::runner::Overrides {
+    let overrides = sim::build::Overrides {
         driver: a.driver.driver(),
         ..a.traffic.overrides(a.delay_ms)
     };

@@ -7,10 +7,10 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use clap::Args;
+use sim::build::Overrides;
 use sim::build::{self, RunRequest};
 use sim::observe::RunProgress;
 use sim::recorder::RecordOptions;
-use sim::runner::Overrides;
 
 /// `run` arguments.
 #[derive(Args)]

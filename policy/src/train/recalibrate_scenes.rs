@@ -10,10 +10,11 @@
 use std::path::{Path, PathBuf};
 
 use burn::prelude::*;
+use sim::build::Overrides;
 use sim::build::{self, BuildError, Drivers, Extras, RunRequest};
 use sim::observe::{Moment, Moments};
 use sim::render::{EgoPose, Renderer};
-use sim::runner::{self, Overrides};
+use sim::runner;
 use sim::scenario::{DriverKind, Scenario};
 
 use super::recalibrate::recalibrate_with;

@@ -41,10 +41,11 @@ use serde_json::{Value, json};
 
 use super::frame::{read_frame, write_frame};
 use super::{Event, Link, RemoteDriver, Since, Snapshot};
+use crate::build::Overrides;
 use crate::build::{self, Drivers, Extras, FactoryError, RunRequest};
 use crate::driver::{Driver, VehicleControl};
 use crate::recorder::RecordOptions;
-use crate::runner::{Overrides, Prepared};
+use crate::runner::Prepared;
 use crate::scenario::{DriverKind, DriverSpec, Scenario};
 
 /// What a request can fail with: the text the answer's `error` carries.

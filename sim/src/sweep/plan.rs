@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use serde::{Deserialize, Serialize};
 
 use super::SweepError;
-use crate::runner::Overrides;
+use crate::build::Overrides;
 
 /// One run of a sweep: a scenario file and the settings that override it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -17,10 +17,10 @@ use crate::monitors::Infraction;
 use crate::observe::{RunObserver, TickView};
 
 /// Foxglove schemas, embedded (see `sim/schemas/foxglove/README.md`).
-const COMPRESSED_IMAGE: &str = include_str!("../../schemas/foxglove/CompressedImage.json");
-const FRAME_TRANSFORM: &str = include_str!("../../schemas/foxglove/FrameTransform.json");
-const LOG: &str = include_str!("../../schemas/foxglove/Log.json");
-const SCENE_UPDATE: &str = include_str!("../../schemas/foxglove/SceneUpdate.json");
+const COMPRESSED_IMAGE: &str = include_str!("../../../schemas/foxglove/CompressedImage.json");
+const FRAME_TRANSFORM: &str = include_str!("../../../schemas/foxglove/FrameTransform.json");
+const LOG: &str = include_str!("../../../schemas/foxglove/Log.json");
+const SCENE_UPDATE: &str = include_str!("../../../schemas/foxglove/SceneUpdate.json");
 
 /// Our own small schemas for the plain data topics.
 const CONTROL_SCHEMA: &str = r#"{"title":"mrdrive.Control","type":"object","properties":{
