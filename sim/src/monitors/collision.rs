@@ -50,45 +50,17 @@ impl Monitor for CollisionMonitor {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{ContactKind, EgoContact, InfractionKind, scripted};
+    use super::super::scripted::{self, CAR, TREE, WALKER, WALL};
+    use super::super::{EgoContact, InfractionKind};
     use super::*;
 
     /// Drives 100 ticks at `speed`, touching `contact_at(tick)`.
     fn count(speed: f32, contact_at: impl Fn(u64) -> Vec<EgoContact>) -> Vec<InfractionKind> {
         let mut monitor = CollisionMonitor::default();
         let mut out = Vec::new();
-        let poses = scripted::straight(0.0, 0.0, speed, 100);
-        scripted::drive(&poses, speed, &[], |t| {
-            let contacts = contact_at(t.tick);
-            let tick = EgoTick {
-                contacts: &contacts,
-                ..*t
-            };
-            monitor.observe(&tick, &mut out);
-        });
+        scripted::touching(speed, 100, contact_at, |t| monitor.observe(t, &mut out));
         out.into_iter().map(|i| i.kind).collect()
     }
-
-    const CAR: EgoContact = EgoContact {
-        other: 7,
-        kind: ContactKind::Vehicle,
-        static_name: None,
-    };
-    const WALKER: EgoContact = EgoContact {
-        other: 9,
-        kind: ContactKind::Pedestrian,
-        static_name: None,
-    };
-    const WALL: EgoContact = EgoContact {
-        other: 100,
-        kind: ContactKind::Static,
-        static_name: Some("building"),
-    };
-    const TREE: EgoContact = EgoContact {
-        other: 101,
-        kind: ContactKind::Static,
-        static_name: Some("tree"),
-    };
 
     #[test]
     fn a_long_contact_with_one_car_counts_once() {

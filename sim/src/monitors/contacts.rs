@@ -198,31 +198,15 @@ impl ContactLog {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{EgoContact, scripted};
+    use super::super::EgoContact;
+    use super::super::scripted::{self, CAR, WALL};
     use super::*;
-
-    const CAR: EgoContact = EgoContact {
-        other: 7,
-        kind: ContactKind::Vehicle,
-        static_name: None,
-    };
-    const WALL: EgoContact = EgoContact {
-        other: 1_000_000,
-        kind: ContactKind::Static,
-        static_name: Some("building"),
-    };
 
     /// Drives 200 ticks (5 s) along +x at `speed`, touching `contact_at(tick)`.
     fn log(speed: f32, contact_at: impl Fn(u64) -> Vec<EgoContact>) -> Vec<Touch> {
         let mut log = ContactLog::default();
-        let poses = scripted::straight(0.0, 0.0, speed, 200);
-        scripted::drive(&poses, speed, &[], |t| {
-            let contacts = contact_at(t.tick);
-            let tick = EgoTick {
-                contacts: &contacts,
-                ..*t
-            };
-            log.observe(&tick, &[]);
+        scripted::touching(speed, 200, contact_at, |t| {
+            log.observe(t, &[]);
         });
         log.into_touches()
     }

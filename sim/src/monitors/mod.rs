@@ -313,6 +313,46 @@ pub(crate) mod scripted {
             .collect()
     }
 
+    /// A vehicle, a walker and two pieces of map geometry to touch.
+    pub const CAR: EgoContact = EgoContact {
+        other: 7,
+        kind: ContactKind::Vehicle,
+        static_name: None,
+    };
+    pub const WALKER: EgoContact = EgoContact {
+        other: 9,
+        kind: ContactKind::Pedestrian,
+        static_name: None,
+    };
+    pub const WALL: EgoContact = EgoContact {
+        other: 100,
+        kind: ContactKind::Static,
+        static_name: Some("building"),
+    };
+    pub const TREE: EgoContact = EgoContact {
+        other: 101,
+        kind: ContactKind::Static,
+        static_name: Some("tree"),
+    };
+
+    /// Drives `ticks` ticks along +x from the origin at `speed_mps`, touching
+    /// `contact_at(tick)` at each.
+    pub fn touching(
+        speed_mps: f32,
+        ticks: usize,
+        contact_at: impl Fn(u64) -> Vec<EgoContact>,
+        mut observe: impl FnMut(&EgoTick<'_>),
+    ) {
+        let poses = straight(0.0, 0.0, speed_mps, ticks);
+        drive(&poses, speed_mps, &[], |t| {
+            let contacts = contact_at(t.tick);
+            observe(&EgoTick {
+                contacts: &contacts,
+                ..*t
+            });
+        });
+    }
+
     /// Feeds a pose sequence to `observe`, one tick per consecutive pair.
     pub fn drive(
         poses: &[EgoPose],
