@@ -457,17 +457,17 @@ impl StepError {
 /// --hours`; BSD's `EX_TEMPFAIL`).
 pub const STOPPED_AT_TIME_LIMIT: i32 = 75;
 
-/// Hands every training step of `groups` the job's time limit (`--until-unix`,
-/// seconds since 1970), so a stage in progress checkpoints and stops at it.
-pub fn limit_training(groups: &mut [Group], until_unix: u64) {
+/// Adds `extra` arguments to every training step of `groups` (`mrdrive train`), lanes
+/// included: the job's time limit (`--until-unix S`), a snapshot to go on from
+/// (`--resume-state FILE`).
+pub fn add_to_training(groups: &mut [Group], extra: &[String]) {
     let steps = groups.iter_mut().flat_map(|g| match g {
         Group::One(s) => std::slice::from_mut(s).iter_mut().collect::<Vec<_>>(),
         Group::Lanes(lanes) => lanes.iter_mut().flatten().collect(),
     });
     for step in steps {
         if step.args.first().map(String::as_str) == Some("train") {
-            step.args
-                .extend(["--until-unix".to_string(), until_unix.to_string()]);
+            step.args.extend(extra.iter().cloned());
         }
     }
 }
@@ -734,7 +734,7 @@ mod tests {
         assert!(!e.stopped_at_time_limit());
         // Every training step, in lanes too, gets the limit; the others do not.
         let mut plan = TrainPlan::quick(Path::new("q"), Path::new("c"), true).train_steps();
-        limit_training(&mut plan, 1_800_000_000);
+        add_to_training(&mut plan, &strings(&["--until-unix", "1800000000"]));
         let all: Vec<String> = plan.iter().flat_map(joined).collect();
         for a in &all {
             assert_eq!(

@@ -8,7 +8,7 @@ use burn::prelude::*;
 use dataset::synthetic::{self, SyntheticSpec};
 use policy::checkpoint;
 use policy::train::stage::{
-    FINAL_FILE, LOSSES_FILE, StageSpec, run_stage, run_stage_until, snapshot,
+    FINAL_FILE, Job, LOSSES_FILE, StageSpec, run_stage, run_stage_until, snapshot,
 };
 use policy::train::{Preset, TrainConfig};
 use std::path::Path;
@@ -99,11 +99,14 @@ fn a_killed_stage_resumes_bit_for_bit_and_a_done_stage_is_skipped() {
     // again (twice more), it finishes with the uninterrupted run's rows and bits.
     let runs = tempfile::tempdir().unwrap();
     let limited = runs.path().join("original");
-    let past = Some(std::time::SystemTime::UNIX_EPOCH);
-    let first = run_stage_until(&spec, &limited, &device, past, |_| {}).unwrap();
+    let past = Job {
+        stop_at: Some(std::time::SystemTime::UNIX_EPOCH),
+        ..Job::default()
+    };
+    let first = run_stage_until(&spec, &limited, &device, &past, |_| {}).unwrap();
     assert_eq!((first.stopped_at, first.steps_now), (Some(1), 1));
     assert!(!limited.join(FINAL_FILE).exists());
-    let second = run_stage_until(&spec, &limited, &device, past, |_| {}).unwrap();
+    let second = run_stage_until(&spec, &limited, &device, &past, |_| {}).unwrap();
     assert_eq!(second.stopped_at, Some(2));
     // The job's end: the run's network at step 2 in half precision, to commit.
     let out = runs.path().join("state/train-state.safetensors");
@@ -118,6 +121,22 @@ fn a_killed_stage_resumes_bit_for_bit_and_a_done_stage_is_skipped() {
         "{}",
         card.source
     );
+    // The cache lost: a run folder without state goes on from the snapshot at step 2
+    // (fresh Adam moments: close to, not the bits of, the uninterrupted run).
+    let lost = tempfile::tempdir().unwrap();
+    let again = lost.path().join("original");
+    let from = Job {
+        resume_state: Some(out.clone()),
+        ..Job::default()
+    };
+    let resumed = run_stage_until(&spec, &again, &device, &from, |_| {}).unwrap();
+    assert_eq!((resumed.stopped_at, resumed.steps_now), (None, 4));
+    let first_row = rows(&again)[1].clone();
+    assert!(first_row.starts_with("2,"), "{first_row}");
+    // A snapshot of another run is ignored: this one starts from step 0.
+    let other = lost.path().join("nra-1.0");
+    let fresh = run_stage_until(&spec, &other, &device, &from, |_| {}).unwrap();
+    assert_eq!(fresh.steps_now, 6);
     let rest = run_stage(&spec, &limited, &device, |_| {}).unwrap();
     assert_eq!((rest.stopped_at, rest.steps_now), (None, 4));
     assert_eq!(strip(rows(&limited)), strip(rows(straight.path())));

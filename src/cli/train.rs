@@ -8,7 +8,7 @@ use experiments::loss_plot::{loss_curves, loss_title};
 use experiments::pipeline::{self, Group, TrainPlan};
 use policy::device::{self, DeviceKind};
 use policy::train::publish::{LOSSES_PLOT_FILE, publish, published_checkpoint};
-use policy::train::stage::{LOSSES_FILE, run_stage_until};
+use policy::train::stage::{Job, LOSSES_FILE, run_stage_until};
 use policy::train::synthetic::{SmokeRun, train_on_toy_batch};
 use policy::train::{Preset, RecipeChanges, StageRequest};
 use std::path::{Path, PathBuf};
@@ -116,6 +116,11 @@ pub struct TrainArgs {
     /// training steps so that they share one limit.
     #[arg(long)]
     until_unix: Option<u64>,
+    /// Go on from this committed snapshot (`--snapshot`'s file) when the run folder
+    /// of the stage it was taken from has no state of its own (the cache was lost):
+    /// its weights at its step, Adam's moments afresh. Ignored by other stages.
+    #[arg(long)]
+    resume_state: Option<PathBuf>,
     /// With `--all`: at the job's end (done, stopped at the time limit, or failed),
     /// write the newest run's network in half precision to FILE (+ .json), to commit,
     /// and add a line to FILE's log (the same name ending in `.log.md`).
@@ -205,8 +210,11 @@ pub fn run_train(args: TrainArgs) -> Result<()> {
     let losses = run_dir.join(LOSSES_FILE);
     let png = run_dir.join(LOSSES_PLOT_FILE);
     let mut first = true;
-    let stop_at = deadline(&args)?;
-    let outcome = run_stage_until(&spec, &run_dir, &dev, stop_at, |u| {
+    let job = Job {
+        stop_at: deadline(&args)?,
+        resume_state: args.resume_state.clone(),
+    };
+    let outcome = run_stage_until(&spec, &run_dir, &dev, &job, |u| {
         if std::mem::take(&mut first) {
             for s in u.skipped {
                 let line = format!("warning: training without {}: {}", s.path.display(), s.why);
@@ -297,7 +305,15 @@ fn run_all(args: &TrainArgs) -> Result<()> {
     let stop_at = deadline(args)?;
     if let Some(t) = stop_at {
         let secs = t.duration_since(UNIX_EPOCH).map_or(0, |d| d.as_secs());
-        pipeline::limit_training(&mut groups, secs);
+        pipeline::add_to_training(&mut groups, &["--until-unix".into(), secs.to_string()]);
+    }
+    // A committed snapshot: the stage it was taken from goes on from it when the cache
+    // lost that stage's run folder (the others ignore it).
+    if let Some(file) = &args.snapshot
+        && policy::train::stage::resume_path(file).exists()
+    {
+        let file = file.display().to_string();
+        pipeline::add_to_training(&mut groups, &["--resume-state".into(), file]);
     }
     let exe = std::env::current_exe().context("finding this program")?;
     let started = std::time::Instant::now();

@@ -243,6 +243,23 @@ impl MultiResTrainer {
         Ok(trainer)
     }
 
+    /// A trainer at `step` with `net`'s weights and fresh Adam moments: a resume
+    /// from a snapshot that kept the weights only (`train::stage::snapshot`). The
+    /// steps after it see the batches and the unfreezing schedule of an uninterrupted
+    /// run; Adam starts over (its moments at zero, its bias correction from step 1).
+    pub fn continue_from(
+        net: PolicyNet,
+        teacher: Option<PolicyNet>,
+        config: TrainConfig,
+        device: &Device,
+        step: usize,
+    ) -> Self {
+        let mut trainer = MultiResTrainer::new(net, teacher, config, device);
+        trainer.step = step;
+        trainer.apply_unfreezing();
+        trainer
+    }
+
     /// One multi-resolution step over every scale of the network's R.
     pub fn step(&mut self, batch: &Batch) -> StepReport {
         let branches: Vec<usize> = (0..self.net.config.scales.len()).collect();

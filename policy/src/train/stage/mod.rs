@@ -41,7 +41,7 @@ mod snapshot;
 mod start;
 mod train_loop;
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::SystemTime;
 
 use burn::prelude::*;
@@ -51,7 +51,7 @@ pub use cards::machine;
 pub use error::StageError;
 pub use finish::StageOutcome;
 pub use run_folder::{FINAL_FILE, LATEST_FILE, LOSSES_FILE, Progress, losses_header};
-pub use snapshot::{Snapshot, run_folders, snapshot};
+pub use snapshot::{ResumeState, Snapshot, read_resume, resume_path, run_folders, snapshot};
 pub use train_loop::StepUpdate;
 
 use start::{ResumePoint, Session, resume_point};
@@ -64,18 +64,29 @@ pub fn run_stage(
     device: &Device,
     on_step: impl FnMut(&StepUpdate<'_>),
 ) -> Result<StageOutcome, StageError> {
-    run_stage_until(spec, run_dir, device, None, on_step)
+    run_stage_until(spec, run_dir, device, &Job::default(), on_step)
 }
 
-/// [`run_stage`] within a time limit, as a job of a chain (a Slurm time limit, a
-/// preemptible machine): once `stop_at` has passed, the stage checkpoints its state
-/// after the step in progress and returns with [`StageOutcome::stopped_at`] set;
-/// running it again goes on from there, bit for bit as if it had not stopped.
+/// What a job of a chain asks of a stage besides its spec.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Job {
+    /// The time limit: once it has passed, the stage checkpoints its state after the
+    /// step in progress and returns with [`StageOutcome::stopped_at`] set; running it
+    /// again goes on from there, bit for bit as if it had not stopped.
+    pub stop_at: Option<SystemTime>,
+    /// A committed snapshot ([`snapshot`]) to go on from when the run folder has no
+    /// state of its own (the cache was lost): the snapshot's weights at its step,
+    /// Adam's moments started afresh. Used only when the snapshot is of this run.
+    pub resume_state: Option<PathBuf>,
+}
+
+/// [`run_stage`] as a job of a chain (a Slurm time limit, a preemptible machine):
+/// see [`Job`].
 pub fn run_stage_until(
     spec: &StageSpec,
     run_dir: &Path,
     device: &Device,
-    stop_at: Option<SystemTime>,
+    job: &Job,
     mut on_step: impl FnMut(&StepUpdate<'_>),
 ) -> Result<StageOutcome, StageError> {
     let progress = match resume_point(spec, run_dir)? {
@@ -89,9 +100,16 @@ pub fn run_stage_until(
         }
         ResumePoint::From(progress) => progress,
     };
-    let mut session = Session::start(spec, run_dir, device, progress)?;
+    let from_snapshot = match (&progress, &job.resume_state) {
+        (None, Some(file)) => {
+            let r = read_resume(file)?;
+            run_dir.ends_with(&r.run).then_some((file.as_path(), r))
+        }
+        _ => None,
+    };
+    let mut session = Session::start(spec, run_dir, device, progress, from_snapshot)?;
     let done_before = session.done;
-    let (wall_s, stopped_at) = session.train(device, stop_at, &mut on_step)?;
+    let (wall_s, stopped_at) = session.train(device, job.stop_at, &mut on_step)?;
     if let Some(step) = stopped_at {
         return Ok(StageOutcome {
             checkpoint: run_dir.join(LATEST_FILE),

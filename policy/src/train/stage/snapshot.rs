@@ -10,9 +10,47 @@
 
 use std::path::{Path, PathBuf};
 
+use serde::{Deserialize, Serialize};
+
 use super::error::{StageError, io_err};
 use super::run_folder::{LATEST_FILE, LOSSES_FILE, PROGRESS_FILE, Progress, STATE_DIR};
 use crate::checkpoint;
+
+/// Where a snapshot's run stood, written beside it ([`resume_path`]): what a
+/// stage needs to go on from the snapshot alone.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ResumeState {
+    /// The run folder, relative to the runs folder it was taken from (`wor/original`).
+    pub run: PathBuf,
+    /// Steps done.
+    pub step: usize,
+    /// Training wall time so far (seconds).
+    pub wall_s: f64,
+}
+
+/// The resume record of a snapshot `out`: the same name ending in `.resume.json`.
+pub fn resume_path(out: &Path) -> PathBuf {
+    out.with_extension("resume.json")
+}
+
+/// Reads the resume record of snapshot `out`.
+pub fn read_resume(out: &Path) -> Result<ResumeState, StageError> {
+    let path = resume_path(out);
+    let text = std::fs::read_to_string(&path).map_err(|e| {
+        io_err(
+            &path,
+            e,
+            "give --resume-state a snapshot written by `mrdrive train --all --snapshot`",
+        )
+    })?;
+    serde_json::from_str(&text).map_err(|e| {
+        io_err(
+            &path,
+            format!("malformed: {e}"),
+            "write the snapshot again, or leave --resume-state out",
+        )
+    })
+}
 
 /// What a snapshot holds.
 #[derive(Debug, Clone, PartialEq)]
@@ -76,6 +114,14 @@ pub fn snapshot(runs: &Path, out: &Path) -> Result<Option<Snapshot>, StageError>
             .map_err(|e| io_err(parent, e, "check the folder can be made"))?;
     }
     checkpoint::save_f16(&net, &card, out)?;
+    let resume = ResumeState {
+        run: run.strip_prefix(runs).unwrap_or(&run).to_path_buf(),
+        step: progress.step,
+        wall_s: progress.wall_s,
+    };
+    let path = resume_path(out);
+    let json = serde_json::to_string_pretty(&resume).expect("a resume record serialises");
+    std::fs::write(&path, json).map_err(|e| io_err(&path, e, "check the folder is writable"))?;
     let last_losses = std::fs::read_to_string(run.join(LOSSES_FILE))
         .ok()
         .and_then(|t| t.lines().last().map(String::from))

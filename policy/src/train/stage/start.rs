@@ -12,6 +12,7 @@ use super::run_folder::{
     FINAL_FILE, LOSSES_FILE, Progress, SPEC_FILE, STATE_DIR, check_or_write_inputs,
     check_or_write_spec, open_losses, read_progress,
 };
+use super::snapshot::ResumeState;
 use crate::checkpoint;
 use crate::model::{PolicyConfig, PolicyNet};
 use crate::train::loader::TrainSet;
@@ -80,6 +81,7 @@ impl<'a> Session<'a> {
         run_dir: &'a Path,
         device: &Device,
         progress: Option<Progress>,
+        from_snapshot: Option<(&Path, ResumeState)>,
     ) -> Result<Session<'a>, StageError> {
         let preset: Preset = spec.preset.parse()?;
         let config = preset.config(&spec.scales);
@@ -95,16 +97,34 @@ impl<'a> Session<'a> {
         };
         let set = Arc::new(TrainSet::open(&spec.data, &config)?);
         let state_dir = run_dir.join(STATE_DIR);
-        let trainer = match progress {
-            Some(p) => MultiResTrainer::resume(
-                student,
-                teacher,
-                spec.train.clone(),
-                device,
-                &state_dir,
-                p.step,
-            )?,
-            None => MultiResTrainer::new(student, teacher, spec.train.clone(), device),
+        let (trainer, wall_before_s) = match (progress, from_snapshot) {
+            (Some(p), _) => (
+                MultiResTrainer::resume(
+                    student,
+                    teacher,
+                    spec.train.clone(),
+                    device,
+                    &state_dir,
+                    p.step,
+                )?,
+                p.wall_s,
+            ),
+            (None, Some((file, r))) => {
+                let (net, _) = checkpoint::load(file, device)?;
+                check_same_network(&net.config, &config, file)?;
+                let t = MultiResTrainer::continue_from(
+                    net,
+                    teacher,
+                    spec.train.clone(),
+                    device,
+                    r.step,
+                );
+                (t, r.wall_s)
+            }
+            (None, None) => (
+                MultiResTrainer::new(student, teacher, spec.train.clone(), device),
+                0.0,
+            ),
         };
         let done = trainer.steps_done();
         let losses_path = run_dir.join(LOSSES_FILE);
@@ -116,7 +136,7 @@ impl<'a> Session<'a> {
             set,
             trainer,
             done,
-            wall_before_s: progress.map_or(0.0, |p| p.wall_s),
+            wall_before_s,
             state_dir,
             losses,
             losses_path,
@@ -135,7 +155,16 @@ fn initial_net(
         return Ok(config.init(device));
     };
     let (net, _) = checkpoint::load(path, device)?;
-    let c = &net.config;
+    check_same_network(&net.config, config, path)?;
+    Ok(net)
+}
+
+/// Refuses weights (`--init`, a snapshot) of another network than the stage trains.
+fn check_same_network(
+    c: &PolicyConfig,
+    config: &PolicyConfig,
+    path: &Path,
+) -> Result<(), StageError> {
     if (c.depth, c.widths, c.input_width, c.input_height, &c.scales)
         != (
             config.depth,
@@ -146,12 +175,12 @@ fn initial_net(
         )
     {
         return Err(StageError::Misfit {
-            path: path.clone(),
-            problem: "the initial weights are of another network than the stage trains".into(),
-            fix: "pass --init a checkpoint of the same preset and scales".into(),
+            path: path.to_path_buf(),
+            problem: "the weights are of another network than the stage trains".into(),
+            fix: "give a checkpoint of the same preset and scales".into(),
         });
     }
-    Ok(net)
+    Ok(())
 }
 
 /// Refuses a teacher that is not a single-resolution 1.0x network of the stage's
