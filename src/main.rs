@@ -63,7 +63,7 @@ enum Command {
     /// Policy network tools: checkpoints, BN-bank overhead, torchvision import.
     Policy(cli::policy::PolicyArgs),
     /// Train a stage of the paper's pipeline: original, nra-<scale> or ra (`--synthetic`: a smoke run).
-    Train(cli::train::TrainArgs),
+    Train(Box<cli::train::TrainArgs>),
     /// Benchmarks that print figures.
     Bench(cli::bench::BenchArgs),
     /// Collect driving data: the expert with noise drives planned episodes.
@@ -109,7 +109,7 @@ fn run() -> anyhow::Result<()> {
         Command::Render(a) => cli::render::render(&a),
         Command::RenderDemo(a) => cli::render::render_demo(&a),
         Command::Policy(a) => cli::policy::run_policy(a),
-        Command::Train(a) => cli::train::run_train(a),
+        Command::Train(a) => cli::train::run_train(*a),
         Command::Bench(a) => cli::bench::run(a),
         Command::Data(c) => cli::data::run(c),
         Command::Log(c) => cli::log::run(c),
