@@ -30,7 +30,7 @@ pub fn of_dataset(dir: &Path) -> Result<BTreeMap<String, String>, DataError> {
                 path: path.clone(),
                 source,
             })?;
-            out.insert(format!("{name}/{file}"), sha256_hex(&bytes));
+            out.insert(format!("{name}/{file}"), sim::record::sha256_hex(&bytes));
         }
     }
     Ok(out)
@@ -108,11 +108,6 @@ pub fn check(found: &BTreeMap<String, String>, listed: &BTreeMap<String, String>
         .cloned()
         .collect();
     c
-}
-
-/// SHA-256 of bytes, lower-case hex.
-fn sha256_hex(bytes: &[u8]) -> String {
-    sim::record::sha256_hex(bytes)
 }
 
 #[cfg(test)]

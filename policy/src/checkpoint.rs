@@ -332,23 +332,23 @@ fn convert_floats(
     let mut data: Vec<(String, Dtype, Vec<usize>, Vec<u8>)> = Vec::new();
     for (name, t) in file.tensors() {
         let raw = t.data();
-        let converted = match (t.dtype(), from, to) {
-            (d, f, Dtype::F16) if d == f && f == Dtype::F32 => raw
+        let converted: Vec<u8> = match (t.dtype() == from, from, to) {
+            (false, _, _) => raw.to_vec(),
+            (true, Dtype::F32, Dtype::F16) => raw
                 .chunks_exact(4)
                 .flat_map(|c| {
                     let v = f32::from_le_bytes(c.try_into().expect("4 bytes"));
                     half::f16::from_f32(v).to_le_bytes()
                 })
                 .collect(),
-            (d, f, Dtype::F32) if d == f && f == Dtype::F16 => raw
+            (true, Dtype::F16, Dtype::F32) => raw
                 .chunks_exact(2)
                 .flat_map(|c| {
                     let v = half::f16::from_le_bytes(c.try_into().expect("2 bytes"));
                     v.to_f32().to_le_bytes()
                 })
                 .collect(),
-            (d, f, _) if d == f => return Err(format!("cannot convert {d:?} to {to:?}")),
-            _ => raw.to_vec(),
+            (true, _, _) => return Err(format!("cannot convert {from:?} to {to:?}")),
         };
         let dtype = if t.dtype() == from { to } else { t.dtype() };
         data.push((name, dtype, t.shape().to_vec(), converted));

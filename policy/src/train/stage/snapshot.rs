@@ -13,7 +13,9 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use super::error::{StageError, io_err};
-use super::run_folder::{LATEST_FILE, LOSSES_FILE, PROGRESS_FILE, Progress, STATE_DIR};
+use super::run_folder::{
+    LATEST_FILE, LOSSES_FILE, PROGRESS_FILE, Progress, STATE_DIR, read_progress,
+};
 use crate::checkpoint;
 
 /// Where a snapshot's run stood, written beside it ([`resume_path`]): what a
@@ -81,13 +83,10 @@ pub fn run_folders(runs: &Path) -> Vec<(PathBuf, Progress)> {
     };
     for dir in children(runs) {
         for run in std::iter::once(dir.clone()).chain(children(&dir)) {
-            let progress = run.join(STATE_DIR).join(PROGRESS_FILE);
-            let Ok(text) = std::fs::read_to_string(&progress) else {
-                continue;
-            };
-            let (Ok(p), Ok(meta)) = (
-                serde_json::from_str::<Progress>(&text),
-                std::fs::metadata(&progress),
+            let state = run.join(STATE_DIR);
+            let (Ok(Some(p)), Ok(meta)) = (
+                read_progress(&state),
+                std::fs::metadata(state.join(PROGRESS_FILE)),
             ) else {
                 continue;
             };
