@@ -7,7 +7,8 @@
 //! pedestrian or a piece of map geometry (a building, a pole, a tree); then,
 //! while the contact goes on, a repeat every [`REPEAT_M`] moved or [`REPEAT_S`]
 //! elapsed (the sensor fires every frame; the rules only ever tell two frames of
-//! one contact apart by where the ego is and how much time has passed); and
+//! one contact apart by where the ego is and how much time has passed; a
+//! contact broken off for less than [`REPEAT_S`] goes on); and
 //! every kerb an axle goes up or down (CARLA's wheels climb its sidewalks, whose
 //! mesh is the map actor `static.sidewalk`).
 //!
@@ -93,14 +94,24 @@ enum Party {
     Map(&'static str),
 }
 
+/// A contact going on.
+#[derive(Debug, Clone, Copy)]
+struct Ongoing {
+    /// When and where its last touch was recorded (seconds, metres).
+    touched_s: f64,
+    touched_at: Vec2,
+    /// The last tick it was in contact (seconds).
+    contact_s: f64,
+}
+
 /// Turns each tick's contacts and kerb crossings into [`Touch`]es.
 #[derive(Debug, Clone, Default)]
 pub struct ContactLog {
     touches: Vec<Touch>,
     /// Touches the ego has not yet left by [`FORGET_M`].
     near: Vec<usize>,
-    /// Contacts going on: the party, and the tick and place of its last touch.
-    ongoing: BTreeMap<Party, (f64, Vec2)>,
+    /// Contacts going on, by party.
+    ongoing: BTreeMap<Party, Ongoing>,
 }
 
 impl ContactLog {
@@ -139,6 +150,10 @@ impl ContactLog {
             kerb,
             left_tick: None,
         };
+        // A contact broken off for less than REPEAT_S goes on: a car pressed
+        // against a wall touches it on every other tick.
+        self.ongoing
+            .retain(|_, o| tick.time_s - o.contact_s < REPEAT_S - 1e-9);
         let mut seen: Vec<Party> = Vec::with_capacity(tick.contacts.len());
         for c in tick.contacts {
             let (party, with, actor, what) = match c.kind {
@@ -163,19 +178,26 @@ impl ContactLog {
                 continue;
             }
             seen.push(party);
-            let repeat = match self.ongoing.get(&party) {
+            let repeat = match self.ongoing.get_mut(&party) {
                 None => false,
-                Some(&(time_s, at)) => {
-                    if tick.time_s - time_s < REPEAT_S - 1e-9 && (here - at).length() < REPEAT_M {
+                Some(o) => {
+                    o.contact_s = tick.time_s;
+                    if tick.time_s - o.touched_s < REPEAT_S - 1e-9
+                        && (here - o.touched_at).length() < REPEAT_M
+                    {
                         continue;
                     }
                     true
                 }
             };
-            self.ongoing.insert(party, (tick.time_s, here));
+            let o = Ongoing {
+                touched_s: tick.time_s,
+                touched_at: here,
+                contact_s: tick.time_s,
+            };
+            self.ongoing.insert(party, o);
             self.touches.push(touch(with, actor, what, repeat, None));
         }
-        self.ongoing.retain(|p, _| seen.contains(p));
         for k in kerbs {
             let what = if k.height_m > 0.0 {
                 "kerb up"
@@ -229,9 +251,15 @@ mod tests {
                 .all(|t| t.with == TouchWith::Map && t.actor.is_none())
         );
         assert_eq!(standing[0].what, "building");
-        // Leaving and touching again is a new contact, not a repeat.
-        let twice = log(0.0, |t| if t == 5 || t == 7 { vec![CAR] } else { vec![] });
+        // A contact that flickers (pressed against a wall, on every other tick)
+        // goes on; one broken off for a second or more is a new contact.
+        let flicker = log(0.0, |t| if t % 2 == 0 { vec![WALL] } else { vec![] });
+        assert_eq!(flicker.len(), 5, "{flicker:?}");
+        assert_eq!(flicker.iter().filter(|t| !t.repeat).count(), 1);
+        let twice = log(0.0, |t| if t == 5 || t == 45 { vec![CAR] } else { vec![] });
         assert_eq!(twice.iter().filter(|t| !t.repeat).count(), 2);
+        let soon = log(0.0, |t| if t == 5 || t == 44 { vec![CAR] } else { vec![] });
+        assert_eq!(soon.len(), 1, "{soon:?}");
     }
 
     #[test]

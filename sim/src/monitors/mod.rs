@@ -18,7 +18,8 @@
 //!
 //! Beside them: [`contacts`] (the touches), [`counting`] (the named rules
 //! that count collisions from touches: `paper`, `leaderboard-1.0`) and
-//! [`score`] (leaderboard-1.0's driving score from the counts).
+//! [`score`] (leaderboard-1.0's driving score from the counts); `rule_cases.rs`
+//! (tests) drives the four cases that tell the rules apart on hand-made towns.
 
 pub mod blocked;
 pub mod collision;
@@ -29,13 +30,16 @@ pub mod on_sidewalk;
 pub mod outside_lane;
 pub mod red_light;
 pub mod route;
+#[cfg(test)]
+mod rule_cases;
 pub mod score;
 
 use serde::{Deserialize, Serialize};
 pub use world::EgoPose;
-use world::LightState;
 use world::agents::kerb::KerbCrossing;
+use world::physics::Party;
 use world::road::geometry::OrientedBox;
+use world::{ActorKind, LightState};
 
 /// What the other body in a collision was.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -58,6 +62,38 @@ pub struct EgoContact {
     pub kind: ContactKind,
     /// For a static body, what it is in a word ("building", "pole", "tree").
     pub static_name: Option<&'static str>,
+}
+
+impl EgoContact {
+    /// The ego's side of a physics contact between `a` and `b`: the other party
+    /// as the collision monitor counts it, or `None` when the ego is neither.
+    pub fn between(a: Party, b: Party) -> Option<EgoContact> {
+        let other = match (a, b) {
+            (Party::Actor { id: 0, .. }, other) | (other, Party::Actor { id: 0, .. }) => other,
+            _ => return None,
+        };
+        Some(match other {
+            Party::Actor {
+                id,
+                kind: ActorKind::Pedestrian,
+            } => EgoContact {
+                other: id,
+                kind: ContactKind::Pedestrian,
+                static_name: None,
+            },
+            Party::Actor { id, .. } => EgoContact {
+                other: id,
+                kind: ContactKind::Vehicle,
+                static_name: None,
+            },
+            // Statics carry no per-object id: each kind counts as one "actor".
+            Party::Static(kind) => EgoContact {
+                other: 1_000_000 + kind as u32,
+                kind: ContactKind::Static,
+                static_name: Some(kind.name()),
+            },
+        })
+    }
 }
 
 /// Everything the monitors see of one tick, after the physics step.

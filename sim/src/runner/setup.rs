@@ -7,15 +7,14 @@ use std::sync::Arc;
 
 use world::agents::pedestrian::PedestrianParams;
 use world::map::{LoadOptions, UnsignalledJunctions, load_xodr_file};
-use world::physics::Party;
 use world::route::RouteFile;
 use world::route::{DenseRoute, PlannerConfig, plan_route};
 use world::traffic::{EgoStart, Traffic, TrafficConfig};
 use world::traffic::{LightController, LightTiming};
-use world::{ActorKind, LightIdx, LightState, Town};
+use world::{LightIdx, LightState, Town};
 
 use super::RunError;
-use crate::monitors::{ContactKind, EgoContact};
+use crate::monitors::EgoContact;
 use crate::scenario::Scenario;
 
 /// The town and the planned route of a scenario: loaded once, shared by runs.
@@ -72,35 +71,6 @@ pub fn ego_start(route: &DenseRoute) -> Result<EgoStart, RunError> {
         .ok_or_else(|| RunError::Setup(format!("route {} has no points", route.id)))
 }
 
-/// The contact's other party as the collision monitor counts it.
-pub(super) fn ego_contact(a: Party, b: Party) -> Option<EgoContact> {
-    let other = match (a, b) {
-        (Party::Actor { id: 0, .. }, other) | (other, Party::Actor { id: 0, .. }) => other,
-        _ => return None,
-    };
-    Some(match other {
-        Party::Actor {
-            id,
-            kind: ActorKind::Pedestrian,
-        } => EgoContact {
-            other: id,
-            kind: ContactKind::Pedestrian,
-            static_name: None,
-        },
-        Party::Actor { id, .. } => EgoContact {
-            other: id,
-            kind: ContactKind::Vehicle,
-            static_name: None,
-        },
-        // Statics carry no per-object id: each kind counts as one "actor".
-        Party::Static(kind) => EgoContact {
-            other: 1_000_000 + kind as u32,
-            kind: ContactKind::Static,
-            static_name: Some(kind.name()),
-        },
-    })
-}
-
 /// The world of a run: traffic with the ego, and the lights.
 pub(super) struct World {
     pub(super) traffic: Traffic,
@@ -135,7 +105,7 @@ impl World {
     pub(super) fn step(&mut self, contacts: &mut Vec<EgoContact>) {
         let events = self.traffic.step(&self.light_states);
         contacts.clear();
-        contacts.extend(events.iter().filter_map(|e| ego_contact(e.a, e.b)));
+        contacts.extend(events.iter().filter_map(|e| EgoContact::between(e.a, e.b)));
     }
 
     /// The lights advance by one tick.
