@@ -24,7 +24,7 @@ pub enum MapCommand {
 }
 
 /// Options shared by commands that load a map.
-#[derive(Args, Clone)]
+#[derive(Debug, Args, Clone)]
 pub struct MapLoadArgs {
     /// Give junctions generated traffic lights when the map has none.
     #[arg(long)]

@@ -4,12 +4,15 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
 use std::sync::Arc;
+use world::map::load_xodr_file;
 use world::map::testtown::{FixtureLights, grid_of_spec};
 use world::traffic::{
     EgoStart, TrafficConfig, soak, table_one, table_one_text, table_per_route_text,
 };
 use world::traffic::{LightController, LightTiming};
 use world::{LightIdx, PlannerConfig, RouteFile, plan_route};
+
+use super::map::MapLoadArgs;
 
 /// Traffic commands.
 #[derive(Debug, Args)]
@@ -38,6 +41,8 @@ struct TownArgs {
     /// Block size of the fixture grid (metres).
     #[arg(long, default_value_t = 80.0)]
     block_m: f32,
+    #[command(flatten)]
+    load: MapLoadArgs,
 }
 
 #[derive(Debug, Args)]
@@ -78,7 +83,7 @@ struct TableArgs {
 
 fn load_town(t: &TownArgs) -> Result<world::Town> {
     match (&t.map, &t.fixture) {
-        (Some(path), _) => world::Town::from_xodr_file(path).with_context(|| {
+        (Some(path), _) => load_xodr_file(path, &t.load.options()).map(|(town, _)| town).with_context(|| {
             format!(
                 "--map {}: could not load the map (or run the built-in grid town with --fixture)",
                 path.display()

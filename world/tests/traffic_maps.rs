@@ -93,7 +93,12 @@ fn drive_every_turn(town: &Arc<Town>) -> f32 {
             "{}: NPC touched a static collider turning through lane {} ({} -> {})",
             town.name, turn.0, approach.0, exit.0
         );
-        assert_eq!(after.respawns, before.respawns, "{}: respawned", town.name);
+        assert_eq!(
+            after.respawns(),
+            before.respawns(),
+            "{}: respawned",
+            town.name
+        );
         assert!(
             through,
             "{}: NPC did not get through lane {}",
@@ -164,7 +169,7 @@ fn assert_clean(name: &str, s: world::traffic::TrafficStats) {
     assert_eq!(s.npc_static_collisions, 0, "{name}: {s:?}");
     assert_eq!(s.npc_pedestrian_collisions, 0, "{name}: {s:?}");
     assert_eq!(s.pedestrian_vehicle_bumps, 0, "{name}: {s:?}");
-    assert_eq!(s.respawns, 0, "{name}: {s:?}");
+    assert_eq!(s.respawns(), 0, "{name}: {s:?}");
 }
 
 #[test]

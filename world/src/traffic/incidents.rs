@@ -31,8 +31,28 @@ pub enum IncidentKind {
     NpcStatic(StaticKind),
     /// An NPC had stood still for 60 s.
     Deadlock,
-    /// An NPC was respawned (stuck while wanting to move, or pushed off its path).
-    Respawn,
+    /// An NPC was respawned, for this reason.
+    Respawn(RespawnCause),
+}
+
+/// Why an NPC was respawned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum RespawnCause {
+    /// Stopped while its driver wanted to move, for longer than
+    /// `NpcParams::stuck_ticks` (held by something it does not see).
+    Stuck,
+    /// More than [`super::OFF_PATH_M`] from the point of its lane it follows.
+    OffPath,
+}
+
+impl RespawnCause {
+    /// A few words for the incident list.
+    pub fn name(self) -> &'static str {
+        match self {
+            RespawnCause::Stuck => "stuck wanting to move",
+            RespawnCause::OffPath => "off its path",
+        }
+    }
 }
 
 impl IncidentKind {
@@ -44,7 +64,7 @@ impl IncidentKind {
             IncidentKind::NpcPedestrian => "NPC-pedestrian".into(),
             IncidentKind::NpcStatic(k) => format!("NPC-static ({})", k.name()),
             IncidentKind::Deadlock => "deadlock".into(),
-            IncidentKind::Respawn => "respawn".into(),
+            IncidentKind::Respawn(c) => format!("respawn ({})", c.name()),
         }
     }
 

@@ -39,7 +39,7 @@ mod stats;
 mod step;
 mod views;
 
-pub use incidents::{Incident, IncidentActor, IncidentKind, IncidentLane};
+pub use incidents::{Incident, IncidentActor, IncidentKind, IncidentLane, RespawnCause};
 pub use light_controller::{LightController, LightTiming};
 pub use reservations::Reservations;
 pub use soak::{
@@ -57,6 +57,9 @@ use crate::agents::{VehicleControl, VehicleParams, VehicleState};
 use crate::map::{LaneIdx, Town};
 use crate::physics::{ContactEvent, DT_S, Physics};
 use crate::rules::{ActorView, RuleBook};
+
+/// An NPC farther than this from the point of its lane it follows is respawned (metres).
+pub const OFF_PATH_M: f32 = 4.0;
 
 /// What to put in the town, and the step it moves by.
 #[derive(Debug, Clone, PartialEq)]

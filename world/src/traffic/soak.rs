@@ -73,7 +73,15 @@ impl SoakReport {
                 s.pedestrian_vehicle_bumps.to_string(),
             ),
             ("NPC-static contacts", s.npc_static_collisions.to_string()),
-            ("NPC respawns", s.respawns.to_string()),
+            (
+                "NPC respawns",
+                format!(
+                    "{} ({} stuck wanting to move, {} off their path)",
+                    s.respawns(),
+                    s.respawns_stuck,
+                    s.respawns_off_path
+                ),
+            ),
             (
                 "gridlock moves",
                 format!("{} cars let move", s.gridlocks_broken),

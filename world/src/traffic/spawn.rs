@@ -11,9 +11,9 @@ use glam::{Vec2, Vec3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::incidents::IncidentKind;
+use super::incidents::{IncidentKind, RespawnCause};
 use super::reservations::Reservations;
-use super::{Ego, EgoStart, Traffic, TrafficConfig, TrafficStats};
+use super::{Ego, EgoStart, OFF_PATH_M, Traffic, TrafficConfig, TrafficStats};
 use crate::agents::npc::{self, Npc, Scratch};
 use crate::agents::pedestrian::{Pedestrian, WalkGraph};
 use crate::agents::{ActorKind, VehicleControl, VehicleState};
@@ -216,23 +216,30 @@ impl Traffic {
         for i in 0..self.npcs.len() {
             let n = &self.npcs[i];
             let (lp, _, _) = self.town.lane(n.path.lane()).pose_at(n.path.s_m);
-            let off_path = (lp - n.state.position).length() > 4.0;
-            if n.stuck_ticks > self.cfg.npc.stuck_ticks || off_path {
-                self.respawn(i);
-            }
+            let cause = if n.stuck_ticks > self.cfg.npc.stuck_ticks {
+                RespawnCause::Stuck
+            } else if (lp - n.state.position).length() > OFF_PATH_M {
+                RespawnCause::OffPath
+            } else {
+                continue;
+            };
+            self.respawn(i, cause);
         }
     }
 
     /// Moves NPC `i` to a free spot on a random lane ([`Traffic::place_npc`]); it stays where it is if none is found.
-    fn respawn(&mut self, i: usize) {
+    fn respawn(&mut self, i: usize, cause: RespawnCause) {
         let id = self.npcs[i].id;
         let mut rng = self.npcs[i].rng.clone();
         let spot = self.free_spot(&mut rng, 20, Some(id));
         self.npcs[i].rng = rng;
         if let Some((lane, s, ..)) = spot {
-            self.note_npc(IncidentKind::Respawn, id);
+            self.note_npc(IncidentKind::Respawn(cause), id);
             self.place_npc(i, LanePath::new(lane, s));
-            self.stats.respawns += 1;
+            match cause {
+                RespawnCause::Stuck => self.stats.respawns_stuck += 1,
+                RespawnCause::OffPath => self.stats.respawns_off_path += 1,
+            }
         }
     }
 }

@@ -8,8 +8,10 @@ use crate::physics::{ContactEvent, Party};
 pub struct TrafficStats {
     /// Ticks stepped.
     pub ticks: u64,
-    /// NPC respawns (stuck for more than `stuck_ticks`, or off their path).
-    pub respawns: u64,
+    /// NPC respawns because stuck for more than `stuck_ticks` while wanting to move.
+    pub respawns_stuck: u64,
+    /// NPC respawns because more than [`super::OFF_PATH_M`] off their path.
+    pub respawns_off_path: u64,
     /// Stop lines crossed by an NPC's front bumper while the light was red.
     pub npc_red_runs: u64,
     /// Contacts started between two NPC vehicles.
@@ -34,6 +36,11 @@ pub struct TrafficStats {
 }
 
 impl TrafficStats {
+    /// NPC respawns, whatever the cause.
+    pub fn respawns(&self) -> u64 {
+        self.respawns_stuck + self.respawns_off_path
+    }
+
     /// Counts a contact that started this tick, by the kinds of its two
     /// parties (the first is the one that moved into the other).
     pub(super) fn count_contact(&mut self, ev: &ContactEvent) {

@@ -165,10 +165,10 @@ fn npcs_stop_at_red_lights_at_the_stop_line() {
     // Every front bumper, tick by tick: none crosses a stop line (all are red).
     let mut fronts: Vec<Vec2> = tr.npcs().iter().map(front).collect();
     for _ in 0..(40 * 90) {
-        let respawns = tr.stats().respawns;
+        let respawns = tr.stats().respawns();
         tr.step(&red);
         // (A respawned NPC jumps: its old and new fronts are no drive.)
-        let jumped = tr.stats().respawns != respawns;
+        let jumped = tr.stats().respawns() != respawns;
         for (n, prev) in tr.npcs().iter().zip(&mut fronts) {
             let now = front(n);
             for ends in &lines {
@@ -334,7 +334,7 @@ fn a_stuck_npc_is_respawned_after_40_ticks() {
         {
             hit_tick = Some(tick);
         }
-        if tr.stats().respawns > 0 {
+        if tr.stats().respawns() > 0 {
             respawn_tick = Some(tick);
             break;
         }
@@ -352,7 +352,10 @@ fn a_stuck_npc_is_respawned_after_40_ticks() {
     assert!(
         matches!(
             kinds[..],
-            [IncidentKind::NpcStatic(_), IncidentKind::Respawn]
+            [
+                IncidentKind::NpcStatic(_),
+                IncidentKind::Respawn(RespawnCause::Stuck)
+            ]
         ),
         "{kinds:?}"
     );
@@ -368,7 +371,7 @@ fn a_stuck_npc_is_respawned_after_40_ticks() {
     }
     let listed = |k: IncidentKind| tr.incidents().iter().filter(|i| i.kind == k).count();
     assert_eq!(listed(IncidentKind::Deadlock), INCIDENTS_PER_KIND);
-    assert_eq!(listed(IncidentKind::Respawn), 1);
+    assert_eq!(listed(IncidentKind::Respawn(RespawnCause::Stuck)), 1);
 }
 
 #[test]
@@ -715,7 +718,7 @@ fn an_npc_in_a_lane_that_ends_merges_into_the_lane_beside() {
     }
     assert_past_the_drop(&tr);
     let s = tr.stats();
-    assert_eq!((s.lane_changes, s.respawns), (1, 0), "{s:?}");
+    assert_eq!((s.lane_changes, s.respawns()), (1, 0), "{s:?}");
 }
 
 #[test]
@@ -748,7 +751,7 @@ fn an_npc_waits_at_the_end_of_a_lane_that_ends_until_the_lane_beside_has_room() 
         (
             s.lane_changes,
             s.lane_changes_given_up,
-            s.respawns,
+            s.respawns(),
             s.npc_npc_collisions
         ),
         (1, 0, 0, 0),
@@ -769,5 +772,5 @@ fn an_npc_stops_at_a_dead_end() {
     let front = n.state.position.x + half;
     assert!((395.0..400.5).contains(&front), "front at {front}");
     assert!(n.state.speed_mps < 0.1);
-    assert_eq!(tr.stats().respawns, 0);
+    assert_eq!(tr.stats().respawns(), 0);
 }

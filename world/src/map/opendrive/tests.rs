@@ -668,3 +668,60 @@ fn junction_priorities_become_lane_pairs_and_a_bad_one_is_named() {
         .count();
     assert_eq!(left, 3);
 }
+
+/// One 20 m road east from (0, 0). At s = 10 the `laneOffset` jumps from 0 to
+/// 7 m and two lanes open on the inside, so lane -1 of the first section
+/// (t = 0 .. -3.5) goes straight on as lane -3 of the second
+/// (7 - 3.5 - 3.5 = 0 .. -3.5). Cause B of docs/maps.md ("Lane links far
+/// apart"): xodr 0.8.0 applied the second offset record to the first
+/// section's last station too (vendor/README.md).
+const OFFSET_JUMP: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
+<OpenDRIVE>
+  <header revMajor="1" revMinor="4" name="offset-jump"/>
+  <road name="r1" length="20" id="1" junction="-1">
+    <planView>
+      <geometry s="0" x="0" y="0" hdg="0" length="20"><line/></geometry>
+    </planView>
+    <lanes>
+      <laneOffset s="0" a="0" b="0" c="0" d="0"/>
+      <laneOffset s="10" a="7" b="0" c="0" d="0"/>
+      <laneSection s="0">
+        <center><lane id="0" type="none"/></center>
+        <right><lane id="-1" type="driving"><link><successor id="-3"/></link><width sOffset="0" a="3.5" b="0" c="0" d="0"/></lane></right>
+      </laneSection>
+      <laneSection s="10">
+        <center><lane id="0" type="none"/></center>
+        <right>
+          <lane id="-1" type="driving"><width sOffset="0" a="3.5" b="0" c="0" d="0"/></lane>
+          <lane id="-2" type="driving"><width sOffset="0" a="3.5" b="0" c="0" d="0"/></lane>
+          <lane id="-3" type="driving"><link><predecessor id="-1"/></link><width sOffset="0" a="3.5" b="0" c="0" d="0"/></lane>
+        </right>
+      </laneSection>
+    </lanes>
+  </road>
+</OpenDRIVE>
+"#;
+
+#[test]
+fn a_lane_offset_starting_at_a_section_start_does_not_bend_the_section_before() {
+    let (town, report) =
+        load_xodr_str(OFFSET_JUMP, "offset-jump", &LoadOptions::default()).unwrap();
+    assert!(report.warnings.is_empty(), "{:#?}", report.warnings);
+    let first = town
+        .lanes
+        .iter()
+        .position(|l| l.od_lane == -1 && l.centerline.first().is_some_and(|p| p.x < 1.0))
+        .expect("the first section's lane -1");
+    let lane = &town.lanes[first];
+    // Straight along y = -1.75 to its end, as the file draws it (xodr 0.8.0 put
+    // its last point at y = +5.25, swept by the next section's offset).
+    for p in &lane.centerline {
+        assert!((p.y + 1.75).abs() < 1e-3, "{:?}", lane.centerline);
+    }
+    assert!((lane.centerline.last().unwrap().x - 10.0).abs() < 1e-3);
+    // It goes on into the second section's lane -3, which starts where it ends.
+    let next = &town.lanes[lane.successors[0].0 as usize];
+    assert_eq!((lane.successors.len(), next.od_lane), (1, -3));
+    let (a, b) = (lane.centerline.last().unwrap(), next.centerline[0]);
+    assert!(close(a.truncate(), b.truncate()), "{a} {b}");
+}
