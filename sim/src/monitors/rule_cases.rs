@@ -38,6 +38,8 @@ struct Drive {
     monitor: CollisionMonitor,
     infractions: Vec<Infraction>,
     tick: u64,
+    /// Every light green.
+    lights: Vec<LightState>,
 }
 
 impl Drive {
@@ -48,7 +50,9 @@ impl Drive {
             pedestrians: 0,
             ..Default::default()
         };
+        let lights = vec![LightState::Green; town.lights.len()];
         Drive {
+            lights,
             traffic: Traffic::new(Arc::new(town), cfg, Some(start)),
             monitor: CollisionMonitor::default(),
             infractions: Vec::new(),
@@ -66,12 +70,11 @@ impl Drive {
 
     /// One tick with the ego under `control`, every light green.
     fn step(&mut self, control: VehicleControl) {
-        let lights = vec![LightState::Green; self.traffic.town().lights.len()];
         let prev = self.pose();
         self.traffic.set_ego_control(control);
         let contacts: Vec<EgoContact> = self
             .traffic
-            .step(&lights)
+            .step(&self.lights)
             .iter()
             .filter_map(|e| EgoContact::between(e.a, e.b))
             .collect();
@@ -89,7 +92,7 @@ impl Drive {
             contacts: &contacts,
             kerbs: &e.kerbs,
             route_progress_m: 0.0,
-            lights: &lights,
+            lights: &self.lights,
             dt_s: f64::from(DT_S),
         };
         self.monitor.observe(&tick, &mut self.infractions);
