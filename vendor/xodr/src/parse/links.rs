@@ -45,6 +45,15 @@ pub(crate) struct SectionInfo {
     pub end: f64,
 }
 
+/// mrdrive's patch: a lane section too short to bake lanes (under a
+/// millimetre): where it is, and its lanes' links, OpenDRIVE lane id ->
+/// (predecessors, successors).
+pub(crate) struct DroppedSection {
+    pub start: f64,
+    pub end: f64,
+    pub links: HashMap<i32, (Vec<LaneRef>, Vec<LaneRef>)>,
+}
+
 /// A lane `<link>`'s `<predecessor>` or `<successor>`: the lane it names, and
 /// the layer it says that lane is on, if it says.
 #[derive(Clone, Copy)]
@@ -66,6 +75,13 @@ pub(crate) struct RoadInfo {
     /// A section shorter than a millimetre bakes no lanes, so links step
     /// over it.
     pub sections: Vec<SectionInfo>,
+    /// mrdrive's patch: the permanent layer's sections shorter than a
+    /// millimetre, which bake no lanes, in order, with their lane links. A link
+    /// across one names that section's lane, whose own link names the lane
+    /// after it; links step through them with these ([`through_sections`],
+    /// [`through_dropped`]: a whole road may be one, as roads 35 and 54 of
+    /// CARLA's Town06 are).
+    pub dropped: Vec<DroppedSection>,
     /// How long the road is.
     pub length: f64,
     pub predecessor: Option<LinkTarget>,
@@ -307,7 +323,7 @@ fn exits(meta: &LaneMeta, topo: &Topology, direction: Direction) -> Vec<(LaneId,
     let mut out = Vec::new();
     if links.is_empty() {
         if at_road_end {
-            out.extend(cross(topo, meta, target(), None, meta.layer));
+            out.extend(cross(topo, Leaving::of(meta), target(), None, meta.layer, 0));
         }
         return out;
     }
@@ -316,9 +332,23 @@ fn exits(meta: &LaneMeta, topo: &Topology, direction: Direction) -> Vec<(LaneId,
         .map(|_| meta.layer);
     for link in links {
         let layer = link.layer.or(own).unwrap_or(Layer::Permanent);
-        match topo.reach(&meta.road, layer, place, forward) {
-            Some(next) => out.extend(at(contact, lookup(topo, &meta.road, next, Some(link.id)))),
-            None if at_road_end => out.extend(cross(topo, meta, target(), Some(link.id), layer)),
+        // mrdrive's patch: the link may name a lane of a section too short to
+        // bake (or several in a row); that lane's own link names the one after.
+        let (id, at_place) = match (road, layer) {
+            (Some(r), Layer::Permanent) => through_sections(r, place, forward, link.id),
+            _ => (Some(link.id), place),
+        };
+        let Some(id) = id else { continue };
+        match topo.reach(&meta.road, layer, at_place, forward) {
+            Some(next) => out.extend(at(contact, lookup(topo, &meta.road, next, Some(id)))),
+            None if at_road_end => out.extend(cross(
+                topo,
+                Leaving::of(meta),
+                target(),
+                Some(id),
+                layer,
+                0,
+            )),
             None => {}
         }
     }
@@ -341,16 +371,40 @@ fn lookup(topo: &Topology, road: &str, section: usize, od: Option<i32>) -> Vec<L
         .collect()
 }
 
+/// The lane a link leaves from: its road, its OpenDRIVE id and its layer.
+#[derive(Clone, Copy)]
+struct Leaving<'a> {
+    road: &'a str,
+    od_id: i32,
+    layer: Layer,
+}
+
+impl<'a> Leaving<'a> {
+    fn of(meta: &'a LaneMeta) -> Self {
+        Leaving {
+            road: &meta.road,
+            od_id: meta.od_id,
+            layer: meta.layer,
+        }
+    }
+}
+
+/// How many roads with no lanes in a row a link steps through (a guard
+/// against a file whose empty roads link in a circle).
+const MAX_DROPPED_IN_A_ROW: u32 = 4;
+
 /// Resolve a cross-road boundary: follow the road's link target (another road,
 /// or a junction) to the lane(s) it leads into, each with the end of its road
 /// it is entered at. `lane_link` is this lane's own `<link>` neighbor id (used
 /// for a direct road link), and `layer` the layer it names or reads as.
+/// `depth` counts the roads with no lanes stepped through to get here.
 fn cross(
     topo: &Topology,
-    meta: &LaneMeta,
+    from: Leaving,
     target: Option<LinkTarget>,
     lane_link: Option<i32>,
     layer: Layer,
+    depth: u32,
 ) -> Vec<(LaneId, Contact)> {
     let Some(target) = target else {
         return Vec::new();
@@ -364,7 +418,7 @@ fn cross(
                 .end_section(&target.id, layer, target.contact)
                 .or_else(|| topo.end_section(&target.id, Layer::Permanent, target.contact));
             let Some(section) = section else {
-                return Vec::new();
+                return through_dropped(topo, &target, lane_link, depth);
             };
             at(target.contact, lookup(topo, &target.id, section, lane_link))
         }
@@ -375,11 +429,11 @@ fn cross(
                 return Vec::new();
             };
             let mut out = Vec::new();
-            for c in conns.iter().filter(|c| c.incoming_road == meta.road) {
+            for c in conns.iter().filter(|c| c.incoming_road == from.road) {
                 for link in c
                     .lane_links
                     .iter()
-                    .filter(|l| l.from == meta.od_id && l.from_layer == meta.layer)
+                    .filter(|l| l.from == from.od_id && l.from_layer == from.layer)
                 {
                     let Some(section) = topo
                         .end_section(&c.connecting_road, link.to_layer, c.contact)
@@ -398,6 +452,70 @@ fn cross(
             out
         }
     }
+}
+
+/// mrdrive's patch: the lane a link naming lane `id` at `place` on `road`
+/// (travelling forward or backward) ends up in after the sections too short to
+/// bake that start (forward) or end (backward) there, one after another, and
+/// where it leaves the last of them. Each such section's lane `id` names the next
+/// lane by its own link (the first, as xodr reads links elsewhere; none: the same
+/// id). `None`: the lane has no place in such a section (it ends there).
+fn through_sections(road: &RoadInfo, place: f64, forward: bool, id: i32) -> (Option<i32>, f64) {
+    let (mut id, mut place) = (id, place);
+    for _ in 0..road.dropped.len() {
+        let next = road.dropped.iter().find(|d| {
+            if forward {
+                (d.start - place).abs() <= REACH
+            } else {
+                (d.end - place).abs() <= REACH
+            }
+        });
+        let Some(d) = next else { break };
+        let Some((preds, succs)) = d.links.get(&id) else {
+            return (None, place);
+        };
+        let links = if forward { succs } else { preds };
+        id = links.first().map_or(id, |l| l.id);
+        place = if forward { d.end } else { d.start };
+    }
+    (Some(id), place)
+}
+
+/// mrdrive's patch: the lanes reached through `target`'s road when it baked
+/// no lanes at all (a whole road shorter than a millimetre). The link enters
+/// its lane `lane_link` at `target.contact`; the lane's own links name the
+/// lane it leaves by at the other end, and the road's link there says where
+/// that leads. Without this, a junction's connecting road that leads into such
+/// a road (CARLA's Town06, roads 213 and 707) leads nowhere.
+fn through_dropped(
+    topo: &Topology,
+    target: &LinkTarget,
+    lane_link: Option<i32>,
+    depth: u32,
+) -> Vec<(LaneId, Contact)> {
+    let (Some(road), Some(od_id)) = (topo.roads.get(&target.id), lane_link) else {
+        return Vec::new();
+    };
+    if !road.sections.is_empty() || road.dropped.is_empty() || depth >= MAX_DROPPED_IN_A_ROW {
+        return Vec::new();
+    }
+    let forward = target.contact == Contact::Start;
+    let place = if forward { 0.0 } else { road.length };
+    let (Some(out_id), _) = through_sections(road, place, forward, od_id) else {
+        return Vec::new();
+    };
+    // The road's lane the link left it by, for a junction's connection from it.
+    let from = Leaving {
+        road: &target.id,
+        od_id,
+        layer: Layer::Permanent,
+    };
+    let next = if forward {
+        road.successor.clone()
+    } else {
+        road.predecessor.clone()
+    };
+    cross(topo, from, next, Some(out_id), Layer::Permanent, depth + 1)
 }
 
 // --- Parsing (roxmltree -> the types above) ----------------------------------

@@ -2481,6 +2481,7 @@ fn bake_lanes(
     let length = baked.road.length;
     let mut next_index = 0;
     let mut any = false;
+    let mut dropped = Vec::new();
     for (layer, lanes_node) in [(Layer::Permanent, permanent), (Layer::Temporary, temporary)] {
         let Some(lanes_node) = lanes_node else {
             continue;
@@ -2505,6 +2506,13 @@ fn bake_lanes(
                 .map_or(next, |l| (s_start + l).min(next))
                 .min(length);
             if s_end - s_start < 1e-3 {
+                if layer == Layer::Permanent && s_start <= length + 1e-3 {
+                    dropped.push(links::DroppedSection {
+                        start: s_start,
+                        end: s_end.max(s_start),
+                        links: section_lane_links(*section),
+                    });
+                }
                 if s_start > length + 1e-3 {
                     baked.warnings.push(Warning::LaneSectionDropped {
                         road_id: baked.road.od_id.clone(),
@@ -2572,8 +2580,21 @@ fn bake_lanes(
             length: baked.road.length,
             predecessor,
             successor,
+            dropped,
         },
     );
+}
+
+/// mrdrive's patch: each lane's links in a lane section, by OpenDRIVE lane id.
+fn section_lane_links(
+    section: roxmltree::Node,
+) -> HashMap<i32, (Vec<links::LaneRef>, Vec<links::LaneRef>)> {
+    section
+        .children()
+        .filter(|side| side.is_element())
+        .flat_map(|side| side.children().filter(|n| n.has_tag_name("lane")))
+        .filter_map(|lane| Some((attr_i32(lane, "id")?, links::lane_refs(lane))))
+        .collect()
 }
 
 /// The `<lanes>` of a road's permanent layer and of its temporary one.

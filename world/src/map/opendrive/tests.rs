@@ -725,3 +725,140 @@ fn a_lane_offset_starting_at_a_section_start_does_not_bend_the_section_before() 
     let (a, b) = (lane.centerline.last().unwrap(), next.centerline[0]);
     assert!(close(a.truncate(), b.truncate()), "{a} {b}");
 }
+
+/// Road 4, between the junction's connecting road and road 2, is 5 um long:
+/// too short to bake lanes (as roads 35 and 54 of CARLA's Town06 are, 6.4 um
+/// and 19 um), so a link has to step through it with its own lane links.
+const EMPTY_ROAD: &str = r#"<road name="stub" length="5e-6" id="4" junction="-1">
+        <link>
+            <predecessor elementType="junction" elementId="9"/>
+            <successor elementType="road" elementId="2" contactPoint="start"/>
+        </link>
+        <planView><geometry s="0" x="120" y="0" hdg="0" length="5e-6"><line/></geometry></planView>
+        <lanes><laneSection s="0">
+            <left><lane id="1" type="driving" level="false"><width sOffset="0" a="3.5" b="0" c="0" d="0"/>
+                <link><predecessor id="1"/><successor id="1"/></link></lane></left>
+            <center><lane id="0" type="none" level="false"/></center>
+            <right><lane id="-1" type="driving" level="false"><width sOffset="0" a="3.5" b="0" c="0" d="0"/>
+                <link><predecessor id="-1"/><successor id="-1"/></link></lane></right>
+        </laneSection></lanes>
+    </road>"#;
+
+#[test]
+fn a_link_steps_through_a_road_too_short_to_have_lanes() {
+    let xml = TWO_ROADS_AND_A_JUNCTION
+        .replace(
+            r#"<link><predecessor elementType="junction" elementId="9"/></link>"#,
+            r#"<link><predecessor elementType="road" elementId="4" contactPoint="end"/></link>"#,
+        )
+        .replace(
+            "@CONNECTING@",
+            &(CONNECTING_ROAD.replace(
+                r#"elementId="2" contactPoint="start""#,
+                r#"elementId="4" contactPoint="start""#,
+            ) + EMPTY_ROAD),
+        )
+        .replace(
+            "@CONNECTIONS@",
+            &CONNECTIONS.replace(r#"incomingRoad="2""#, r#"incomingRoad="4""#),
+        );
+    // Road 2's westbound lane leaves by its start into road 4's lane 1: a road link
+    // needs the lane's own <link>.
+    let (west, east) = xml.split_at(xml.find(r#"name="east""#).unwrap());
+    let lane_1 = r#"<left><lane id="1" type="driving" level="false">"#;
+    let xml = west.to_string()
+        + &east.replacen(
+            lane_1,
+            &format!(r#"{lane_1}<link><predecessor id="1"/></link>"#),
+            1,
+        );
+    let (town, report) = load_xodr_str(&xml, "stub", &LoadOptions::default()).unwrap();
+    assert!(report.warnings.is_empty(), "{:#?}", report.warnings);
+    let lane = |road: &str, od: i32| {
+        town.lanes
+            .iter()
+            .position(|l| l.road_id == road && l.od_lane == od)
+            .unwrap_or_else(|| panic!("road {road} lane {od}"))
+    };
+    let names = |ids: &[crate::map::LaneIdx]| -> Vec<(String, i32)> {
+        ids.iter()
+            .map(|l| {
+                let l = &town.lanes[l.0 as usize];
+                (l.road_id.clone(), l.od_lane)
+            })
+            .collect()
+    };
+    // Eastbound: off the connecting road, through road 4, onto road 2.
+    let east = &town.lanes[lane("3", -1)];
+    assert_eq!(names(&east.successors), [("2".to_string(), -1)]);
+    // Westbound: off road 2's start, back through road 4, into the junction.
+    let west = &town.lanes[lane("2", 1)];
+    assert_eq!(names(&west.successors), [("3".to_string(), 1)]);
+    assert!(town.lanes.iter().all(|l| l.road_id != "4"));
+}
+
+/// Road 1 ends in a lane section 0.5 mm long, whose lane -1 links on to road 2's
+/// lane -2; road 2 is drawn 3.5 m to the left (its laneOffset), so its lane -2 is
+/// where road 1's lane -1 ends. Exporters write such sections (CARLA's Town04 holds
+/// 18 links across them).
+const SHORT_LAST_SECTION: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
+<OpenDRIVE>
+  <header revMajor="1" revMinor="4" name="short-section"/>
+  <road name="r1" length="20" id="1" junction="-1">
+    <link><successor elementType="road" elementId="2" contactPoint="start"/></link>
+    <planView><geometry s="0" x="0" y="0" hdg="0" length="20"><line/></geometry></planView>
+    <lanes>
+      <laneSection s="0">
+        <center><lane id="0" type="none"/></center>
+        <right><lane id="-1" type="driving"><link><successor id="-1"/></link><width sOffset="0" a="3.5" b="0" c="0" d="0"/></lane></right>
+      </laneSection>
+      <laneSection s="19.9995">
+        <center><lane id="0" type="none"/></center>
+        <right><lane id="-1" type="driving"><link><predecessor id="-1"/><successor id="-2"/></link><width sOffset="0" a="3.5" b="0" c="0" d="0"/></lane></right>
+      </laneSection>
+    </lanes>
+  </road>
+  <road name="r2" length="20" id="2" junction="-1">
+    <link><predecessor elementType="road" elementId="1" contactPoint="end"/></link>
+    <planView><geometry s="0" x="20" y="0" hdg="0" length="20"><line/></geometry></planView>
+    <lanes>
+      <laneOffset s="0" a="3.5" b="0" c="0" d="0"/>
+      <laneSection s="0">
+        <center><lane id="0" type="none"/></center>
+        <right>
+          <lane id="-1" type="driving"><width sOffset="0" a="3.5" b="0" c="0" d="0"/></lane>
+          <lane id="-2" type="driving"><link><predecessor id="-1"/></link><width sOffset="0" a="3.5" b="0" c="0" d="0"/></lane>
+        </right>
+      </laneSection>
+    </lanes>
+  </road>
+</OpenDRIVE>
+"#;
+
+#[test]
+fn a_link_steps_through_a_section_too_short_to_have_lanes_by_its_own_links() {
+    let (town, report) =
+        load_xodr_str(SHORT_LAST_SECTION, "short-section", &LoadOptions::default()).unwrap();
+    assert!(report.warnings.is_empty(), "{:#?}", report.warnings);
+    let lane = town
+        .lanes
+        .iter()
+        .find(|l| l.road_id == "1" && l.od_lane == -1)
+        .expect("road 1's lane -1");
+    let next: Vec<(String, i32)> = lane
+        .successors
+        .iter()
+        .map(|l| {
+            let l = &town.lanes[l.0 as usize];
+            (l.road_id.clone(), l.od_lane)
+        })
+        .collect();
+    // Road 2's lane -2, where road 1's lane -1 ends (xodr 0.8.0 read the link as
+    // naming road 2's lane -1, 3.5 m to the left).
+    assert_eq!(next, [("2".to_string(), -2)]);
+    let start = town.lanes[lane.successors[0].0 as usize].centerline[0];
+    assert!(close(
+        lane.centerline.last().unwrap().truncate(),
+        start.truncate()
+    ));
+}
