@@ -1,6 +1,7 @@
 //! The training pipeline as a plan (`mrdrive train --all`, `cargo xtask train`):
-//! the study's datasets, the Original in phases, the three retargeted models,
-//! the closed-loop bar and the five-scale RA, each a command of this binary.
+//! the study's datasets, the Original trained as a learning curve over its data's
+//! slices, the three retargeted models, the closed-loop bar and the five-scale RA,
+//! each a command of this binary.
 //!
 //! [`TrainPlan`] is the configuration ([`TrainPlan::full`] is the study's,
 //! [`TrainPlan::quick`] the same plumbing at toy size); [`TrainPlan::steps`]
@@ -33,18 +34,27 @@ pub struct Dataset {
     pub max_s: f64,
 }
 
-/// One phase of the Original's training: `mrdrive train --stage original`, starting
-/// from the phase before it.
+/// The Original's training as a learning curve over its dataset's slices: after
+/// slice k is labelled, round k trains the Original `steps` more steps on the first
+/// k slices (`mrdrive train --stage original --episodes E_k --init` round k - 1's
+/// network), then drives it on the curve's units (`mrdrive sweep`). The last round
+/// publishes the Original. Why: the data takes hours that a job does not have, so
+/// training starts on the first slices, and the curve says when more data stops
+/// paying (issue 48).
 #[derive(Debug, Clone, PartialEq)]
-pub struct Phase {
-    /// Its name: phase NAME trains in `runs/NAME/original/` and publishes
-    /// `runs/NAME/original.*`; the last trains in `runs/original/` and publishes
-    /// `models/original.*`.
-    pub name: String,
-    /// Training steps (batches of 32).
+pub struct Curve {
+    /// Rounds: one per slice of the Original's dataset, up to its last.
+    pub rounds: u32,
+    /// Training steps (batches of 32) per round.
     pub steps: u32,
-    /// Further `mrdrive train` options.
+    /// Further `mrdrive train` options of every round (the recipe).
     pub options: Vec<String>,
+    /// The units each round is driven on: scenarios, densities, seeds.
+    pub scenarios: Vec<PathBuf>,
+    /// Their densities (`mrdrive sweep --densities`).
+    pub densities: String,
+    /// Their seeds (`mrdrive sweep --seeds`).
+    pub seeds: String,
 }
 
 /// One retargeting stage: `mrdrive train --stage STAGE` on the retargeting set.
@@ -80,8 +90,8 @@ pub struct TrainPlan {
     pub runs: PathBuf,
     /// The datasets (the Original's first, then the retargeting set).
     pub datasets: Vec<Dataset>,
-    /// The Original's phases, each continuing the one before it.
-    pub original_phases: Vec<Phase>,
+    /// The Original's training: rounds after each slice of its data.
+    pub curve: Curve,
     /// The paper's three retargeted models, in the lanes they run in when two run at
     /// once: each lane a list run in order (each stage needs only the Original).
     pub lanes: Vec<Vec<Retarget>>,
@@ -100,9 +110,12 @@ pub struct TrainPlan {
     pub toy_options: Vec<String>,
     /// Options added to every retargeting command (the quick plan's).
     pub toy_retarget_options: Vec<String>,
-    /// Steps of every Original phase instead of its own (the quick plan's 4).
-    pub phase_steps_override: Option<u32>,
 }
+
+/// Training steps (batches of 32) per round of the learning curve: sized on a
+/// 2-core machine so that a round (a slice's collection and labels, its training,
+/// its 12 closed-loop runs) fits well inside a 3-hour job (docs/training.md).
+pub const CURVE_STEPS: u32 = 1000;
 
 fn strings(s: &[&str]) -> Vec<String> {
     s.iter().map(|s| s.to_string()).collect()
@@ -145,35 +158,31 @@ impl TrainPlan {
                     max_s: 90.0,
                 },
             ],
-            original_phases: vec![
-                // WoR's recipe: every sample once per epoch.
-                Phase {
-                    name: "wor".into(),
-                    steps: 2300,
-                    options: Vec::new(),
-                },
-                // Commands drawn evenly, a quarter of the standing frames.
-                Phase {
-                    name: "balanced".into(),
-                    steps: 2000,
-                    options: strings(&["--standing-keep", "0.25", "--balanced", "true"]),
-                },
-                // Frames with a walker in the corridor ahead drawn 8 times an epoch:
-                // without this phase the Original hit a walker in 3 of the 6 Town01
-                // runs of the bar, with it in none.
-                Phase {
-                    name: "original".into(),
-                    steps: 800,
-                    options: strings(&[
-                        "--standing-keep",
-                        "0.25",
-                        "--balanced",
-                        "true",
-                        "--pedestrian-repeat",
-                        "8",
-                    ]),
-                },
-            ],
+            curve: Curve {
+                rounds: 19,
+                steps: CURVE_STEPS,
+                // Commands drawn evenly, a quarter of the standing frames, frames with
+                // a walker in the corridor ahead drawn 8 times an epoch (without it the
+                // Original of 2026-12-05 hit a walker in 3 of the 6 Town01 runs of the
+                // bar) and those behind a stopped vehicle 4 times (issue 33: 0.19 % of
+                // the frames, and the shipped RA did not brake behind queues).
+                options: strings(&[
+                    "--standing-keep",
+                    "0.25",
+                    "--balanced",
+                    "true",
+                    "--pedestrian-repeat",
+                    "8",
+                    "--stopped-vehicle-repeat",
+                    "4",
+                ]),
+                scenarios: ["town02_route0", "town02_route1"]
+                    .iter()
+                    .map(|r| PathBuf::from(format!("scenarios/paper/{r}.toml")))
+                    .collect(),
+                densities: "0:0,5:10,20:40".into(),
+                seeds: "0,1".into(),
+            },
             // RA (both scales per step) takes about as long as the two NRA stages together.
             lanes: vec![
                 vec![retarget("ra", "ra", &[])],
@@ -208,7 +217,6 @@ impl TrainPlan {
             ),
             toy_options: Vec::new(),
             toy_retarget_options: Vec::new(),
-            phase_steps_override: None,
         }
     }
 
@@ -226,23 +234,38 @@ impl TrainPlan {
         }
         plan.bar_scenarios.truncate(1);
         plan.bar_densities = "0:0".into();
+        plan.curve.rounds = 2;
+        plan.curve.steps = 4;
+        plan.curve.scenarios.truncate(1);
+        plan.curve.densities = "0:0".into();
+        plan.curve.seeds = "0".into();
         plan.toy_options = strings(&["--batch", "4", "--recalibrate-batches", "2"]);
         plan.toy_retarget_options = strings(&["--steps", "4", "--unfreeze-every", "1"]);
-        plan.phase_steps_override = Some(4);
         plan
     }
 
-    /// The commands that make the datasets: each dataset collected and labelled
-    /// a slice at a time (`collect --episodes` counts the episodes in all, so each
-    /// collect goes on from the last slice), then summarised.
-    pub fn data_steps(&self) -> Vec<Step> {
-        let mut steps = Vec::new();
-        for d in &self.datasets {
-            let dir = d.dir.display().to_string();
-            let slice = d.slice.max(1);
-            let ends = (1..=d.episodes.div_ceil(slice)).map(|k| (k * slice).min(d.episodes));
-            for end in ends {
-                steps.push(Step::new(
+    /// A plan whose Original is trained in `rounds` rounds, on that many slices of
+    /// its dataset (`mrdrive train --all --slices N`): where the learning curve says
+    /// more data stops paying.
+    pub fn with_rounds(mut self, rounds: u32) -> Self {
+        let rounds = rounds.max(1);
+        self.curve.rounds = rounds;
+        if let Some(d) = self.datasets.first_mut() {
+            d.episodes = rounds * d.slice.max(1);
+        }
+        self
+    }
+
+    /// Each slice of dataset `d`: its last episode, the command that collects it
+    /// (`collect --episodes` counts the episodes in all, so each collect goes on
+    /// from the slice before), and the one that labels it.
+    fn slices(d: &Dataset) -> Vec<(u32, Step, Step)> {
+        let dir = d.dir.display().to_string();
+        let slice = d.slice.max(1);
+        (1..=d.episodes.div_ceil(slice))
+            .map(|k| (k * slice).min(d.episodes))
+            .map(|end| {
+                let collect = Step::new(
                     format!("collect {dir} (episodes to {end} of {})", d.episodes),
                     vec![
                         "collect".into(),
@@ -255,19 +278,164 @@ impl TrainPlan {
                         "--max-s".into(),
                         d.max_s.to_string(),
                     ],
-                ));
-                steps.push(Step::new(
+                );
+                let label = Step::new(
                     format!("label {dir} (episodes to {end})"),
                     vec!["label".into(), dir.clone()],
-                ));
+                );
+                (end, collect, label)
+            })
+            .collect()
+    }
+
+    /// `data info` of dataset `d`: a summary, not a product, so it may fail.
+    fn info(d: &Dataset) -> Step {
+        let dir = d.dir.display().to_string();
+        Step {
+            may_fail: true,
+            ..Step::new(
+                format!("data info {dir}"),
+                vec!["data".into(), "info".into(), dir],
+            )
+        }
+    }
+
+    /// The commands that make the datasets (`mrdrive data study`): each dataset
+    /// collected and labelled a slice at a time, then summarised.
+    pub fn data_steps(&self) -> Vec<Step> {
+        let mut steps = Vec::new();
+        for d in &self.datasets {
+            for (_, collect, label) in Self::slices(d) {
+                steps.extend([collect, label]);
             }
-            steps.push(Step {
-                may_fail: true,
-                ..Step::new(
-                    format!("data info {dir}"),
-                    vec!["data".into(), "info".into(), dir],
-                )
-            });
+            steps.push(Self::info(d));
+        }
+        steps
+    }
+
+    /// The whole pipeline (`mrdrive train --all`): the Original's data a slice at a
+    /// time, each slice followed by its round of the learning curve; the
+    /// retargeting set; the retargeting stages, the bar and RA5. Rounds before
+    /// `from_round` are left out: a committed snapshot of that round (a job whose
+    /// cache was lost goes on from it) says they are done, and their records are
+    /// committed; their slices are still made, as the later rounds train on them.
+    pub fn steps(&self, from_round: u32) -> Vec<Group> {
+        let mut groups = Vec::new();
+        let mut datasets = self.datasets.iter();
+        if let Some(original) = datasets.next() {
+            for (k, (end, collect, label)) in (1..).zip(Self::slices(original)) {
+                groups.extend([Group::One(collect), Group::One(label)]);
+                if k <= self.curve.rounds && k >= from_round {
+                    groups.extend(self.round_steps(k, end).into_iter().map(Group::One));
+                }
+            }
+            groups.push(Group::One(Self::info(original)));
+        }
+        for d in datasets {
+            for (_, collect, label) in Self::slices(d) {
+                groups.extend([Group::One(collect), Group::One(label)]);
+            }
+            groups.push(Group::One(Self::info(d)));
+        }
+        groups.extend(self.train_steps());
+        groups
+    }
+
+    /// The round (1-based) a snapshot's run folder (`ResumeState::run`, relative to
+    /// the runs folder) belongs to: `curve/slice-05/original` is round 5; a
+    /// retargeting stage of the plan's comes after every round. `None`: not a run
+    /// of this plan's.
+    pub fn round_of(&self, run: &Path) -> Option<u32> {
+        let parts: Vec<String> = run
+            .iter()
+            .map(|p| p.to_string_lossy().into_owned())
+            .collect();
+        match parts.as_slice() {
+            [curve, slice, _] if curve == "curve" => slice.strip_prefix("slice-")?.parse().ok(),
+            [name] => {
+                let mut later = self.lanes.iter().flatten().chain([&self.after_bar]);
+                later
+                    .any(|r| &r.name == name)
+                    .then_some(self.curve.rounds + 1)
+            }
+            _ => None,
+        }
+    }
+
+    /// Round `k`'s run folders (`--runs`) and published network.
+    fn round_dir(&self, k: u32) -> String {
+        format!("{}/curve/slice-{k:02}", self.runs())
+    }
+
+    /// The folder of round `k`'s closed-loop records.
+    fn round_records(&self, k: u32) -> String {
+        format!("{}/slice-{k:02}", self.curve_records())
+    }
+
+    fn curve_records(&self) -> String {
+        format!("{}/original.curve", self.models())
+    }
+
+    /// Round `k` of the learning curve, on the first `episodes` episodes: train,
+    /// drive the units, redraw the curve's table; the last round also publishes
+    /// the Original into `models/` (the same command with `--out`: the finished
+    /// run is published, not trained again).
+    fn round_steps(&self, k: u32, episodes: u32) -> Vec<Step> {
+        let dir = self.round_dir(k);
+        let data = self
+            .datasets
+            .first()
+            .map(|d| d.dir.display().to_string())
+            .unwrap_or_default();
+        let mut train = strings(&["train", "--stage", "original", "--data"]);
+        train.push(data);
+        train.extend(["--episodes".into(), episodes.to_string()]);
+        train.extend(["--runs".into(), dir.clone(), "--out".into(), dir.clone()]);
+        train.extend(["--steps".into(), self.curve.steps.to_string()]);
+        if k > 1 {
+            let before = self.round_dir(k - 1);
+            train.extend(["--init".into(), format!("{before}/original.safetensors")]);
+        }
+        train.extend(self.curve.options.iter().cloned());
+        train.extend(self.toy_options.iter().cloned());
+        let mut steps = vec![Step::new(
+            format!("original, round {k} (episodes 1-{episodes})"),
+            train.clone(),
+        )];
+        let mut sweep = vec!["sweep".to_string()];
+        sweep.extend(self.curve.scenarios.iter().map(|p| p.display().to_string()));
+        sweep.extend(strings(&[
+            "--delays",
+            "0",
+            "--scales",
+            "1.0",
+            "--densities",
+        ]));
+        sweep.extend([self.curve.densities.clone(), "--seeds".into()]);
+        sweep.extend([
+            self.curve.seeds.clone(),
+            "--out".into(),
+            self.round_records(k),
+        ]);
+        sweep.extend(["--checkpoint".into(), format!("{dir}/original.safetensors")]);
+        steps.push(Step::new(format!("drive round {k}"), sweep));
+        steps.push(Step {
+            may_fail: true,
+            ..Step::new(
+                "the learning curve's table",
+                vec![
+                    "policy".into(),
+                    "table".into(),
+                    self.curve_records(),
+                    "--out".into(),
+                    format!("{}.md", self.curve_records()),
+                ],
+            )
+        });
+        if k == self.curve.rounds {
+            let at = train.iter().position(|a| a == "--out").expect("--out") + 1;
+            train[at] = self.models();
+            steps.push(Step::new("publish the Original", train));
         }
         steps
     }
@@ -299,41 +467,11 @@ impl TrainPlan {
         Step::new(format!("train {}", r.name), args)
     }
 
-    /// The commands that train and judge the models, after the datasets: the
-    /// Original's phases, the retargeting lanes, the bar and its table, RA5.
+    /// The commands that train and judge the models after the Original: the
+    /// retargeting lanes, the bar and its table, RA5.
     pub fn train_steps(&self) -> Vec<Group> {
         let mut groups = Vec::new();
         let (models, runs) = (self.models(), self.runs());
-        let original_data = self
-            .datasets
-            .first()
-            .map(|d| d.dir.display().to_string())
-            .unwrap_or_default();
-        let mut init: Option<String> = None;
-        for (i, phase) in self.original_phases.iter().enumerate() {
-            let last = i + 1 == self.original_phases.len();
-            let (run_root, out) = if last {
-                (runs.clone(), models.clone())
-            } else {
-                let own = format!("{runs}/{}", phase.name);
-                (own.clone(), own)
-            };
-            let steps = self.phase_steps_override.unwrap_or(phase.steps);
-            let mut args = strings(&["train", "--stage", "original", "--data"]);
-            args.push(original_data.clone());
-            args.extend(["--runs".into(), run_root, "--out".into(), out.clone()]);
-            args.extend(["--steps".into(), steps.to_string()]);
-            if let Some(init) = &init {
-                args.extend(["--init".into(), init.clone()]);
-            }
-            args.extend(phase.options.iter().cloned());
-            args.extend(self.toy_options.iter().cloned());
-            groups.push(Group::One(Step::new(
-                format!("original phase {}", phase.name),
-                args,
-            )));
-            init = Some(format!("{out}/original.safetensors"));
-        }
         if self.parallel_lanes {
             groups.push(Group::Lanes(
                 self.lanes
@@ -602,7 +740,7 @@ mod tests {
     }
 
     #[test]
-    fn the_full_plan_chains_the_phases_and_trains_the_lanes_on_one_thread_each() {
+    fn the_data_comes_a_slice_at_a_time_and_the_retargeting_set_last() {
         let plan = TrainPlan::full(Path::new("out/scratch"), Path::new("/c"), true);
         let data: Vec<String> = plan.data_steps().iter().map(|s| s.args.join(" ")).collect();
         // Slices of 40 episodes, each collected then labelled: 19 slices, then `data info`.
@@ -621,19 +759,53 @@ mod tests {
             data[43],
             "collect --preset retarget --out /c/data/retarget --episodes 150 --max-s 90"
         );
-        let groups = plan.train_steps();
+    }
+
+    #[test]
+    fn each_slice_is_followed_by_its_round_of_the_learning_curve() {
+        let plan = TrainPlan::full(Path::new("out/scratch"), Path::new("/c"), true);
+        let groups = plan.steps(1);
+        let all: Vec<String> = groups.iter().flat_map(joined).collect();
+        assert!(all[0].ends_with("--episodes 40 --max-s 90"));
+        assert_eq!(all[1], "label /c/data/original");
         assert_eq!(
-            joined(&groups[0])[0],
-            "train --stage original --data /c/data/original --runs /c/runs/wor \
-             --out /c/runs/wor --steps 2300"
+            all[2],
+            format!(
+                "train --stage original --data /c/data/original --episodes 40 \
+                 --runs /c/runs/curve/slice-01 --out /c/runs/curve/slice-01 --steps {CURVE_STEPS} \
+                 --standing-keep 0.25 --balanced true --pedestrian-repeat 8 \
+                 --stopped-vehicle-repeat 4"
+            )
         );
         assert_eq!(
-            joined(&groups[2])[0],
-            "train --stage original --data /c/data/original --runs /c/runs \
-             --out out/scratch/models --steps 800 --init /c/runs/balanced/original.safetensors \
-             --standing-keep 0.25 --balanced true --pedestrian-repeat 8"
+            all[3],
+            "sweep scenarios/paper/town02_route0.toml scenarios/paper/town02_route1.toml \
+             --delays 0 --scales 1.0 --densities 0:0,5:10,20:40 --seeds 0,1 \
+             --out out/scratch/models/original.curve/slice-01 \
+             --checkpoint /c/runs/curve/slice-01/original.safetensors"
         );
-        let Group::Lanes(lanes) = &groups[3] else {
+        assert_eq!(
+            all[4],
+            "policy table out/scratch/models/original.curve \
+             --out out/scratch/models/original.curve.md"
+        );
+        // Round 2 trains on the first two slices, from round 1's network.
+        assert!(all[5].ends_with("--episodes 80 --max-s 90"));
+        assert!(
+            all[7].contains(
+                "--episodes 80 --runs /c/runs/curve/slice-02 --out /c/runs/curve/slice-02 \
+             --steps 1000 --init /c/runs/curve/slice-01/original.safetensors"
+                    .replace("1000", &CURVE_STEPS.to_string())
+                    .as_str()
+            )
+        );
+        // 19 rounds of collect, label, train, drive, table; round 19 publishes the
+        // Original; `data info`; the retargeting set; then the lanes, the bar, RA5.
+        let publish = 19 * 5;
+        assert!(all[publish].contains("--runs /c/runs/curve/slice-19 --out out/scratch/models"));
+        assert_eq!(all[publish + 1], "data info /c/data/original");
+        assert_eq!(groups.len(), publish + 1 + 1 + 7 + 1 + 6 + 1 + 1);
+        let Group::Lanes(lanes) = &groups[publish + 9] else {
             panic!("the retargeting stages run in lanes")
         };
         assert_eq!(lanes.len(), 2);
@@ -647,17 +819,43 @@ mod tests {
             lanes[0][0].args.join(" "),
             "train --stage ra --data /c/data/retarget --runs /c/runs --out out/scratch/models"
         );
-        // Six bar sweeps, the table, then RA5.
-        assert_eq!(groups.len(), 3 + 1 + 6 + 1 + 1);
-        assert!(joined(&groups[4])[0].ends_with("--out out/scratch/out/bar/expert --expert"));
-        assert!(joined(&groups[11])[0].contains("--name ra5"));
+        assert!(all.last().unwrap().contains("--name ra5"));
+    }
+
+    #[test]
+    fn fewer_slices_shorten_the_data_and_a_snapshot_skips_the_rounds_before_it() {
+        let plan = TrainPlan::full(Path::new("b"), Path::new("/c"), false).with_rounds(3);
+        assert_eq!(plan.datasets[0].episodes, 120);
+        let all: Vec<String> = plan.steps(1).iter().flat_map(joined).collect();
+        assert!(all[15].contains("--runs /c/runs/curve/slice-03 --out b/models"));
+        assert_eq!(all[16], "data info /c/data/original");
+        // A snapshot of round 3: slices 1-3 made again, rounds 1-2 not trained or driven.
+        assert_eq!(plan.round_of(Path::new("curve/slice-03/original")), Some(3));
+        let from3: Vec<String> = plan.steps(3).iter().flat_map(joined).collect();
+        let rounds: Vec<&String> = from3
+            .iter()
+            .filter(|a| a.contains("/curve/slice-") || a.contains("original.curve/slice-"))
+            .collect();
+        assert_eq!(rounds.len(), 3, "{rounds:?}");
+        assert!(rounds.iter().all(|a| a.contains("slice-03")));
+        assert_eq!(
+            from3
+                .iter()
+                .filter(|a| a.starts_with("collect --preset original"))
+                .count(),
+            3
+        );
+        // A retargeting stage comes after every round; a folder of another plan is none.
+        assert_eq!(plan.round_of(Path::new("ra")), Some(4));
+        assert_eq!(plan.round_of(Path::new("wor/original")), None);
+        assert_eq!(plan.round_of(Path::new("curve/slice-x/original")), None);
     }
 
     #[test]
     fn one_lane_runs_the_stages_in_the_tables_order_and_quick_is_toy_sized() {
         let plan = TrainPlan::quick(Path::new("out/train-quick"), Path::new("c"), false);
         let groups = plan.train_steps();
-        let stages: Vec<String> = groups[3..6].iter().map(|g| joined(g)[0].clone()).collect();
+        let stages: Vec<String> = groups[..3].iter().map(|g| joined(g)[0].clone()).collect();
         assert!(stages[0].starts_with(
             "train --stage nra-0.75 --data c/data/retarget-quick --runs out/train-quick/runs"
         ));
@@ -666,10 +864,17 @@ mod tests {
         assert!(
             stages[2].ends_with("--batch 4 --recalibrate-batches 2 --steps 4 --unfreeze-every 1")
         );
-        assert!(joined(&groups[0])[0].contains("--steps 4 --batch 4"));
-        let bar = joined(&groups[6])[0].clone();
+        let bar = joined(&groups[3])[0].clone();
         assert!(bar.starts_with("sweep scenarios/paper/town01_route0.toml --delays 0"));
         assert!(bar.contains("--densities 0:0 "));
+        let all: Vec<String> = plan.steps(1).iter().flat_map(joined).collect();
+        // Two rounds of one episode each, 4 steps of 4, one route, one density, one seed.
+        assert!(all[2].contains("--episodes 1 --runs out/train-quick/runs/curve/slice-01"));
+        assert!(
+            all[2].contains("--steps 4 ") && all[2].ends_with("--batch 4 --recalibrate-batches 2")
+        );
+        assert!(all[3].starts_with("sweep scenarios/paper/town02_route0.toml --delays 0"));
+        assert!(all[3].contains("--densities 0:0 --seeds 0 "));
         let data: Vec<String> = plan.data_steps().iter().map(|s| s.args.join(" ")).collect();
         // Slices of one episode: collect 1, label, collect 2, label, info; then the retargeting set.
         assert_eq!(
@@ -733,7 +938,7 @@ mod tests {
         let e = execute(Path::new("/bin/sh"), dir.path(), &groups, &note).unwrap_err();
         assert!(!e.stopped_at_time_limit());
         // Every training step, in lanes too, gets the limit; the others do not.
-        let mut plan = TrainPlan::quick(Path::new("q"), Path::new("c"), true).train_steps();
+        let mut plan = TrainPlan::quick(Path::new("q"), Path::new("c"), true).steps(1);
         add_to_training(&mut plan, &strings(&["--until-unix", "1800000000"]));
         let all: Vec<String> = plan.iter().flat_map(joined).collect();
         for a in &all {

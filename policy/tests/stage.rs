@@ -8,7 +8,7 @@ use burn::prelude::*;
 use dataset::synthetic::{self, SyntheticSpec};
 use policy::checkpoint;
 use policy::train::stage::{
-    FINAL_FILE, Job, LOSSES_FILE, StageSpec, run_stage, run_stage_until, snapshot,
+    FINAL_FILE, Job, LOSSES_FILE, StageSpec, read_resume, run_stage, run_stage_until, snapshot,
 };
 use policy::train::{Preset, TrainConfig};
 use std::path::Path;
@@ -137,6 +137,28 @@ fn a_killed_stage_resumes_bit_for_bit_and_a_done_stage_is_skipped() {
     let other = lost.path().join("nra-1.0");
     let fresh = run_stage_until(&spec, &other, &device, &from, |_| {}).unwrap();
     assert_eq!(fresh.steps_now, 6);
+    // A round of the learning curve whose --init (the round before) lived in the
+    // lost cache: not needed with a snapshot of the round, refused without one.
+    let gone = StageSpec {
+        init: Some(lost.path().join("slice-01/original.safetensors")),
+        ..spec.clone()
+    };
+    let round = lost.path().join("slice-02/original");
+    let resumed = run_stage_until(&gone, &round, &device, &from, |_| {}).unwrap();
+    assert_eq!((resumed.stopped_at, resumed.steps_now), (None, 4));
+    let err = run_stage(
+        &gone,
+        &lost.path().join("slice-03/original"),
+        &device,
+        |_| {},
+    )
+    .err()
+    .unwrap()
+    .to_string();
+    assert!(
+        err.contains("slice-01") && err.contains("init checkpoint exists"),
+        "{err}"
+    );
     let rest = run_stage(&spec, &limited, &device, |_| {}).unwrap();
     assert_eq!((rest.stopped_at, rest.steps_now), (None, 4));
     assert_eq!(strip(rows(&limited)), strip(rows(straight.path())));
@@ -154,6 +176,16 @@ fn a_killed_stage_resumes_bit_for_bit_and_a_done_stage_is_skipped() {
     let straight8 = tempfile::tempdir().unwrap();
     run_stage(&longer, straight8.path(), &device, |_| {}).unwrap();
     assert_eq!(strip(rows(killed.path())), strip(rows(straight8.path())));
+    // A round of the learning curve nests its run folder three deep
+    // (`curve/slice-02/original`): the job's end still finds it, the newest.
+    let nested = runs.path().join("curve/slice-02/original");
+    run_stage_until(&spec, &nested, &device, &past, |_| {}).unwrap();
+    let snap = snapshot(runs.path(), &out).unwrap().unwrap();
+    assert_eq!(snap.run, nested);
+    assert_eq!(
+        read_resume(&out).unwrap().run,
+        Path::new("curve/slice-02/original")
+    );
 }
 
 #[test]

@@ -5,7 +5,7 @@
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use experiments::loss_plot::{loss_curves, loss_title};
-use experiments::pipeline::{self, Group, TrainPlan};
+use experiments::pipeline::{self, TrainPlan};
 use policy::device::{self, DeviceKind};
 use policy::train::publish::{LOSSES_PLOT_FILE, publish, published_checkpoint};
 use policy::train::stage::{Job, LOSSES_FILE, run_stage_until};
@@ -20,8 +20,10 @@ pub struct TrainArgs {
     /// The stage: `original`, `nra-<scale>` (e.g. nra-0.75) or `ra`.
     #[arg(long, required_unless_present_any = ["synthetic", "all"])]
     stage: Option<String>,
-    /// The whole pipeline, skipping what is done: the datasets, the Original in three
-    /// phases, NRA 0.75, NRA 1.0 and RA, the closed-loop bar, RA5 (`cargo xtask train`).
+    /// The whole pipeline, skipping what is done: the Original's data a slice at a time,
+    /// each slice followed by a round of the Original's training and its closed-loop
+    /// check (the learning curve), the retargeting set, NRA 0.75, NRA 1.0 and RA, the
+    /// closed-loop bar, RA5 (`cargo xtask train`).
     #[arg(long, conflicts_with_all = ["stage", "synthetic"])]
     all: bool,
     /// With `--all`: the folder whose models/, runs/ and out/bar/ the pipeline writes
@@ -31,6 +33,10 @@ pub struct TrainArgs {
     /// With `--all`: the same plumbing at toy size, into out/train-quick unless --into.
     #[arg(long, requires = "all")]
     quick: bool,
+    /// With `--all`: train the Original in this many rounds of the learning curve, on
+    /// that many slices of 40 episodes of its dataset [default: 19, every slice].
+    #[arg(long, requires = "all", value_parser = clap::value_parser!(u32).range(1..=19))]
+    slices: Option<u32>,
     /// With `--all`: 2 runs the retargeting stages two at a time on one thread each
     /// (the default on 2 or more cores), 1 one after another on every thread.
     #[arg(long, requires = "all", value_parser = clap::value_parser!(u8).range(1..=2))]
@@ -95,6 +101,11 @@ pub struct TrainArgs {
     /// Start from this checkpoint's weights (same network) instead of a fresh initialisation.
     #[arg(long)]
     init: Option<PathBuf>,
+    /// Train on the dataset's first N episodes only (its first slices, while the rest
+    /// is still being collected); the run refuses to start or resume until all N are
+    /// labelled [default: every labelled episode].
+    #[arg(long)]
+    episodes: Option<usize>,
     /// Network preset.
     #[arg(long, default_value = "cpu")]
     preset: Preset,
@@ -172,6 +183,7 @@ fn request_of(args: &TrainArgs, stage: &str) -> StageRequest {
             stopped_vehicle_repeat: args.stopped_vehicle_repeat,
             balanced: args.balanced,
             init: args.init.clone(),
+            episodes: args.episodes,
         },
     }
 }
@@ -289,19 +301,41 @@ fn run_all(args: &TrainArgs) -> Result<()> {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let lanes = args.lanes.unwrap_or(if cores >= 2 { 2 } else { 1 });
     let cache = dataset::cache::root();
-    let plan = if args.quick {
+    let mut plan = if args.quick {
         TrainPlan::quick(&base, &cache, lanes == 2)
     } else {
         TrainPlan::full(&base, &cache, lanes == 2)
     };
+    if let Some(n) = args.slices {
+        plan = plan.with_rounds(n);
+    }
     eprintln!(
         "train --all: data and run state in {} (${} sets another folder), models into {}",
         cache.display(),
         dataset::cache::ENV,
         base.join("models").display()
     );
-    let mut groups: Vec<Group> = plan.data_steps().into_iter().map(Group::One).collect();
-    groups.extend(plan.train_steps());
+    // A committed snapshot of round k (or of a later stage): the rounds before it are
+    // done and their records committed, so they are not trained again when the cache
+    // was lost (their slices are still made: later rounds train on them).
+    let mut from_round = 1;
+    if let Some(file) = &args.snapshot
+        && policy::train::stage::resume_path(file).exists()
+    {
+        let r = policy::train::stage::read_resume(file)?;
+        from_round = plan.round_of(&r.run).unwrap_or(1);
+        if from_round > 1 {
+            eprintln!(
+                "train --all: the snapshot {} is of {} at step {}: rounds 1-{} of the \
+                 learning curve are done",
+                file.display(),
+                r.run.display(),
+                r.step,
+                from_round - 1
+            );
+        }
+    }
+    let mut groups = plan.steps(from_round);
     let stop_at = deadline(args)?;
     if let Some(t) = stop_at {
         let secs = t.duration_since(UNIX_EPOCH).map_or(0, |d| d.as_secs());

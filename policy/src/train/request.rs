@@ -55,6 +55,8 @@ pub struct RecipeChanges {
     pub balanced: Option<bool>,
     /// Start from this checkpoint's weights instead of a fresh initialisation.
     pub init: Option<PathBuf>,
+    /// Train on the dataset's first this many episodes only.
+    pub episodes: Option<usize>,
 }
 
 /// Why a stage request does not make a stage. The messages name `mrdrive train`'s
@@ -102,6 +104,9 @@ pub enum SpecError {
         /// Samples per step.
         batch: usize,
     },
+    /// `--episodes 0`.
+    #[error("--episodes 0: train on at least 1 episode (or leave --episodes out: every one)")]
+    NoEpisodes,
 }
 
 impl StageRequest {
@@ -182,6 +187,12 @@ impl RecipeChanges {
         self.apply_sampling(&mut spec.sampling)?;
         if let Some(v) = &self.init {
             spec.init = Some(v.clone());
+        }
+        if let Some(v) = self.episodes {
+            spec.episodes = Some(v);
+        }
+        if spec.episodes == Some(0) {
+            return Err(SpecError::NoEpisodes);
         }
         if spec.steps == 0 || spec.batch == 0 {
             return Err(SpecError::Empty {
@@ -300,6 +311,7 @@ mod tests {
             stopped_vehicle_repeat: Some(4),
             balanced: Some(true),
             init: Some("init.safetensors".into()),
+            episodes: Some(40),
         };
         let spec = StageRequest {
             changes,
@@ -313,6 +325,7 @@ mod tests {
         );
         assert_eq!(spec.train.unfreeze_every, None);
         assert_eq!((spec.recalibrate_batches, spec.checkpoint_every), (2, 4));
+        assert_eq!(spec.episodes, Some(40));
         assert_eq!(
             spec.sampling,
             Sampling {
@@ -381,6 +394,13 @@ mod tests {
                     ..RecipeChanges::default()
                 },
                 "--steps 4000 --batch 0: both must be at least 1",
+            ),
+            (
+                RecipeChanges {
+                    episodes: Some(0),
+                    ..RecipeChanges::default()
+                },
+                "--episodes 0: train on at least 1 episode (or leave --episodes out: every one)",
             ),
         ] {
             assert_eq!(err(changed(changes)), message);

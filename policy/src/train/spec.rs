@@ -22,6 +22,12 @@ pub struct StageSpec {
     pub scales: Vec<f32>,
     /// The labelled dataset folder.
     pub data: PathBuf,
+    /// Train on the first this many episodes of the dataset's index only (its first
+    /// slices, while later ones are still being collected: a learning curve's point);
+    /// `None`: every labelled episode. Pinning it keeps a run's samples the same when
+    /// the dataset grows between its resumes.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub episodes: Option<usize>,
     /// The teacher checkpoint (the Original) for a retargeting stage; `None` trains from
     /// scratch.
     pub teacher: Option<PathBuf>,
@@ -59,6 +65,7 @@ impl StageSpec {
             preset: preset.name().into(),
             scales: vec![1.0],
             data: data.to_path_buf(),
+            episodes: None,
             teacher: None,
             batch: 32,
             steps: 4000,
@@ -91,6 +98,7 @@ impl StageSpec {
             preset: preset.name().into(),
             scales: scales.to_vec(),
             data: data.to_path_buf(),
+            episodes: None,
             teacher: Some(teacher.to_path_buf()),
             batch: 32,
             steps: 600,

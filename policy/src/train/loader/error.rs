@@ -28,6 +28,20 @@ pub enum LoadError {
         /// The skipped files, as text.
         skipped: String,
     },
+    /// Fewer usable episodes than the run is pinned to (`--episodes`).
+    #[error(
+        "{dir}: the stage trains on the first {wanted} episodes (--episodes {wanted}) but {usable} of them are collected and labelled{first_problem}; collect and label up to {wanted} (`mrdrive data study` goes on where it stopped), or lower --episodes"
+    )]
+    Short {
+        /// The dataset directory.
+        dir: PathBuf,
+        /// The episodes the run trains on.
+        wanted: usize,
+        /// Those of them usable.
+        usable: usize,
+        /// The first unusable one and why, as text.
+        first_problem: String,
+    },
     /// The dataset's images are not the size the policy takes.
     #[error(
         "{index}: s0 is {w} x {h} but the policy takes {pw} x {ph}; train a policy config with input_width {w} and input_height {h}, or collect at the policy's size"

@@ -55,6 +55,18 @@ impl TrainSet {
     /// Opens the dataset in `dir` for a policy of `config`; unusable
     /// episodes are skipped (see [`TrainSet::skipped`]).
     pub fn open(dir: &Path, config: &PolicyConfig) -> Result<TrainSet, LoadError> {
+        Self::open_first(dir, config, None)
+    }
+
+    /// [`TrainSet::open`] on the first `first` episodes of the index only (every
+    /// episode when `None`); refuses when any of them is not collected, labelled and
+    /// readable, so that a run pinned to them trains on the same samples however
+    /// the dataset grows.
+    pub fn open_first(
+        dir: &Path,
+        config: &PolicyConfig,
+        first: Option<usize>,
+    ) -> Result<TrainSet, LoadError> {
         if config.num_commands != NUM_COMMANDS || config.num_speed_bins != NUM_SPEED_BINS {
             return Err(LoadError::Head {
                 commands: config.num_commands,
@@ -83,7 +95,8 @@ impl TrainSet {
         let mut parts = Vec::new();
         let mut skipped = Vec::new();
         let mut samples = Vec::new();
-        for e in &index.episodes {
+        let wanted = first.unwrap_or(index.episodes.len());
+        for e in index.episodes.iter().take(wanted) {
             let shard_path = dir.join(&e.shard);
             let Some(labels_name) = &e.labels else {
                 skipped.push(Skipped {
@@ -126,6 +139,18 @@ impl TrainSet {
                 }
             }
             parts.push(part);
+        }
+        let usable = parts.len();
+        if first.is_some() && usable < wanted {
+            return Err(LoadError::Short {
+                dir: dir.to_path_buf(),
+                wanted,
+                usable,
+                first_problem: skipped
+                    .first()
+                    .map(|s| format!("; {}: {}", s.path.display(), s.why))
+                    .unwrap_or_default(),
+            });
         }
         if samples.is_empty() {
             let skipped = skipped
@@ -228,6 +253,38 @@ mod tests {
             "{}",
             why[2]
         );
+    }
+
+    #[test]
+    fn a_set_pinned_to_its_first_episodes_ignores_later_ones_and_refuses_a_gap() {
+        let dir = write(4, 12);
+        let all = TrainSet::open(dir.path(), &config()).unwrap();
+        let first = TrainSet::open_first(dir.path(), &config(), Some(2)).unwrap();
+        // The first two episodes' samples, the same as the whole set's first half.
+        assert_eq!(first.samples.len() * 2, all.samples.len());
+        assert_eq!(first.samples[..], all.samples[..first.samples.len()]);
+        // Episode 1 unlabelled: the pinned set refuses, naming it and the fix; a
+        // set pinned to episode 0 alone does not need it.
+        let index = Index::load(dir.path()).unwrap();
+        std::fs::remove_file(dir.path().join(index.episodes[1].labels.as_ref().unwrap())).unwrap();
+        let err = TrainSet::open_first(dir.path(), &config(), Some(2))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            err.contains("first 2 episodes")
+                && err.contains("1 of them")
+                && err.contains("labels-00001")
+                && err.contains("mrdrive data study"),
+            "{err}"
+        );
+        assert!(TrainSet::open_first(dir.path(), &config(), Some(1)).is_ok());
+        // More than the index holds: refused the same way.
+        let err = TrainSet::open_first(dir.path(), &config(), Some(9))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(err.contains("first 9 episodes"), "{err}");
     }
 
     #[test]

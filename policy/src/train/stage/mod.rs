@@ -89,7 +89,15 @@ pub fn run_stage_until(
     job: &Job,
     mut on_step: impl FnMut(&StepUpdate<'_>),
 ) -> Result<StageOutcome, StageError> {
-    let progress = match resume_point(spec, run_dir)? {
+    // A snapshot of this run: used below only when the run folder has no state.
+    let snapshot_here = match &job.resume_state {
+        Some(file) => {
+            let r = read_resume(file)?;
+            run_dir.ends_with(&r.run).then_some((file.as_path(), r))
+        }
+        None => None,
+    };
+    let progress = match resume_point(spec, run_dir, snapshot_here.is_some())? {
         ResumePoint::Done(p) => {
             return Ok(StageOutcome {
                 checkpoint: run_dir.join(FINAL_FILE),
@@ -100,12 +108,10 @@ pub fn run_stage_until(
         }
         ResumePoint::From(progress) => progress,
     };
-    let from_snapshot = match (&progress, &job.resume_state) {
-        (None, Some(file)) => {
-            let r = read_resume(file)?;
-            run_dir.ends_with(&r.run).then_some((file.as_path(), r))
-        }
-        _ => None,
+    let from_snapshot = if progress.is_none() {
+        snapshot_here
+    } else {
+        None
     };
     let mut session = Session::start(spec, run_dir, device, progress, from_snapshot)?;
     let done_before = session.done;

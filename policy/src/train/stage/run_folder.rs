@@ -92,13 +92,20 @@ pub(super) fn check_or_write_spec(
 /// Refuses a run folder whose teacher or initial checkpoint has changed since the run
 /// started (the spec names them by path only), so a retrained Original is not silently
 /// the teacher of a half-done or finished stage. A folder without the record (made
-/// before it existed) takes today's checkpoints as its own.
-pub(super) fn check_or_write_inputs(spec: &StageSpec, run_dir: &Path) -> Result<(), StageError> {
+/// before it existed) takes today's checkpoints as its own. With `init_gone`, the
+/// `--init` checkpoint is left out (it is not needed: the run goes on from a
+/// committed snapshot).
+pub(super) fn check_or_write_inputs(
+    spec: &StageSpec,
+    run_dir: &Path,
+    init_gone: bool,
+) -> Result<(), StageError> {
     let path = run_dir.join(INPUTS_FILE);
     let saved: std::collections::BTreeMap<String, String> =
         read_json(&path, &start_again(run_dir))?.unwrap_or_default();
     let mut now = std::collections::BTreeMap::new();
-    for (field, file) in [("teacher", &spec.teacher), ("init", &spec.init)] {
+    let init = if init_gone { &None } else { &spec.init };
+    for (field, file) in [("teacher", &spec.teacher), ("init", init)] {
         let Some(file) = file else { continue };
         let bytes = std::fs::read(file)
             .map_err(|e| io_err(file, e, &format!("check the {field} checkpoint exists")))?;

@@ -65,8 +65,8 @@ pub struct Snapshot {
     pub last_losses: Option<String>,
 }
 
-/// The run folders under `runs` (its children and grandchildren, as the
-/// pipeline's phases nest them) with a checkpointed state, newest first.
+/// The run folders under `runs` (down to three levels, as the pipeline nests them:
+/// `ra`, `curve/slice-05/original`) with a checkpointed state, newest first.
 pub fn run_folders(runs: &Path) -> Vec<(PathBuf, Progress)> {
     let mut found = Vec::new();
     let children = |dir: &Path| -> Vec<PathBuf> {
@@ -81,18 +81,22 @@ pub fn run_folders(runs: &Path) -> Vec<(PathBuf, Progress)> {
         v.sort();
         v
     };
-    for dir in children(runs) {
-        for run in std::iter::once(dir.clone()).chain(children(&dir)) {
-            let state = run.join(STATE_DIR);
-            let (Ok(Some(p)), Ok(meta)) = (
-                read_progress(&state),
-                std::fs::metadata(state.join(PROGRESS_FILE)),
-            ) else {
-                continue;
-            };
-            let when = meta.modified().unwrap_or(std::time::UNIX_EPOCH);
-            found.push((when, run, p));
-        }
+    let mut runs_below = Vec::new();
+    let mut level = vec![runs.to_path_buf()];
+    for _ in 0..3 {
+        level = level.iter().flat_map(|d| children(d)).collect();
+        runs_below.extend(level.iter().cloned());
+    }
+    for run in runs_below {
+        let state = run.join(STATE_DIR);
+        let (Ok(Some(p)), Ok(meta)) = (
+            read_progress(&state),
+            std::fs::metadata(state.join(PROGRESS_FILE)),
+        ) else {
+            continue;
+        };
+        let when = meta.modified().unwrap_or(std::time::UNIX_EPOCH);
+        found.push((when, run, p));
     }
     found.sort_by(|a, b| b.0.cmp(&a.0).then_with(|| a.1.cmp(&b.1)));
     found.into_iter().map(|(_, run, p)| (run, p)).collect()

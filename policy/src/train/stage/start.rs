@@ -55,11 +55,20 @@ pub(super) struct Session<'a> {
 /// Makes the run folder, refuses one made with other settings or inputs, and says
 /// where the stage resumes. Done when the final checkpoint is that of the saved
 /// state's step (an extended run's earlier final is not).
-pub(super) fn resume_point(spec: &StageSpec, run_dir: &Path) -> Result<ResumePoint, StageError> {
+///
+/// `snapshot` says a committed snapshot of this run is at hand: then an `--init`
+/// checkpoint that is gone (it lived in a lost cache: the round of the learning
+/// curve before this one) is not needed, as the weights come from the snapshot.
+pub(super) fn resume_point(
+    spec: &StageSpec,
+    run_dir: &Path,
+    snapshot: bool,
+) -> Result<ResumePoint, StageError> {
     std::fs::create_dir_all(run_dir)
         .map_err(|e| io_err(run_dir, e, "check the parent folder exists and is writable"))?;
     check_or_write_spec(spec, &run_dir.join(SPEC_FILE), run_dir)?;
-    check_or_write_inputs(spec, run_dir)?;
+    let init_gone = snapshot && spec.init.as_ref().is_some_and(|p| !p.exists());
+    check_or_write_inputs(spec, run_dir, init_gone)?;
     let progress = read_progress(&run_dir.join(STATE_DIR))?;
     let final_step = checkpoint::read_manifest(&run_dir.join(FINAL_FILE))
         .ok()
@@ -88,6 +97,10 @@ impl<'a> Session<'a> {
         config.validate()?;
         device.seed(spec.seed);
         let (student, teacher) = match &spec.teacher {
+            // Weights from a snapshot replace the student's: its init need not exist.
+            None if from_snapshot.is_some() && spec.init.as_ref().is_some_and(|p| !p.exists()) => {
+                (config.init(device), None)
+            }
             None => (initial_net(spec, &config, device)?, None),
             Some(path) => {
                 let (teacher, _) = checkpoint::load(path, device)?;
@@ -95,7 +108,7 @@ impl<'a> Session<'a> {
                 (teacher.to_multires(spec.scales.clone())?, Some(teacher))
             }
         };
-        let set = Arc::new(TrainSet::open(&spec.data, &config)?);
+        let set = Arc::new(TrainSet::open_first(&spec.data, &config, spec.episodes)?);
         let state_dir = run_dir.join(STATE_DIR);
         let (trainer, wall_before_s) = match (progress, from_snapshot) {
             (Some(p), _) => (
