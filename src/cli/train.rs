@@ -265,7 +265,11 @@ pub fn run_train(args: TrainArgs) -> Result<()> {
         }
     })?;
     bar.finish_and_clear();
-    loss_curves(&losses, &png, &loss_title(&name, &spec.name))?;
+    // A stage gone on from a snapshot at its last step (the cache was lost) has no
+    // loss rows of its own to draw: say so, and publish it.
+    if let Err(e) = loss_curves(&losses, &png, &loss_title(&name, &spec.name)) {
+        eprintln!("warning: {}: could not plot: {e:#}", png.display());
+    }
     if let Some(step) = outcome.stopped_at {
         eprintln!(
             "stage {}: stopped at the time limit after step {step} of {} (state checkpointed in {}); \

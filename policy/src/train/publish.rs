@@ -39,20 +39,27 @@ pub fn published_checkpoint(out: &Path, name: &str) -> PathBuf {
 
 /// Copies the finished run in `run_dir` (its checkpoint and card, `losses.csv` and
 /// [`LOSSES_PLOT_FILE`]) to `out` as `<name>.safetensors`, `<name>.json`,
-/// `<name>.losses.csv` and `<name>.losses.png`.
+/// `<name>.losses.csv` and `<name>.losses.png`. The plot may be missing (a run gone
+/// on from a snapshot at its last step has no loss rows to draw): then no plot is
+/// published and an older one under that name is removed.
 pub fn publish(run_dir: &Path, out: &Path, name: &str) -> Result<(), PublishError> {
     std::fs::create_dir_all(out).map_err(|source| PublishError::Create {
         path: out.to_path_buf(),
         source,
     })?;
     let weights = run_dir.join(FINAL_FILE);
+    let plot = run_dir.join(LOSSES_PLOT_FILE);
+    if !plot.exists() {
+        let _ = std::fs::remove_file(out.join(format!("{name}.losses.png")));
+    }
     let copies = [
         (manifest_path(&weights), format!("{name}.json")),
         (run_dir.join(LOSSES_FILE), format!("{name}.losses.csv")),
-        (run_dir.join(LOSSES_PLOT_FILE), format!("{name}.losses.png")),
+        (plot, format!("{name}.losses.png")),
     ];
     let copies = std::iter::once((weights, published_checkpoint(out, name)))
-        .chain(copies.map(|(from, to)| (from, out.join(to))));
+        .chain(copies.map(|(from, to)| (from, out.join(to))))
+        .filter(|(from, _)| !from.ends_with(LOSSES_PLOT_FILE) || from.exists());
     for (from, to) in copies {
         std::fs::copy(&from, &to).map_err(|source| PublishError::Copy { from, to, source })?;
     }
@@ -64,7 +71,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_run_is_copied_under_its_name_and_a_missing_file_is_named() {
+    fn a_run_is_copied_under_its_name_and_a_missing_file_is_named_but_the_plot() {
         let run = tempfile::tempdir().unwrap();
         let out = tempfile::tempdir().unwrap();
         let out = out.path().join("models");
@@ -83,12 +90,17 @@ mod tests {
             assert_eq!(std::fs::read(out.join(f)).unwrap(), [i as u8], "{f}");
         }
         assert_eq!(published_checkpoint(&out, "ra5"), out.join(published[0]));
+        // No plot (no loss rows to draw): published without one, the old one gone.
         std::fs::remove_file(run.path().join(LOSSES_PLOT_FILE)).unwrap();
+        publish(run.path(), &out, "ra5").unwrap();
+        assert!(!out.join("ra5.losses.png").exists());
+        // A missing loss log is named.
+        std::fs::remove_file(run.path().join(LOSSES_FILE)).unwrap();
         let err = publish(run.path(), &out, "ra5").unwrap_err().to_string();
         assert!(
             err.starts_with("copying ")
-                && err.contains("losses.png to ")
-                && err.ends_with("ra5.losses.png"),
+                && err.contains("losses.csv to ")
+                && err.ends_with("ra5.losses.csv"),
             "{err}"
         );
     }
