@@ -196,3 +196,102 @@ fn traffic_on_carlas_towns_has_no_collisions_or_red_runs() {
         assert_clean(name, soak_two_minutes(town, 1));
     }
 }
+
+/// The connecting lane of `road` lane `od` whose centreline passes within 1 m of `near`.
+fn piece_near(town: &Town, road: &str, od: i32, near: glam::Vec2) -> LaneIdx {
+    let i = town
+        .lanes
+        .iter()
+        .position(|l| {
+            l.road_id == road
+                && l.od_lane == od
+                && l.centerline
+                    .iter()
+                    .any(|p| (p.truncate() - near).length() < 1.0)
+        })
+        .unwrap_or_else(|| panic!("road {road} lane {od} near {near}"));
+    LaneIdx(i as u32)
+}
+
+/// The connecting lane of `road` lane `od` entered from outside its junction.
+fn entry_piece(town: &Town, road: &str, od: i32) -> LaneIdx {
+    let i = town
+        .lanes
+        .iter()
+        .position(|l| {
+            l.road_id == road
+                && l.od_lane == od
+                && l.junction.is_some()
+                && l.predecessors
+                    .iter()
+                    .all(|p| town.lanes[p.0 as usize].junction != l.junction)
+        })
+        .unwrap_or_else(|| panic!("road {road} lane {od}: no entry"));
+    LaneIdx(i as u32)
+}
+
+#[test]
+fn a_connecting_road_in_many_sections_conflicts_as_one_movement() {
+    // Town06's junction 281: connecting road 317 (lane 2, southbound) is drawn in
+    // 14 lane sections; its fifth crosses road 344 (lane 5, westbound) near
+    // (-8.9, 22.5). A car reserves the first piece of each; before the two
+    // counted as one movement, the first pieces did not conflict, both cars were
+    // let in, and they met (the NPC-NPC collisions of the soaks there).
+    let Some(town) = carla(
+        "a_connecting_road_in_many_sections_conflicts_as_one_movement",
+        "Town06",
+    ) else {
+        return;
+    };
+    let conflicts = world::rules::JunctionConflicts::new(&town);
+    let south = entry_piece(&town, "317", 2);
+    let west = entry_piece(&town, "344", 5);
+    let crossing = piece_near(&town, "317", 2, glam::Vec2::new(-8.88, 22.5));
+    let movement = world::rules::conflicts::movement(&town, south);
+    assert!(
+        movement.len() > 5 && movement.contains(&crossing),
+        "{movement:?}"
+    );
+    assert!(conflicts.of(south).contains(&west));
+    assert!(conflicts.of(west).contains(&south));
+    // The way out is the first lane after the junction, not the next piece.
+    let out = world::rules::conflicts::movement_exit(&town, south);
+    assert!(town.lanes[out.0 as usize].junction.is_none());
+    // An NPC driving it holds its reservation of the first piece across the
+    // crossing piece (it let go two pieces in before), and lets go once out (it
+    // may hold the next junction's lane by then).
+    let cfg = TrafficConfig {
+        vehicles: 1,
+        pedestrians: 0,
+        seed: 1,
+        ..Default::default()
+    };
+    let mut tr = Traffic::new(town.clone(), cfg, None);
+    let approach = town.lanes[south.0 as usize].predecessors[0];
+    let len = town.lane(approach).length_m();
+    let mut path = LanePath::new(approach, (len - 20.0).max(3.0));
+    path.lanes.push_back(south);
+    tr.place_npc(0, path);
+    let (mut on_crossing, mut out_free) = (None, None);
+    for _ in 0..(20 * 60) {
+        tr.step(&[]);
+        let n = &tr.npcs()[0];
+        if n.path.lane() == crossing && on_crossing.is_none() {
+            on_crossing = Some(n.reservation);
+        }
+        if town.lanes[n.path.lane().0 as usize].junction.is_none()
+            && on_crossing.is_some()
+            && n.path.s_m > 6.0
+        {
+            out_free = Some(n.reservation);
+            break;
+        }
+    }
+    assert_eq!(
+        on_crossing,
+        Some(Some(south)),
+        "the NPC never got onto the crossing piece"
+    );
+    let out = out_free.expect("the NPC never left the junction");
+    assert_ne!(out, Some(south));
+}

@@ -22,6 +22,15 @@
 //!
 //! The NPCs' junction reservations grant a lane only while no conflicting
 //! lane is held ([`crate::traffic::Reservations`]).
+//!
+//! A connecting road drawn in several lane sections (most of those of CARLA's
+//! Town03, Town04 and Town06, none of Town01's, Town02's or our generated
+//! towns') is several connecting lanes of one junction in a row: one
+//! movement through the junction ([`movement`]). A car reserves the first
+//! and holds it until it has left the last, so two lanes conflict when any
+//! lane of the one's movement conflicts with any lane of the other's: a car
+//! entering a road of 14 sections would otherwise hold only the first, which
+//! crosses nothing, and meet the cross traffic in the fifth.
 
 use glam::Vec2;
 
@@ -108,6 +117,7 @@ impl JunctionConflicts {
                 }
             }
         }
+        extend_to_movements(town, &mut by_lane);
         // Right of way the map gives, where the two lanes conflict.
         let mut gives_way_to = vec![Vec::new(); town.lanes.len()];
         for j in &town.junctions {
@@ -142,6 +152,92 @@ impl JunctionConflicts {
         self.gives_way_to
             .get(lane.0 as usize)
             .map_or(&[], |v| &v[..])
+    }
+}
+
+/// The lanes of the movement through a junction that starts at connecting lane
+/// `entry`: it and every lane of its junction reached from it by successors
+/// without leaving the junction, in the order found (breadth first). Just
+/// `entry` where its road is one lane section, as on Town01 and Town02.
+pub fn movement(town: &Town, entry: LaneIdx) -> Vec<LaneIdx> {
+    along_movement(town, entry, |l| &l.successors)
+}
+
+/// The lanes of the movements through `lane`'s junction that reach `lane`: it
+/// and every lane of its junction it is reached from without leaving it.
+fn movement_before(town: &Town, lane: LaneIdx) -> Vec<LaneIdx> {
+    along_movement(town, lane, |l| &l.predecessors)
+}
+
+fn along_movement(
+    town: &Town,
+    from: LaneIdx,
+    next: impl Fn(&crate::map::town::DriveLane) -> &Vec<LaneIdx>,
+) -> Vec<LaneIdx> {
+    let junction = town.lanes[from.0 as usize].junction;
+    let mut found = vec![from];
+    let mut k = 0;
+    while k < found.len() {
+        for &n in next(&town.lanes[found[k].0 as usize]) {
+            if junction.is_some()
+                && town.lanes[n.0 as usize].junction == junction
+                && !found.contains(&n)
+            {
+                found.push(n);
+            }
+        }
+        k += 1;
+    }
+    found
+}
+
+/// The lane a car leaves `entry`'s movement by: the first lane out of the
+/// junction, following first successors (`entry` itself if it leads nowhere).
+pub fn movement_exit(town: &Town, entry: LaneIdx) -> LaneIdx {
+    let junction = town.lanes[entry.0 as usize].junction;
+    let mut lane = entry;
+    for _ in 0..town.lanes.len() {
+        let Some(&next) = town.lanes[lane.0 as usize].successors.first() else {
+            return lane;
+        };
+        if junction.is_none() || town.lanes[next.0 as usize].junction != junction {
+            return next;
+        }
+        lane = next;
+    }
+    lane
+}
+
+/// Makes lanes conflict whose movements do ([`movement`]): `b` conflicts with
+/// `a` when a lane of `a`'s movement conflicts with a lane of `b`'s. Lanes of
+/// junctions without chained lanes keep their conflicts as they are.
+fn extend_to_movements(town: &Town, by_lane: &mut [Vec<LaneIdx>]) {
+    let chained = |i: usize| {
+        let l = &town.lanes[i];
+        l.junction.is_some()
+            && l.successors
+                .iter()
+                .chain(&l.predecessors)
+                .any(|n| town.lanes[n.0 as usize].junction == l.junction)
+    };
+    let junctions: std::collections::BTreeSet<_> = (0..town.lanes.len())
+        .filter(|&i| chained(i))
+        .filter_map(|i| town.lanes[i].junction)
+        .collect();
+    let raw = by_lane.to_vec();
+    for (a, lane) in town.lanes.iter().enumerate() {
+        if !lane.junction.is_some_and(|j| junctions.contains(&j)) {
+            continue;
+        }
+        let mut all: Vec<LaneIdx> = movement(town, LaneIdx(a as u32))
+            .into_iter()
+            .flat_map(|a2| raw[a2.0 as usize].iter().copied())
+            .flat_map(|c| movement_before(town, c))
+            .filter(|b| b.0 as usize != a)
+            .collect();
+        all.sort();
+        all.dedup();
+        by_lane[a] = all;
     }
 }
 

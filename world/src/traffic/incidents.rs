@@ -13,7 +13,7 @@ use glam::Vec2;
 use super::Traffic;
 use crate::agents::ActorKind;
 use crate::map::LaneIdx;
-use crate::physics::{ContactEvent, Party, StaticKind};
+use crate::physics::{ContactEvent, DT_S, Party, StaticKind};
 
 /// How many incidents of each kind are kept (the first ones).
 pub const INCIDENTS_PER_KIND: usize = 50;
@@ -105,6 +105,9 @@ pub struct IncidentActor {
     pub lane: Option<IncidentLane>,
     /// The connecting lane it held (an NPC's junction reservation), if any.
     pub reservation: Option<LaneIdx>,
+    /// The connecting lane it was asking for (an NPC's junction request) and since
+    /// how long (seconds), if any.
+    pub asking: Option<(LaneIdx, f32)>,
 }
 
 /// One incident.
@@ -150,6 +153,9 @@ impl fmt::Display for IncidentActor {
         }
         if let Some(r) = self.reservation {
             write!(f, ", holding lane #{}", r.0)?;
+        }
+        if let Some((l, s)) = self.asking {
+            write!(f, ", asking for lane #{} for {s:.1} s", l.0)?;
         }
         Ok(())
     }
@@ -203,6 +209,7 @@ impl Traffic {
                 speed_mps: e.state.speed_mps,
                 lane: e.lane.map(|(l, s)| lane_of(l, s)),
                 reservation: None,
+                asking: None,
             });
         }
         if let Some(n) = self.npcs.iter().find(|n| n.id == id) {
@@ -214,6 +221,9 @@ impl Traffic {
                 speed_mps: n.state.speed_mps,
                 lane: Some(lane_of(n.path.lane(), n.path.s_m)),
                 reservation: n.reservation,
+                asking: n
+                    .request
+                    .map(|(l, since)| (l, (self.stats.ticks - since) as f32 * DT_S)),
             });
         }
         let p = self.pedestrians.iter().find(|p| p.id == id)?;
@@ -225,6 +235,7 @@ impl Traffic {
             speed_mps: p.current_speed_mps,
             lane: None,
             reservation: None,
+            asking: None,
         })
     }
 

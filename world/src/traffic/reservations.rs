@@ -22,7 +22,7 @@
 
 use super::Traffic;
 use crate::agents::npc::{self, Npc};
-use crate::map::{LaneIdx, LightIdx, LightState, Town};
+use crate::map::{LaneIdx, LightIdx, LightState};
 use crate::rules::{self, JunctionConflicts};
 
 /// Junction reservations: who holds which connecting lane.
@@ -165,18 +165,25 @@ impl Traffic {
         for i in 0..self.npcs.len() {
             let n = &self.npcs[i];
             let Some(res) = n.reservation else { continue };
-            // In it, or it is the next junction lane on the path (a path round a
-            // roundabout may come back to the same lane later: that is not this one).
-            let inside_or_ahead = n
-                .path
-                .lanes
-                .iter()
-                .find(|l| self.town.lanes[l.0 as usize].junction.is_some())
-                == Some(&res);
+            // In its movement (the reserved lane and the lanes of its junction after
+            // it: `rules::conflicts::movement`), or it is the next junction lane on
+            // the path (a path round a roundabout may come back to the same lane
+            // later: that is not this one).
+            let now = n.path.lane();
+            let in_junction = self.town.lanes[now.0 as usize].junction.is_some();
+            let inside = in_junction && rules::conflicts::movement(&self.town, res).contains(&now);
+            let ahead = !in_junction
+                && n.path
+                    .lanes
+                    .iter()
+                    .find(|l| self.town.lanes[l.0 as usize].junction.is_some())
+                    == Some(&res);
+            let inside_or_ahead = inside || ahead;
             let left = !inside_or_ahead && n.path.s_m > half + 1.0;
-            let lost =
-                !inside_or_ahead && !left && n.path.lanes[0] != town_successor_of(&self.town, res);
-            let before = inside_or_ahead && n.path.lane() != res;
+            let lost = !inside_or_ahead
+                && !left
+                && now != rules::conflicts::movement_exit(&self.town, res);
+            let before = ahead;
             let entry = npc::next_junction_lane(&self.town, n, &vp)
                 .filter(|(l, _)| *l == res)
                 .map(|(_, d)| d);
@@ -271,14 +278,17 @@ impl Traffic {
             {
                 continue;
             }
-            // Don't block the box: the exit lane needs room for this car.
-            let exit = town_successor_of(&self.town, lane);
+            // Don't block the box: the exit lane (the first out of the junction
+            // after the lanes of this movement) needs room for this car.
+            let exit = rules::conflicts::movement_exit(&self.town, lane);
+            let junction = self.town.lanes[lane.0 as usize].junction;
             let exit_on_path = n
                 .path
                 .lanes
                 .iter()
                 .skip_while(|&&l| l != lane)
-                .nth(1)
+                .skip(1)
+                .find(|l| self.town.lanes[l.0 as usize].junction != junction)
                 .copied()
                 .unwrap_or(exit);
             let room = occ.iter().enumerate().all(|(k, &(l, rear))| {
@@ -420,14 +430,6 @@ impl Traffic {
             }
         }
     }
-}
-
-fn town_successor_of(town: &Town, lane: LaneIdx) -> LaneIdx {
-    town.lanes[lane.0 as usize]
-        .successors
-        .first()
-        .copied()
-        .unwrap_or(lane)
 }
 
 #[cfg(test)]
