@@ -278,7 +278,7 @@ pub fn scenario_plan(
         .map(|(i, (seed, (vehicles, pedestrians)))| EpisodeSpec {
             id: i as u32,
             map: scenario.map.file.clone(),
-            generate_lights: scenario.map.generate_lights,
+            generate_lights: scenario.map.generates_lights(),
             route: RouteChoice::File {
                 file: scenario.route.file.clone(),
                 id: scenario.route.id.clone(),
@@ -534,7 +534,7 @@ fn scenario_of(spec: &EpisodeSpec, prepared: &Prepared) -> Scenario {
     s.name = format!("collect-{:05}", spec.id);
     s.map = MapSpec {
         file: spec.map.clone(),
-        generate_lights: spec.generate_lights,
+        generate_lights: Some(spec.generate_lights),
     };
     s.route = ScenarioRoute {
         file: prepared.route_file.clone(),

@@ -49,10 +49,19 @@ pub struct Scenario {
 pub struct MapSpec {
     /// An OpenDRIVE file, relative to the scenario file.
     pub file: PathBuf,
-    /// For maps without `<signal>`s: generate a light controller at each
-    /// junction (`true`) or drive without lights (`false`).
-    #[serde(default)]
-    pub generate_lights: bool,
+    /// For maps without `<signal>`s (CARLA's Town03, Town04, Town06): lights
+    /// generated at each junction of three or more approach roads (`true`, and
+    /// the default when left out) or no lights (`false`). Maps with lights of
+    /// their own keep them either way.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub generate_lights: Option<bool>,
+}
+
+impl MapSpec {
+    /// Whether a map without lights of its own gets generated ones.
+    pub fn generates_lights(&self) -> bool {
+        self.generate_lights.unwrap_or(true)
+    }
 }
 
 /// Which route of which file.
@@ -633,6 +642,10 @@ mod tests {
         assert_eq!(s.timing.control_period_ms, 50.0);
         assert_eq!(s.driver.kind, DriverKind::Expert);
         assert_eq!(s.termination.stuck_s, 8.0);
+        // A map without lights of its own gets generated ones unless told not to.
+        assert!(s.map.generates_lights());
+        let off = parse(&MINIMAL.replace("[route]", "generate_lights = false\n[route]")).unwrap();
+        assert!(!off.map.generates_lights());
     }
 
     #[test]

@@ -26,8 +26,14 @@ pub enum MapCommand {
 /// Options shared by commands that load a map.
 #[derive(Debug, Args, Clone)]
 pub struct MapLoadArgs {
-    /// Give junctions generated traffic lights when the map has none.
+    /// A map whose file has no traffic lights (CARLA's Town03, Town04 and Town06:
+    /// CARLA places their lights in the level, not the OpenDRIVE file) gets lights
+    /// generated at every junction of three or more approach roads, one phase per
+    /// approach; this flag leaves such a map without lights.
     #[arg(long)]
+    pub no_generated_lights: bool,
+    /// The default since 2026-12-06; kept so that older command lines still run.
+    #[arg(long, hide = true, conflicts_with = "no_generated_lights")]
     pub generate_lights: bool,
 }
 
@@ -35,10 +41,10 @@ impl MapLoadArgs {
     /// The loader options these flags ask for.
     pub fn options(&self) -> LoadOptions {
         LoadOptions {
-            unsignalled: if self.generate_lights {
-                UnsignalledJunctions::GenerateLights
-            } else {
+            unsignalled: if self.no_generated_lights {
                 UnsignalledJunctions::NoLights
+            } else {
+                UnsignalledJunctions::GenerateLights
             },
         }
     }

@@ -31,7 +31,7 @@ pub struct Prepared {
 /// Loads the scenario's map and plans its route.
 pub fn prepare(scenario: &Scenario) -> Result<Prepared, RunError> {
     let opts = LoadOptions {
-        unsignalled: if scenario.map.generate_lights {
+        unsignalled: if scenario.map.generates_lights() {
             UnsignalledJunctions::GenerateLights
         } else {
             UnsignalledJunctions::NoLights

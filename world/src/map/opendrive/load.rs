@@ -66,15 +66,14 @@ impl LoadReport {
             ("junctions", town.junctions.len().to_string()),
             (
                 "traffic lights",
-                format!(
-                    "{}{}",
-                    town.lights.len(),
-                    if self.generated_lights {
-                        " (generated)"
-                    } else {
-                        ""
-                    }
-                ),
+                if self.generated_lights {
+                    format!(
+                        "{n} (0 from the map, {n} generated at junctions of three or more approach roads)",
+                        n = town.lights.len()
+                    )
+                } else {
+                    format!("{n} ({n} from the map, 0 generated)", n = town.lights.len())
+                },
             ),
             ("stop lines", stop_lines.to_string()),
             (

@@ -299,6 +299,23 @@ fn unsignalled_junctions_get_one_light_per_approach_only_when_asked() {
     let (lit, report) = load_xodr_str(&unlit, "g", &opts).unwrap();
     assert!(report.generated_lights);
     assert!(!lit.lights.is_empty());
+    // `map info` says where the lights came from.
+    let n = lit.lights.len();
+    assert!(
+        report.summary(&lit, 0.0).contains(&format!(
+            "traffic lights: {n} (0 from the map, {n} generated"
+        )),
+        "{}",
+        report.summary(&lit, 0.0)
+    );
+    let (own, report) = load_xodr_str(&xml, "g", &opts).unwrap();
+    let n = own.lights.len();
+    assert!(
+        !report.generated_lights
+            && report.summary(&own, 0.0).contains(&format!(
+                "traffic lights: {n} ({n} from the map, 0 generated)"
+            ))
+    );
     for (i, l) in lit.lights.iter().enumerate() {
         // Each junction lists its lights, one group per approach road.
         let j = l.junction.expect("a generated light belongs to a junction");
