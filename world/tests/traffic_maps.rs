@@ -39,14 +39,19 @@ fn heading_change_rad(l: &world::DriveLane) -> f32 {
 /// more than 0.5 rad), driven by one NPC from 20 m before its start (lights
 /// green): it gets through without touching a curb. Returns the smallest
 /// clearance to a static collider on the way (metres).
-fn drive_every_turn(town: &Arc<Town>) -> f32 {
+/// Traffic of one NPC and no walkers (seed 1), to place where a test wants it.
+fn one_npc(town: &Arc<Town>) -> Traffic {
     let cfg = TrafficConfig {
         vehicles: 1,
         pedestrians: 0,
         seed: 1,
         ..Default::default()
     };
-    let mut tr = Traffic::new(town.clone(), cfg, None);
+    Traffic::new(town.clone(), cfg, None)
+}
+
+fn drive_every_turn(town: &Arc<Town>) -> f32 {
+    let mut tr = one_npc(town);
     assert_eq!(tr.realised_vehicles(), 1);
     let id = tr.npcs()[0].id;
     let half = tr.config().vehicle.length_m * 0.5;
@@ -260,13 +265,7 @@ fn a_connecting_road_in_many_sections_conflicts_as_one_movement() {
     // An NPC driving it holds its reservation of the first piece across the
     // crossing piece (it let go two pieces in before), and lets go once out (it
     // may hold the next junction's lane by then).
-    let cfg = TrafficConfig {
-        vehicles: 1,
-        pedestrians: 0,
-        seed: 1,
-        ..Default::default()
-    };
-    let mut tr = Traffic::new(town.clone(), cfg, None);
+    let mut tr = one_npc(&town);
     let approach = town.lanes[south.0 as usize].predecessors[0];
     let len = town.lane(approach).length_m();
     let mut path = LanePath::new(approach, (len - 20.0).max(3.0));

@@ -743,6 +743,16 @@ fn a_lane_offset_starting_at_a_section_start_does_not_bend_the_section_before() 
     assert!(close(a.truncate(), b.truncate()), "{a} {b}");
 }
 
+/// Each lane's OpenDRIVE road and lane id.
+fn road_lanes(town: &Town, ids: &[crate::map::LaneIdx]) -> Vec<(String, i32)> {
+    ids.iter()
+        .map(|l| {
+            let l = &town.lanes[l.0 as usize];
+            (l.road_id.clone(), l.od_lane)
+        })
+        .collect()
+}
+
 /// Road 4, between the junction's connecting road and road 2, is 5 um long:
 /// too short to bake lanes (as roads 35 and 54 of CARLA's Town06 are, 6.4 um
 /// and 19 um), so a link has to step through it with its own lane links.
@@ -797,20 +807,12 @@ fn a_link_steps_through_a_road_too_short_to_have_lanes() {
             .position(|l| l.road_id == road && l.od_lane == od)
             .unwrap_or_else(|| panic!("road {road} lane {od}"))
     };
-    let names = |ids: &[crate::map::LaneIdx]| -> Vec<(String, i32)> {
-        ids.iter()
-            .map(|l| {
-                let l = &town.lanes[l.0 as usize];
-                (l.road_id.clone(), l.od_lane)
-            })
-            .collect()
-    };
     // Eastbound: off the connecting road, through road 4, onto road 2.
     let east = &town.lanes[lane("3", -1)];
-    assert_eq!(names(&east.successors), [("2".to_string(), -1)]);
+    assert_eq!(road_lanes(&town, &east.successors), [("2".to_string(), -1)]);
     // Westbound: off road 2's start, back through road 4, into the junction.
     let west = &town.lanes[lane("2", 1)];
-    assert_eq!(names(&west.successors), [("3".to_string(), 1)]);
+    assert_eq!(road_lanes(&town, &west.successors), [("3".to_string(), 1)]);
     assert!(town.lanes.iter().all(|l| l.road_id != "4"));
 }
 
@@ -862,14 +864,7 @@ fn a_link_steps_through_a_section_too_short_to_have_lanes_by_its_own_links() {
         .iter()
         .find(|l| l.road_id == "1" && l.od_lane == -1)
         .expect("road 1's lane -1");
-    let next: Vec<(String, i32)> = lane
-        .successors
-        .iter()
-        .map(|l| {
-            let l = &town.lanes[l.0 as usize];
-            (l.road_id.clone(), l.od_lane)
-        })
-        .collect();
+    let next = road_lanes(&town, &lane.successors);
     // Road 2's lane -2, where road 1's lane -1 ends (xodr 0.8.0 read the link as
     // naming road 2's lane -1, 3.5 m to the left).
     assert_eq!(next, [("2".to_string(), -2)]);
