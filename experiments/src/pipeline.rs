@@ -372,6 +372,11 @@ impl TrainPlan {
         format!("{}/slice-{k:02}", self.curve_records())
     }
 
+    /// The learning curve's table (`policy table` of the rounds' records).
+    pub fn curve_table(&self) -> PathBuf {
+        PathBuf::from(format!("{}.md", self.curve_records()))
+    }
+
     fn curve_records(&self) -> String {
         format!("{}/original.curve", self.models())
     }

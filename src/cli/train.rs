@@ -364,7 +364,14 @@ fn run_all(args: &TrainArgs) -> Result<()> {
             Err(e) if e.stopped_at_time_limit() => "stopped at the time limit".to_string(),
             Err(e) => format!("failed at {}", e.step),
         };
-        end_of_job(&plan.runs, file, &how, started.elapsed().as_secs_f64())?;
+        let check = newest_round(&plan.curve_table());
+        end_of_job(
+            &plan.runs,
+            file,
+            &how,
+            started.elapsed().as_secs_f64(),
+            &check,
+        )?;
     }
     match ran {
         Err(e) if e.stopped_at_time_limit() => {
@@ -386,7 +393,30 @@ fn run_all(args: &TrainArgs) -> Result<()> {
 /// A job's end (`--snapshot FILE`): the newest run's network in half precision to
 /// FILE, and a line in its log (`.log.md`): when, where, how the job ended, what was
 /// trained and its last losses.
-fn end_of_job(runs: &Path, file: &Path, how: &str, wall_s: f64) -> Result<()> {
+/// The closed-loop check of the learning curve's newest round, from its table
+/// (`models/original.curve.md`): "slice-02 town02: 12/12 succeed, 1/12 with a
+/// collision, 4 red lights, 99.0 % of the route"; "none yet" without a round.
+fn newest_round(table: &Path) -> String {
+    let text = std::fs::read_to_string(table).unwrap_or_default();
+    let row = text.lines().rev().find_map(|l| {
+        let cells: Vec<&str> = l
+            .trim()
+            .trim_matches('|')
+            .split('|')
+            .map(str::trim)
+            .collect();
+        (cells.len() == 7 && cells[0].starts_with("slice-")).then_some(cells)
+    });
+    match row {
+        Some(c) => format!(
+            "{} {}: {} succeed, {} with a collision, {} red lights, {} % of the route",
+            c[0], c[1], c[2], c[3], c[4], c[6]
+        ),
+        None => "none yet".into(),
+    }
+}
+
+fn end_of_job(runs: &Path, file: &Path, how: &str, wall_s: f64, check: &str) -> Result<()> {
     let snap = policy::train::stage::snapshot(runs, file)?;
     let log = file.with_extension("log.md");
     let fresh = !log.exists();
@@ -401,10 +431,11 @@ fn end_of_job(runs: &Path, file: &Path, how: &str, wall_s: f64) -> Result<()> {
             f,
             "# The training chain's jobs\n\nOne line per job of `mrdrive train --all --snapshot`: \
              its end, the machine, the job's wall time and how it ended, the run it left in \
-             progress (its step), and that run's last row of `losses.csv` \
-             (step,epoch,loss,act,seg,kd,feat,per scale...,unfrozen,samples/s,wall_s).\n\n\
-             | job ended (UTC) | machine | job | ended | run in progress | last losses |\n\
-             | --- | --- | --- | --- | --- | --- |"
+             progress (its step), that run's last row of `losses.csv` \
+             (step,epoch,loss,act,seg,kd,feat,per scale...,unfrozen,samples/s,wall_s), and the \
+             closed-loop check of the learning curve's newest round (`models/original.curve.md`).\n\n\
+             | job ended (UTC) | machine | job | ended | run in progress | last losses | closed loop (newest round) |\n\
+             | --- | --- | --- | --- | --- | --- | --- |"
         )?;
     }
     let now = time_utc(SystemTime::now());
@@ -417,7 +448,7 @@ fn end_of_job(runs: &Path, file: &Path, how: &str, wall_s: f64) -> Result<()> {
     };
     writeln!(
         f,
-        "| {now} | {} | {:.2} h | {how} | {run} | `{losses}` |",
+        "| {now} | {} | {:.2} h | {how} | {run} | `{losses}` | {check} |",
         policy::train::stage::machine(),
         wall_s / 3600.0
     )?;
@@ -461,4 +492,28 @@ fn run_synthetic(args: &TrainArgs) -> Result<()> {
         bail!("the loss did not fall on the toy batch");
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_job_log_takes_the_newest_round_of_the_curve() {
+        let dir = tempfile::tempdir().unwrap();
+        let table = dir.path().join("original.curve.md");
+        assert_eq!(newest_round(&table), "none yet");
+        std::fs::write(
+            &table,
+            "| driver | town | success | runs with a collision | red lights | lane crossings | route % |\n\
+             | --- | --- | --- | --- | --- | --- | --- |\n\
+             | slice-01 | town02 | 0/12 | 0/12 | 6 | 0 | 20.7 |\n\
+             | slice-02 | town02 | 12/12 | 1/12 | 4 | 3 | 99.0 |\n",
+        )
+        .unwrap();
+        assert_eq!(
+            newest_round(&table),
+            "slice-02 town02: 12/12 succeed, 1/12 with a collision, 4 red lights, 99.0 % of the route"
+        );
+    }
 }
