@@ -202,37 +202,39 @@ fn traffic_on_carlas_towns_has_no_collisions_or_red_runs() {
     }
 }
 
-/// The connecting lane of `road` lane `od` whose centreline passes within 1 m of `near`.
-fn piece_near(town: &Town, road: &str, od: i32, near: glam::Vec2) -> LaneIdx {
+/// The first lane of `road` lane `od` that `keep` accepts (`what` names it if none does).
+fn find_lane(
+    town: &Town,
+    road: &str,
+    od: i32,
+    what: &str,
+    keep: impl Fn(&world::DriveLane) -> bool,
+) -> LaneIdx {
     let i = town
         .lanes
         .iter()
-        .position(|l| {
-            l.road_id == road
-                && l.od_lane == od
-                && l.centerline
-                    .iter()
-                    .any(|p| (p.truncate() - near).length() < 1.0)
-        })
-        .unwrap_or_else(|| panic!("road {road} lane {od} near {near}"));
+        .position(|l| l.road_id == road && l.od_lane == od && keep(l))
+        .unwrap_or_else(|| panic!("road {road} lane {od}: no {what}"));
     LaneIdx(i as u32)
+}
+
+/// The connecting lane of `road` lane `od` whose centreline passes within 1 m of `near`.
+fn piece_near(town: &Town, road: &str, od: i32, near: glam::Vec2) -> LaneIdx {
+    find_lane(town, road, od, "piece there", |l| {
+        l.centerline
+            .iter()
+            .any(|p| (p.truncate() - near).length() < 1.0)
+    })
 }
 
 /// The connecting lane of `road` lane `od` entered from outside its junction.
 fn entry_piece(town: &Town, road: &str, od: i32) -> LaneIdx {
-    let i = town
-        .lanes
-        .iter()
-        .position(|l| {
-            l.road_id == road
-                && l.od_lane == od
-                && l.junction.is_some()
-                && l.predecessors
-                    .iter()
-                    .all(|p| town.lanes[p.0 as usize].junction != l.junction)
-        })
-        .unwrap_or_else(|| panic!("road {road} lane {od}: no entry"));
-    LaneIdx(i as u32)
+    find_lane(town, road, od, "entry", |l| {
+        l.junction.is_some()
+            && l.predecessors
+                .iter()
+                .all(|p| town.lanes[p.0 as usize].junction != l.junction)
+    })
 }
 
 #[test]
