@@ -61,6 +61,9 @@ const SWEEP_STEP_M: f32 = 0.5;
 pub struct JunctionConflicts {
     by_lane: Vec<Vec<LaneIdx>>,
     gives_way_to: Vec<Vec<LaneIdx>>,
+    /// Each lane's [`movement`], where it is more than the lane itself (a
+    /// junction with chained lanes); empty otherwise.
+    movements: Vec<Vec<LaneIdx>>,
 }
 
 /// Where a car's body is while it drives one connecting lane: its centre
@@ -117,7 +120,7 @@ impl JunctionConflicts {
                 }
             }
         }
-        extend_to_movements(town, &mut by_lane);
+        let movements = extend_to_movements(town, &mut by_lane);
         // Right of way the map gives, where the two lanes conflict.
         let mut gives_way_to = vec![Vec::new(); town.lanes.len()];
         for j in &town.junctions {
@@ -135,12 +138,23 @@ impl JunctionConflicts {
         JunctionConflicts {
             by_lane,
             gives_way_to,
+            movements,
         }
     }
 
     /// The lanes `lane` conflicts with (none for a lane outside junctions).
     pub fn of(&self, lane: LaneIdx) -> &[LaneIdx] {
         self.by_lane.get(lane.0 as usize).map_or(&[], |v| &v[..])
+    }
+
+    /// Whether `lane` is on the movement through the junction that starts at
+    /// connecting lane `entry` ([`movement`]), found once when the conflicts were.
+    pub fn in_movement(&self, entry: LaneIdx, lane: LaneIdx) -> bool {
+        entry == lane
+            || self
+                .movements
+                .get(entry.0 as usize)
+                .is_some_and(|m| m.contains(&lane))
     }
 
     /// The conflicting lanes the map gives priority over `lane` (its
@@ -210,8 +224,11 @@ pub fn movement_exit(town: &Town, entry: LaneIdx) -> LaneIdx {
 
 /// Makes lanes conflict whose movements do ([`movement`]): `b` conflicts with
 /// `a` when a lane of `a`'s movement conflicts with a lane of `b`'s. Lanes of
-/// junctions without chained lanes keep their conflicts as they are.
-fn extend_to_movements(town: &Town, by_lane: &mut [Vec<LaneIdx>]) {
+/// junctions without chained lanes keep their conflicts as they are. Returns
+/// each lane's movement for those junctions (empty for the others).
+fn extend_to_movements(town: &Town, by_lane: &mut [Vec<LaneIdx>]) -> Vec<Vec<LaneIdx>> {
+    let n = town.lanes.len();
+    let mut movements = vec![Vec::new(); n];
     let chained = |i: usize| {
         let l = &town.lanes[i];
         l.junction.is_some()
@@ -220,25 +237,36 @@ fn extend_to_movements(town: &Town, by_lane: &mut [Vec<LaneIdx>]) {
                 .chain(&l.predecessors)
                 .any(|n| town.lanes[n.0 as usize].junction == l.junction)
     };
-    let junctions: std::collections::BTreeSet<_> = (0..town.lanes.len())
+    let junctions: std::collections::BTreeSet<_> = (0..n)
         .filter(|&i| chained(i))
         .filter_map(|i| town.lanes[i].junction)
         .collect();
+    let in_chained = |i: usize| {
+        town.lanes[i]
+            .junction
+            .is_some_and(|j| junctions.contains(&j))
+    };
+    // Each lane's movements before it, walked once.
+    let mut before = vec![Vec::new(); n];
+    for i in (0..n).filter(|&i| in_chained(i)) {
+        movements[i] = movement(town, LaneIdx(i as u32));
+        before[i] = movement_before(town, LaneIdx(i as u32));
+    }
     let raw = by_lane.to_vec();
-    for (a, lane) in town.lanes.iter().enumerate() {
-        if !lane.junction.is_some_and(|j| junctions.contains(&j)) {
-            continue;
-        }
-        let mut all: Vec<LaneIdx> = movement(town, LaneIdx(a as u32))
-            .into_iter()
-            .flat_map(|a2| raw[a2.0 as usize].iter().copied())
-            .flat_map(|c| movement_before(town, c))
+    for a in (0..n).filter(|&a| in_chained(a)) {
+        let mut all: Vec<LaneIdx> = movements[a]
+            .iter()
+            .flat_map(|a2| raw[a2.0 as usize].iter())
+            // A conflicting lane is of the same junction: its movements were walked.
+            .flat_map(|c| before[c.0 as usize].iter())
+            .copied()
             .filter(|b| b.0 as usize != a)
             .collect();
         all.sort();
         all.dedup();
         by_lane[a] = all;
     }
+    movements
 }
 
 /// The speeds a lane is swept at: creeping (a car that starts from the

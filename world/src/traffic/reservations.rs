@@ -171,7 +171,7 @@ impl Traffic {
             // later: that is not this one).
             let now = n.path.lane();
             let in_junction = self.town.lanes[now.0 as usize].junction.is_some();
-            let inside = in_junction && rules::conflicts::movement(&self.town, res).contains(&now);
+            let inside = in_junction && self.rules.conflicts.in_movement(res, now);
             let ahead = !in_junction
                 && n.path
                     .lanes

@@ -67,7 +67,7 @@ pub(super) fn resume_point(
     std::fs::create_dir_all(run_dir)
         .map_err(|e| io_err(run_dir, e, "check the parent folder exists and is writable"))?;
     check_or_write_spec(spec, &run_dir.join(SPEC_FILE), run_dir)?;
-    let init_gone = snapshot && spec.init.as_ref().is_some_and(|p| !p.exists());
+    let init_gone = snapshot && init_gone(spec);
     check_or_write_inputs(spec, run_dir, init_gone)?;
     let progress = read_progress(&run_dir.join(STATE_DIR))?;
     let final_step = checkpoint::read_manifest(&run_dir.join(FINAL_FILE))
@@ -98,9 +98,7 @@ impl<'a> Session<'a> {
         device.seed(spec.seed);
         let (student, teacher) = match &spec.teacher {
             // Weights from a snapshot replace the student's: its init need not exist.
-            None if from_snapshot.is_some() && spec.init.as_ref().is_some_and(|p| !p.exists()) => {
-                (config.init(device), None)
-            }
+            None if from_snapshot.is_some() && init_gone(spec) => (config.init(device), None),
             None => (initial_net(spec, &config, device)?, None),
             Some(path) => {
                 let (teacher, _) = checkpoint::load(path, device)?;
@@ -170,6 +168,11 @@ fn initial_net(
     let (net, _) = checkpoint::load(path, device)?;
     check_same_network(&net.config, config, path)?;
     Ok(net)
+}
+
+/// Whether the stage's `--init` checkpoint is named but gone (it lived in a lost cache).
+fn init_gone(spec: &StageSpec) -> bool {
+    spec.init.as_ref().is_some_and(|p| !p.exists())
 }
 
 /// Refuses weights (`--init`, a snapshot) of another network than the stage trains.
