@@ -234,6 +234,7 @@ impl Builder {
             outline,
             lights,
             priorities: Vec::new(),
+            yellow_s: None,
         });
     }
 

@@ -202,6 +202,7 @@ pub fn grid(nx: usize, ny: usize, block_m: f32) -> Town {
                 ],
                 lights: Vec::new(),
                 priorities: Vec::new(),
+                yellow_s: None,
             };
             let lit = approaches[n].len() >= 3;
             for &(ain, din) in &approaches[n] {
@@ -382,6 +383,7 @@ pub fn t_junction(right_turn_radius_m: f32) -> Town {
             outline: vec![v(-h, -h), v(h, -h), v(h, h), v(-h, h)],
             lights: Vec::new(),
             priorities: Vec::new(),
+            yellow_s: None,
         }],
         bounds: (v(-h - arm, -h), v(h + arm, h + arm)),
         ..Town::empty("fixture-t-junction")

@@ -126,6 +126,11 @@ pub struct Junction {
     /// it), e.g. a roundabout's ring over its entry. Empty: first come,
     /// first served.
     pub priorities: Vec<(LaneIdx, LaneIdx)>,
+    /// How long its lights stay yellow, where the map decides it (seconds):
+    /// lights generated for a file that has none get the yellow their
+    /// fastest approach needs ([`crate::rules::change_interval_s`]). None: the
+    /// light controller's (CARLA's 3 s).
+    pub yellow_s: Option<f32>,
 }
 
 /// Where a light stops traffic on one lane.

@@ -573,6 +573,7 @@ mod tests {
                 outline: vec![],
                 lights: vec![],
                 priorities: vec![],
+                yellow_s: None,
             }],
             lights: vec![],
             buildings: vec![],

@@ -40,9 +40,43 @@ pub fn must_stop(state: LightState, distance_m: f32, speed_mps: f32, decel_mps2:
     }
 }
 
+/// A driver's perception-reaction time in the yellow-interval formula (seconds;
+/// ITE, *Traffic Engineering Handbook*: 1.0).
+pub const CHANGE_REACTION_S: f32 = 1.0;
+/// The deceleration the yellow-interval formula assumes (metres per second
+/// squared; ITE: 10 ft/s^2).
+pub const CHANGE_DECEL_MPS2: f32 = 3.05;
+
+/// How long a light must stay yellow for traffic approaching at
+/// `approach_mps` (m/s) on level ground: the Institute of Transportation
+/// Engineers' change interval `t + v / (2 a)` ([`CHANGE_REACTION_S`],
+/// [`CHANGE_DECEL_MPS2`]), in seconds, rounded up to a tenth. A vehicle the
+/// yellow rule above lets drive on (it cannot stop braking at 3 m/s^2 or
+/// less) is at most `v / (2 a)` seconds from the line at constant speed, so
+/// it crosses before red. Used for lights generated where a map has none;
+/// a map's own lights keep their controller's timing.
+pub fn change_interval_s(approach_mps: f32) -> f32 {
+    let y = CHANGE_REACTION_S + approach_mps.max(0.0) / (2.0 * CHANGE_DECEL_MPS2);
+    (y * 10.0).ceil() / 10.0
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_change_interval_covers_the_drive_on_distance() {
+        // 65 mph (Town06's highways): 1 + 29.06 / 6.1 = 5.76 -> 5.8 s; 30 km/h: 2.37 -> 2.4 s.
+        assert_eq!(change_interval_s(29.06), 5.8);
+        assert_eq!(change_interval_s(30.0 / 3.6), 2.4);
+        // A car the yellow rule lets drive on (at the NPCs' 3.0 m/s^2) reaches the line
+        // before the interval ends, at every speed.
+        for v in [5.0_f32, 10.0, 15.0, 20.0, 25.0, 30.0] {
+            let d = v * v / (2.0 * 3.0) - YELLOW_SLACK_M;
+            assert!(!must_stop(LightState::Yellow, d - 0.01, v, 3.0));
+            assert!(d / v < change_interval_s(v), "{v} m/s");
+        }
+    }
 
     #[test]
     fn red_always_green_never() {

@@ -41,7 +41,7 @@ pub use conflicts::JunctionConflicts;
 pub use crossing::{crossing_offset_m, crossing_point};
 pub use lane_change::{CHANGE_RANGE_M, lane_change_ahead, lane_change_clear, lane_change_wait};
 pub use lanes::{LaneGrid, LaneStanding, heading_agrees, nearest_lane, project_on_lane};
-pub use lights::{YELLOW_SLACK_M, light_state, must_stop};
+pub use lights::{YELLOW_SLACK_M, change_interval_s, light_state, must_stop};
 pub use pursuit::pursuit_lookahead_m;
 pub use route::{nearest_route_point, route_ahead, route_point_at, route_s_at};
 pub use sidewalks::{OnSidewalk, SidewalkGrid};

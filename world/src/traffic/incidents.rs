@@ -31,6 +31,8 @@ pub enum IncidentKind {
     NpcStatic(StaticKind),
     /// An NPC had stood still for 60 s.
     Deadlock,
+    /// An NPC drove over the stop line of a light that was red.
+    RedRun,
     /// An NPC was respawned, for this reason.
     Respawn(RespawnCause),
 }
@@ -64,6 +66,7 @@ impl IncidentKind {
             IncidentKind::NpcPedestrian => "NPC-pedestrian".into(),
             IncidentKind::NpcStatic(k) => format!("NPC-static ({})", k.name()),
             IncidentKind::Deadlock => "deadlock".into(),
+            IncidentKind::RedRun => "red light run".into(),
             IncidentKind::Respawn(c) => format!("respawn ({})", c.name()),
         }
     }

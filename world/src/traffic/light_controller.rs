@@ -3,7 +3,9 @@
 //! Each junction's groups (the `group` of its lights, in ascending order)
 //! take turns: the group's lights are green for `green_s`, yellow for
 //! `yellow_s`, then every light of the junction is red for `all_red_s` before
-//! the next group's green. Every other group is red meanwhile. Each junction
+//! the next group's green. Every other group is red meanwhile. A junction
+//! whose map sets its yellow (lights generated for a file without any:
+//! `Junction::yellow_s`) stays yellow that long, if longer. Each junction
 //! starts at a random point of its cycle, drawn from the seed
 //! (`ChaCha8Rng`), so the same seed gives the same states at every step.
 //! Lights with no junction cycle alone, as a junction of their own with one
@@ -51,6 +53,9 @@ struct Cycle {
     slots: usize,
     /// Initial phase offset (seconds, in [0, cycle length)).
     offset_s: f64,
+    /// Its phase durations: the controller's, with the junction's own yellow
+    /// where the map sets one ([`crate::map::town::Junction::yellow_s`]).
+    timing: LightTiming,
 }
 
 /// The light controllers of a town, stepped with the simulation clock.
@@ -70,20 +75,22 @@ impl LightController {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let mut cycles = Vec::new();
         let mut light_slot = vec![(0, 0); town.lights.len()];
-        let mut make = |groups: Vec<u32>, slots: usize, rng: &mut ChaCha8Rng| {
-            let len = slots as f64 * timing.slot_s();
-            let offset_s = if len > 0.0 {
-                rng.random::<f64>() * len
-            } else {
-                0.0
+        let mut make =
+            |groups: Vec<u32>, slots: usize, timing: LightTiming, rng: &mut ChaCha8Rng| {
+                let len = slots as f64 * timing.slot_s();
+                let offset_s = if len > 0.0 {
+                    rng.random::<f64>() * len
+                } else {
+                    0.0
+                };
+                cycles.push(Cycle {
+                    groups,
+                    slots,
+                    offset_s,
+                    timing,
+                });
+                cycles.len() - 1
             };
-            cycles.push(Cycle {
-                groups,
-                slots,
-                offset_s,
-            });
-            cycles.len() - 1
-        };
         for (ji, _) in town.junctions.iter().enumerate() {
             let mine: Vec<usize> = (0..town.lights.len())
                 .filter(|&i| town.lights[i].junction.map(|j| j.0 as usize) == Some(ji))
@@ -95,7 +102,13 @@ impl LightController {
             groups.sort();
             groups.dedup();
             let slots = groups.len().max(2);
-            let c = make(groups.clone(), slots, &mut rng);
+            let own = LightTiming {
+                yellow_s: town.junctions[ji]
+                    .yellow_s
+                    .map_or(timing.yellow_s, |y| timing.yellow_s.max(f64::from(y))),
+                ..timing
+            };
+            let c = make(groups.clone(), slots, own, &mut rng);
             for &i in &mine {
                 let slot = groups
                     .iter()
@@ -106,7 +119,7 @@ impl LightController {
         }
         for (i, l) in town.lights.iter().enumerate() {
             if l.junction.is_none() {
-                let c = make(vec![l.group], 2, &mut rng);
+                let c = make(vec![l.group], 2, timing, &mut rng);
                 light_slot[i] = (c, 0);
             }
         }
@@ -128,7 +141,8 @@ impl LightController {
         self.time_s
     }
 
-    /// The phase timing in use.
+    /// The phase timing in use (a junction may keep its lights yellow longer:
+    /// `Junction::yellow_s`).
     pub fn timing(&self) -> LightTiming {
         self.timing
     }
@@ -139,7 +153,8 @@ impl LightController {
             return LightState::Red;
         };
         let cycle = &self.cycles[c];
-        let slot_s = self.timing.slot_s();
+        let timing = cycle.timing;
+        let slot_s = timing.slot_s();
         let len = cycle.slots as f64 * slot_s;
         if len <= 0.0 {
             return LightState::Red;
@@ -150,9 +165,9 @@ impl LightController {
             return LightState::Red;
         }
         let within = phase - current as f64 * slot_s;
-        if within < self.timing.green_s {
+        if within < timing.green_s {
             LightState::Green
-        } else if within < self.timing.green_s + self.timing.yellow_s {
+        } else if within < timing.green_s + timing.yellow_s {
             LightState::Yellow
         } else {
             LightState::Red
@@ -203,6 +218,7 @@ mod tests {
                     outline: vec![],
                     lights: vec![],
                     priorities: vec![],
+                    yellow_s: None,
                 })
                 .collect(),
             lights,
@@ -262,6 +278,46 @@ mod tests {
             for (a, b) in w[0].iter().zip(&w[1]) {
                 assert!(!(*a == LightState::Green && *b == LightState::Red));
             }
+        }
+    }
+
+    #[test]
+    fn a_junction_whose_map_sets_a_longer_yellow_keeps_it() {
+        // Junction 0 sets 5.8 s (generated lights on a 65 mph road), junction 1 sets
+        // less than the controller's 3 s, junction 2 sets nothing.
+        let lights: Vec<TrafficLight> = (0..6).map(|i| light(Some(i / 2), i % 2)).collect();
+        let mut t = town(lights, 3);
+        t.junctions[0].yellow_s = Some(5.8);
+        t.junctions[1].yellow_s = Some(2.4);
+        let timing = LightTiming::default();
+        let mut c = LightController::new(&t, timing, 5);
+        let tr = trace(
+            &mut c,
+            6,
+            (3.0 * 2.0 * (timing.slot_s() + 2.8) / 0.05) as usize,
+        );
+        // The longest unbroken stretch of a colour (seconds).
+        let longest = |l: usize, colour: LightState| {
+            let (mut best, mut run) = (0, 0);
+            for s in &tr {
+                run = if s[l] == colour { run + 1 } else { 0 };
+                best = best.max(run);
+            }
+            best as f64 * 0.05
+        };
+        for l in [0, 1] {
+            let yellow = longest(l, LightState::Yellow);
+            assert!((yellow - 5.8).abs() < 0.06, "light {l}: {yellow}");
+            let green = longest(l, LightState::Green);
+            assert!((green - 10.0).abs() < 0.06, "light {l}: {green}");
+        }
+        for l in 2..6 {
+            let yellow = longest(l, LightState::Yellow);
+            assert!((yellow - 3.0).abs() < 0.06, "light {l}: {yellow}");
+        }
+        // Its groups still never show two colours at once.
+        for s in &tr {
+            assert!(s[0] == LightState::Red || s[1] == LightState::Red, "{s:?}");
         }
     }
 

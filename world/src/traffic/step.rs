@@ -102,6 +102,7 @@ impl Traffic {
         }
         let mut ped_targets = Vec::with_capacity(self.pedestrians.len());
         let mut deadlocked: Vec<u32> = Vec::new();
+        let mut ran_red: Vec<u32> = Vec::new();
         for p in &mut self.pedestrians {
             ped_targets.push(p.decide(&self.walk, &self.cfg.pedestrian, &self.views, dt));
         }
@@ -143,6 +144,7 @@ impl Traffic {
                 && lights.get(light.0 as usize) == Some(&LightState::Red)
             {
                 self.stats.npc_red_runs += 1;
+                ran_red.push(n.id);
             }
             npc::extend_path_planning(&self.town, &mut n.path, &mut n.rng, 80.0, &mut n.change);
             // Stuck / stopped bookkeeping.
@@ -176,6 +178,9 @@ impl Traffic {
         }
         for id in deadlocked {
             self.note_npc(IncidentKind::Deadlock, id);
+        }
+        for id in ran_red {
+            self.note_npc(IncidentKind::RedRun, id);
         }
         self.respawn_stuck();
         if let Some(e) = &mut self.ego {

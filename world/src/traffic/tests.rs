@@ -223,6 +223,48 @@ fn npcs_stop_at_red_lights_at_the_stop_line() {
 }
 
 #[test]
+fn a_light_turning_red_under_a_moving_npc_is_counted_and_listed_as_a_red_run() {
+    // Green until an NPC's front bumper is within a metre of a stop line at speed, then
+    // every light turns red at once (no yellow): it cannot stop and runs it.
+    let t = town();
+    let mut tr = Traffic::new(t.clone(), cfg(16, 0, 3), None);
+    let half = tr.config().vehicle.length_m * 0.5;
+    let green = vec![LightState::Green; t.lights.len()];
+    let red = vec![LightState::Red; t.lights.len()];
+    let at_line = |tr: &Traffic| {
+        tr.npcs().iter().find_map(|n| {
+            let close = t.lights.iter().flat_map(|l| &l.stop_lines).any(|sl| {
+                let d = sl.s - (n.path.s_m + half);
+                sl.lane == n.path.lane() && (0.05..1.0).contains(&d)
+            });
+            (close && n.state.speed_mps > 4.0).then_some(n.id)
+        })
+    };
+    let mut runner = None;
+    for _ in 0..(40 * 120) {
+        tr.step(&green);
+        runner = at_line(&tr);
+        if runner.is_some() {
+            break;
+        }
+    }
+    let runner = runner.expect("an NPC reaches a stop line at speed");
+    assert_eq!(tr.stats().npc_red_runs, 0);
+    for _ in 0..20 {
+        tr.step(&red);
+    }
+    assert!(tr.stats().npc_red_runs >= 1);
+    let run = tr
+        .incidents()
+        .iter()
+        .find(|i| i.kind == IncidentKind::RedRun)
+        .expect("the red run is listed");
+    assert_eq!(run.a.id, runner);
+    assert!(run.a.speed_mps > 1.0, "{run}");
+    assert!(run.to_string().contains("red light run: NPC"), "{run}");
+}
+
+#[test]
 fn no_npc_npc_collisions_in_normal_flow() {
     let t = town();
     let lights = FixtureLights::new(&t);

@@ -43,6 +43,7 @@ impl Builder<'_> {
                     outline: Vec::new(),
                     lights: Vec::new(),
                     priorities: Vec::new(),
+                    yellow_s: None,
                 });
             }
         }

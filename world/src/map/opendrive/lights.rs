@@ -229,6 +229,14 @@ impl Builder<'_> {
             if roads.len() < 3 {
                 continue;
             }
+            // Yellow long enough for the fastest approach (the map sets no timing).
+            let fastest = roads
+                .iter()
+                .flat_map(|(_, lanes)| lanes)
+                .map(|l| self.town.lanes[l.0 as usize].speed_limit_mps)
+                .fold(0.0_f32, f32::max);
+            self.town.junctions[j.0 as usize].yellow_s =
+                Some(crate::rules::change_interval_s(fastest));
             for (g, (road, lanes)) in roads.iter().enumerate() {
                 let stop_lines: Vec<StopLine> =
                     lanes.iter().map(|l| self.stop_line(*l, None)).collect();

@@ -299,6 +299,29 @@ fn unsignalled_junctions_get_one_light_per_approach_only_when_asked() {
     let (lit, report) = load_xodr_str(&unlit, "g", &opts).unwrap();
     assert!(report.generated_lights);
     assert!(!lit.lights.is_empty());
+    // A generated light stays yellow as long as its fastest approach needs; a map's own
+    // lights keep the controller's timing.
+    for j in lit.junctions.iter().filter(|j| !j.lights.is_empty()) {
+        let fastest = lit
+            .lights
+            .iter()
+            .filter(|l| {
+                j.lights
+                    .iter()
+                    .any(|i| lit.lights[i.0 as usize].od_id == l.od_id)
+            })
+            .flat_map(|l| &l.stop_lines)
+            .map(|sl| lit.lanes[sl.lane.0 as usize].speed_limit_mps)
+            .fold(0.0_f32, f32::max);
+        assert!(fastest > 0.0);
+        assert_eq!(
+            j.yellow_s,
+            Some(crate::rules::change_interval_s(fastest)),
+            "{}",
+            j.od_id
+        );
+    }
+    assert!(lit.junctions.iter().any(|j| j.yellow_s.is_some()));
     // `map info` says where the lights came from.
     let n = lit.lights.len();
     assert!(
@@ -309,6 +332,7 @@ fn unsignalled_junctions_get_one_light_per_approach_only_when_asked() {
         report.summary(&lit, 0.0)
     );
     let (own, report) = load_xodr_str(&xml, "g", &opts).unwrap();
+    assert!(own.junctions.iter().all(|j| j.yellow_s.is_none()));
     let n = own.lights.len();
     assert!(
         !report.generated_lights
