@@ -296,3 +296,50 @@ fn a_connecting_road_in_many_sections_conflicts_as_one_movement() {
     let out = out_free.expect("the NPC never left the junction");
     assert_ne!(out, Some(south));
 }
+
+#[test]
+fn a_sweep_follows_a_chain_of_short_pieces_so_parallel_movements_do_not_conflict() {
+    // Town06's junction 508: road 20's lanes -3 and -4 go on into connecting roads 540
+    // and 531, side by side (3.48 m apart at their closest), each drawn in pieces of a
+    // few tenths of a metre. A piece was swept along itself and one successor, so the
+    // sweeping car ran off that short path's end, steered for it and crossed the lane
+    // beside: every lane of the approach conflicted with its neighbours and one car
+    // turned per green (stops of over 60 s, docs/rule-book.md).
+    let Some(town) = carla(
+        "a_sweep_follows_a_chain_of_short_pieces_so_parallel_movements_do_not_conflict",
+        "Town06",
+    ) else {
+        return;
+    };
+    let conflicts = world::rules::JunctionConflicts::new(&town);
+    let left = entry_piece(&town, "540", -3);
+    let right = entry_piece(&town, "531", -4);
+    assert!(
+        !conflicts.of(left).contains(&right),
+        "{:?}",
+        conflicts.of(left)
+    );
+    assert!(!conflicts.of(right).contains(&left));
+    // Every piece's sweep stays on its movement (or the lane after it).
+    let vp = world::agents::VehicleParams::default();
+    for entry in [left, right] {
+        let movement = world::rules::conflicts::movement(&town, entry);
+        assert!(movement.len() > 5, "{movement:?}");
+        let exit = world::rules::conflicts::movement_exit(&town, entry);
+        let on: Vec<glam::Vec2> = movement
+            .iter()
+            .chain([&exit])
+            .flat_map(|l| town.lane(*l).centerline.iter().map(|p| p.truncate()))
+            .collect();
+        for &piece in &movement {
+            let sweep = world::rules::conflicts::lane_sweep(&town, &vp, 3.0, piece);
+            for (p, _) in &sweep.poses {
+                let off = on
+                    .iter()
+                    .map(|q| (*q - *p).length())
+                    .fold(f32::INFINITY, f32::min);
+                assert!(off < 1.0, "piece #{} swept {off:.2} m off at {p}", piece.0);
+            }
+        }
+    }
+}

@@ -39,7 +39,7 @@ use crate::map::town::{LaneIdx, Town};
 use crate::physics::DT_S;
 use crate::road::geometry::curvature;
 use crate::road::lane_path::LanePath;
-use crate::rules::pursuit::pursuit_steer;
+use crate::rules::pursuit::{pursuit_lookahead_m, pursuit_steer};
 
 /// Distance between two centrelines below which connecting lanes conflict (metres).
 pub const CONFLICT_M: f32 = 3.0;
@@ -54,6 +54,9 @@ const CREEP_MPS: f32 = 1.0;
 
 /// Spacing of the footprints kept along a sweep (metres of travel).
 const SWEEP_STEP_M: f32 = 0.5;
+
+/// The most lanes a sweep's path holds (the lane and the successors after it).
+const MAX_SWEEP_LANES: usize = 32;
 
 /// For each lane of a town, the connecting lanes of its junction it
 /// conflicts with, and those of them it gives way to.
@@ -306,21 +309,33 @@ pub fn lane_sweep(
 
 /// Drives a car of `vp` through `lane` as an NPC would, at `speed_mps`
 /// throughout: from the lane's start, on its centreline and heading,
-/// steering by [`pursuit_steer`] along the lane and its first successor,
+/// steering by [`pursuit_steer`] along the lane and its first successors (as
+/// many as its pursuit point needs to stay on the path),
 /// until the car's rear is 1 m past the lane's end (as a reservation is
 /// released) or it has driven three times the lane's length.
 pub fn sweep(town: &Town, vp: &VehicleParams, speed_mps: f32, lane: LaneIdx) -> Sweep {
     let l = town.lane(lane);
     let v = speed_mps.max(0.1);
+    let len = l.length_m();
+    let leave_m = vp.length_m * 0.5 + 1.0;
+    // The path goes on by first successors until the car can leave the lane
+    // with its pursuit point still on the path: past a path's end the car
+    // would steer for the end point, off the lanes (a connecting road in
+    // lane sections of 0.3 m, Town06's, is a chain of such lanes).
     let mut path = LanePath::new(lane, 0.0);
-    if let Some(&next) = l.successors.first() {
+    let mut beyond_m = 0.0;
+    let mut last_lane = l;
+    while beyond_m < leave_m + pursuit_lookahead_m(v) && path.lanes.len() < MAX_SWEEP_LANES {
+        let Some(&next) = last_lane.successors.first() else {
+            break;
+        };
         path.lanes.push_back(next);
+        last_lane = town.lane(next);
+        beyond_m += last_lane.length_m();
     }
     let (p0, yaw0, _) = l.pose_at(0.0);
     let mut state = VehicleState::at_rest(p0, yaw0);
     state.speed_mps = v;
-    let len = l.length_m();
-    let leave_m = vp.length_m * 0.5 + 1.0;
     let max_ticks = ((3.0 * len + 2.0 * leave_m) / (v * DT_S)).ceil() as usize;
     let mut poses = vec![(p0, Vec2::from_angle(yaw0))];
     let mut last = p0;
