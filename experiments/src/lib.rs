@@ -15,6 +15,7 @@
 //! - [`pipeline`]: the training pipeline as a plan ([`pipeline::TrainPlan`]:
 //!   datasets, the Original's phases, the retargeting lanes, the bar), run as
 //!   commands of this binary (`mrdrive train --all`).
+//! - [`progress`]: how far the pipeline is and how long the rest will take.
 //! - [`bench_page`]: every benchmark in one go, into `docs/bench.md`
 //!   (`mrdrive bench all`).
 //! - [`bar`]: the training issue's closed-loop table (`mrdrive policy table`)
@@ -29,6 +30,7 @@ pub mod loss_plot;
 pub mod options;
 pub mod page;
 pub mod pipeline;
+pub mod progress;
 pub mod report;
 pub mod results;
 pub mod run;

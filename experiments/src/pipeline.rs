@@ -15,6 +15,9 @@
 use std::fs::{File, OpenOptions};
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::sync::Mutex;
+
+use crate::progress::{self, JobRates, Rates, Work};
 
 /// A dataset of the study: `mrdrive collect --preset PRESET --out DIR --episodes N
 /// --max-s S`, then `mrdrive label DIR`.
@@ -263,8 +266,8 @@ impl TrainPlan {
         let dir = d.dir.display().to_string();
         let slice = d.slice.max(1);
         (1..=d.episodes.div_ceil(slice))
-            .map(|k| (k * slice).min(d.episodes))
-            .map(|end| {
+            .map(|k| ((k - 1) * slice, (k * slice).min(d.episodes)))
+            .map(|(from, end)| {
                 let collect = Step::new(
                     format!("collect {dir} (episodes to {end} of {})", d.episodes),
                     vec![
@@ -278,11 +281,21 @@ impl TrainPlan {
                         "--max-s".into(),
                         d.max_s.to_string(),
                     ],
-                );
+                )
+                .doing(Work::Collect {
+                    dir: d.dir.clone(),
+                    from,
+                    end,
+                });
                 let label = Step::new(
                     format!("label {dir} (episodes to {end})"),
                     vec!["label".into(), dir.clone()],
-                );
+                )
+                .doing(Work::Label {
+                    dir: d.dir.clone(),
+                    from,
+                    end,
+                });
                 (end, collect, label)
             })
             .collect()
@@ -403,10 +416,17 @@ impl TrainPlan {
         }
         train.extend(self.curve.options.iter().cloned());
         train.extend(self.toy_options.iter().cloned());
-        let mut steps = vec![Step::new(
-            format!("original, round {k} (episodes 1-{episodes})"),
-            train.clone(),
-        )];
+        let mut steps = vec![
+            Step::new(
+                format!("original, round {k} (episodes 1-{episodes})"),
+                train.clone(),
+            )
+            .doing(Work::Train {
+                run: PathBuf::from(format!("{dir}/original")),
+                steps: u64::from(self.curve.steps),
+                samples_per_step: batch_of(&train),
+            }),
+        ];
         let mut sweep = vec!["sweep".to_string()];
         sweep.extend(self.curve.scenarios.iter().map(|p| p.display().to_string()));
         sweep.extend(strings(&[
@@ -423,7 +443,15 @@ impl TrainPlan {
             self.round_records(k),
         ]);
         sweep.extend(["--checkpoint".into(), format!("{dir}/original.safetensors")]);
-        steps.push(Step::new(format!("drive round {k}"), sweep));
+        let runs = self.curve.scenarios.len()
+            * list_len(&self.curve.densities)
+            * list_len(&self.curve.seeds);
+        steps.push(
+            Step::new(format!("drive round {k}"), sweep).doing(Work::Drive {
+                out: PathBuf::from(self.round_records(k)),
+                runs: runs as u32,
+            }),
+        );
         steps.push(Step {
             may_fail: true,
             ..Step::new(
@@ -469,7 +497,18 @@ impl TrainPlan {
         args.extend(r.options.iter().cloned());
         args.extend(self.toy_options.iter().cloned());
         args.extend(self.toy_retarget_options.iter().cloned());
-        Step::new(format!("train {}", r.name), args)
+        // A step trains the batch at each of the stage's scales (RA: 0.75 and 1.0).
+        let scales =
+            flag_value(&args, "--scales").map_or(if r.stage == "ra" { 2 } else { 1 }, list_len);
+        let steps = flag_value(&args, "--steps")
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(RETARGET_STEPS);
+        let work = Work::Train {
+            run: self.runs.join(&r.name),
+            steps,
+            samples_per_step: batch_of(&args) * scales as u64,
+        };
+        Step::new(format!("train {}", r.name), args).doing(work)
     }
 
     /// The commands that train and judge the models after the Original: the
@@ -520,7 +559,14 @@ impl TrainPlan {
                 }
                 None => args.push("--expert".into()),
             }
-            groups.push(Group::One(Step::new(format!("bar {}", b.label), args)));
+            let runs = self.bar_scenarios.len() * list_len(&self.bar_densities);
+            let work = Work::Drive {
+                out: PathBuf::from(format!("{sweeps}/{}", b.label)),
+                runs: runs as u32,
+            };
+            groups.push(Group::One(
+                Step::new(format!("bar {}", b.label), args).doing(work),
+            ));
         }
         groups.push(Group::One(Step::new(
             "closed-loop table",
@@ -537,6 +583,28 @@ impl TrainPlan {
     }
 }
 
+/// Steps of a retargeting stage (`policy::train::StageSpec`'s default for the
+/// retargeting stages).
+pub const RETARGET_STEPS: u64 = 600;
+
+/// The batch a training command asks for (`--batch`; 32 without).
+fn batch_of(args: &[String]) -> u64 {
+    flag_value(args, "--batch")
+        .and_then(|b| b.parse().ok())
+        .unwrap_or(32)
+}
+
+/// The value after `flag` in `args`, if any.
+fn flag_value<'a>(args: &'a [String], flag: &str) -> Option<&'a str> {
+    let at = args.iter().position(|a| a == flag)?;
+    args.get(at + 1).map(String::as_str)
+}
+
+/// Items of a comma-separated list ("0:0,5:10,20:40": 3).
+fn list_len(list: &str) -> usize {
+    list.split(',').filter(|s| !s.trim().is_empty()).count()
+}
+
 /// One command of the plan: arguments to this binary.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Step {
@@ -550,6 +618,8 @@ pub struct Step {
     pub one_thread: bool,
     /// A failure is reported and the plan goes on (a summary, not a product).
     pub may_fail: bool,
+    /// What it does, for how long the rest of the plan will take.
+    pub work: Work,
 }
 
 impl Step {
@@ -560,7 +630,12 @@ impl Step {
             log: None,
             one_thread: false,
             may_fail: false,
+            work: Work::Small,
         }
+    }
+
+    fn doing(self, work: Work) -> Self {
+        Step { work, ..self }
     }
 }
 
@@ -670,7 +745,9 @@ pub fn execute(
 
 /// [`execute`] within a time limit: no step starts once `stop_at` has passed (the
 /// error then says so, [`StepError::stopped_at_time_limit`]), and a step that stops
-/// at the limit ends the plan the same way.
+/// at the limit ends the plan the same way. Before each group `note` also hears
+/// how far the plan is and how long the rest will take ([`progress`]; each kind
+/// of work at this job's rate once a step of that kind has done some).
 pub fn execute_until(
     exe: &Path,
     dir: &Path,
@@ -678,6 +755,8 @@ pub fn execute_until(
     stop_at: Option<std::time::SystemTime>,
     note: &(dyn Fn(&str) + Sync),
 ) -> Result<(), StepError> {
+    let rates = Mutex::new(JobRates::new(Rates::default()));
+    let rates_now = || rates.lock().unwrap_or_else(|e| e.into_inner()).clone();
     let one = |step: &Step| -> Result<(), StepError> {
         if stop_at.is_some_and(|t| std::time::SystemTime::now() >= t) {
             return Err(StepError {
@@ -691,7 +770,17 @@ pub fn execute_until(
             Some(log) => format!("{} (log {})", step.name, log.display()),
             None => step.name.clone(),
         });
-        match run_step(exe, dir, step) {
+        let (kind, before) = step.work.left(dir);
+        let started = std::time::Instant::now();
+        let ran = run_step(exe, dir, step);
+        // What it did counts toward this job's rate, a step stopped at the limit too.
+        let (_, after) = step.work.left(dir);
+        rates.lock().unwrap_or_else(|e| e.into_inner()).observe(
+            kind,
+            before - after,
+            started.elapsed().as_secs_f64(),
+        );
+        match ran {
             Err(e) if step.may_fail && !e.time_limit => {
                 note(&format!("{e} (going on)"));
                 Ok(())
@@ -703,7 +792,15 @@ pub fn execute_until(
             }
         }
     };
-    for g in groups {
+    for (i, g) in groups.iter().enumerate() {
+        let rates = rates_now();
+        let rest = progress::left(&groups[i..], dir, &rates);
+        note(&format!(
+            "step {} of {}: {}",
+            i + 1,
+            groups.len(),
+            rest.line(&rates)
+        ));
         match g {
             Group::One(step) => one(step)?,
             Group::Lanes(lanes) => {
@@ -916,6 +1013,42 @@ mod tests {
         assert!(notes.iter().any(|n| n.contains("(going on)")));
         assert!(notes.iter().any(|n| n == "lane one done"));
         assert!(!notes.iter().any(|n| n == "never"));
+    }
+
+    #[test]
+    fn before_each_group_the_plan_says_how_far_it_is_and_how_long_the_rest_takes() {
+        // Two "collect" steps of 5 episodes each that make their episode files: the
+        // first is sized at the measured rate, the second at this job's.
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir_all(dir.path().join("d")).unwrap();
+        let collect = |from: u32, end: u32| {
+            let touch: Vec<String> = (from..end)
+                .map(|i| format!("d/episode-{i:05}.safetensors"))
+                .collect();
+            Step::new(
+                format!("collect to {end}"),
+                strings(&["-c", &format!("touch {}", touch.join(" "))]),
+            )
+            .doing(Work::Collect {
+                dir: "d".into(),
+                from,
+                end,
+            })
+        };
+        let groups = vec![Group::One(collect(0, 5)), Group::One(collect(5, 10))];
+        let notes = std::sync::Mutex::new(Vec::new());
+        let note = |s: &str| notes.lock().unwrap().push(s.to_string());
+        execute(Path::new("/bin/sh"), dir.path(), &groups, &note).unwrap();
+        let notes = notes.into_inner().unwrap();
+        assert!(
+            notes[0].starts_with("step 1 of 2: about ") && notes[0].contains("collect 10 episodes"),
+            "{notes:?}"
+        );
+        let second = notes.iter().find(|n| n.starts_with("step 2 of 2")).unwrap();
+        assert!(
+            second.contains("collect 5 episodes (at this job's rate)"),
+            "{notes:?}"
+        );
     }
 
     #[test]

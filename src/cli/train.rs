@@ -41,6 +41,10 @@ pub struct TrainArgs {
     /// (the default on 2 or more cores), 1 one after another on every thread.
     #[arg(long, requires = "all", value_parser = clap::value_parser!(u8).range(1..=2))]
     lanes: Option<u8>,
+    /// With `--all`: say how far the pipeline is and how long the rest will take (each
+    /// kind of work at the rate measured on a 2-core EPYC), and stop; nothing runs.
+    #[arg(long, requires = "all")]
+    eta: bool,
     /// The labelled dataset [default: <cache>/data/original for the Original,
     /// <cache>/data/retarget otherwise; the cache: $MRDRIVE_CACHE, else ~/.cache/mrdrive].
     #[arg(long)]
@@ -340,6 +344,12 @@ fn run_all(args: &TrainArgs) -> Result<()> {
         }
     }
     let mut groups = plan.steps(from_round);
+    if args.eta {
+        let rates = experiments::progress::JobRates::default();
+        let left = experiments::progress::left(&groups, Path::new("."), &rates);
+        println!("train --all: {} steps; {}", groups.len(), left.line(&rates));
+        return Ok(());
+    }
     let stop_at = deadline(args)?;
     if let Some(t) = stop_at {
         let secs = t.duration_since(UNIX_EPOCH).map_or(0, |d| d.as_secs());
