@@ -87,16 +87,17 @@ pub struct Rates {
 }
 
 impl Default for Rates {
-    /// Measured on a 2-core AMD EPYC, 2026-12-05/06 (docs/training.md): 160
-    /// episodes collected in 287 s; 40 episodes labelled in 1006 s beside a
-    /// build; 35.2 samples/s for the Original's rounds; the 12 runs of a round's
-    /// drive in about 7 minutes.
+    /// Measured in the training chain on a 2-core AMD EPYC with foreground work
+    /// beside it (builds, soaks), as the chain runs (docs/training.md): slice 4
+    /// (40 episodes) collected in 287 s and labelled in 486.3 s (2026-12-06, at
+    /// 05:51-08:40), round 4 trained at 23.2 samples/s and its 12 runs driven in
+    /// 824 s (09:01-09:47). A quiet machine is faster (35.2 samples/s).
     fn default() -> Self {
         Rates {
-            collect_s: 287.0 / 160.0,
-            label_s: 1006.0 / 40.0,
-            train_s: 1.0 / 35.2,
-            drive_s: 420.0 / 12.0,
+            collect_s: 287.0 / 40.0,
+            label_s: 486.3 / 40.0,
+            train_s: 1.0 / 23.2,
+            drive_s: 824.0 / 12.0,
         }
     }
 }
