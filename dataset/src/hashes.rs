@@ -19,11 +19,20 @@ use crate::format::{DataError, Index};
 /// `<dataset folder name>/<file>`, in index order.
 pub fn of_dataset(dir: &Path) -> Result<BTreeMap<String, String>, DataError> {
     let index = Index::load(dir)?;
+    of_episodes(dir, &index.episodes)
+}
+
+/// The hash of the shard and label files of `episodes` (entries of the index of
+/// the dataset in `dir`), keyed as [`of_dataset`] keys them.
+pub fn of_episodes(
+    dir: &Path,
+    episodes: &[crate::format::Episode],
+) -> Result<BTreeMap<String, String>, DataError> {
     let name = dir
         .file_name()
         .map_or_else(|| ".".into(), |n| n.to_string_lossy().into_owned());
     let mut out = BTreeMap::new();
-    for e in &index.episodes {
+    for e in episodes {
         for file in std::iter::once(&e.shard).chain(e.labels.as_ref()) {
             let path = dir.join(file);
             let bytes = std::fs::read(&path).map_err(|source| DataError::Io {

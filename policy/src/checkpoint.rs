@@ -12,6 +12,7 @@ use crate::model::{PolicyConfig, PolicyNet};
 use burn::prelude::*;
 use burn::store::{ApplyError, KeyRemapper, ModuleSnapshot, SafetensorsStore};
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 /// The format tag written into every checkpoint's JSON.
@@ -60,6 +61,24 @@ pub struct TrainingRecord {
     /// Which samples an epoch drew and how often (absent fields: WoR's, each once).
     #[serde(flatten)]
     pub sampling: crate::train::loader::Sampling,
+    /// The build that trained it (`mrdrive 0.1.0 (<commit>)`; absent on older cards).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub build: String,
+    /// How many of the dataset's episodes it trained on (its first N; absent: all).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub episodes: Option<usize>,
+    /// Episodes it trained on, by town.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub towns: BTreeMap<String, usize>,
+    /// Frames drawn in training (steps x batch), this stage's and those of every
+    /// network it started from (`init`, or a retargeting stage's teacher, whose
+    /// weights the student starts from); absent where a card on the way is lost.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frames_seen: Option<u64>,
+    /// The SHA-256 of every shard and label file it trained on, by
+    /// `<dataset folder>/<file>` (as `mrdrive data hashes` lists them).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub data_sha256: BTreeMap<String, String>,
 }
 
 impl ModelCard {
@@ -683,6 +702,11 @@ mod tests {
                 stopped_vehicle_repeat: 3,
                 ..Default::default()
             },
+            build: String::new(),
+            episodes: None,
+            towns: BTreeMap::new(),
+            frames_seen: None,
+            data_sha256: BTreeMap::new(),
         }
     }
 

@@ -244,6 +244,26 @@ fn another_configuration_is_refused_by_name_and_a_retarget_trains_from_the_teach
     let (net, card) = checkpoint::load(&out.checkpoint, &device).unwrap();
     assert_eq!(net.config.scales, vec![0.75, 1.0]);
     assert!(card.trained && card.training.is_some());
+    // The cards say what each network saw: the Original 6 steps of 4 frames, the RA
+    // those and its own 4 of 4 (it starts from the Original's weights); the data by
+    // town and by the hash of every file, as `mrdrive data hashes` lists them.
+    let (_, original_card) = checkpoint::load(&original.checkpoint, &Device::flex()).unwrap();
+    let first = original_card.training.unwrap();
+    assert_eq!(first.frames_seen, Some(24));
+    let record = card.training.unwrap();
+    assert_eq!(record.frames_seen, Some(24 + 16));
+    assert!(record.build.starts_with("mrdrive "), "{}", record.build);
+    let hashes = dataset::hashes::of_dataset(data.path()).unwrap();
+    assert_eq!(hashes.len(), 4, "two episodes, a shard and labels each");
+    assert_eq!(record.data_sha256, hashes);
+    assert_eq!(first.data_sha256, hashes);
+    assert_eq!(
+        record.towns.values().sum::<usize>(),
+        2,
+        "{:?}",
+        record.towns
+    );
+    assert_eq!(record.episodes, None);
     // The Original trained on (its final checkpoint rewritten) is no longer the teacher
     // the finished RA run was made from: the run is refused, not skipped.
     let longer = StageSpec {
@@ -295,4 +315,30 @@ fn a_stage_says_which_episodes_it_trains_without() {
         reported.iter().all(|r| r == &vec![shard.clone()]),
         "{reported:?}"
     );
+}
+
+#[test]
+fn a_stage_pinned_to_its_first_episodes_lists_only_their_files_on_its_card() {
+    let _seeded = SEEDED.lock().unwrap_or_else(|e| e.into_inner());
+    let data = tiny_data();
+    let device = Device::flex().autodiff();
+    let spec = StageSpec {
+        episodes: Some(1),
+        steps: 2,
+        ..tiny_original(data.path())
+    };
+    let run = tempfile::tempdir().unwrap();
+    let out = run_stage(&spec, run.path(), &device, |_| {}).unwrap();
+    let (_, card) = checkpoint::load(&out.checkpoint, &Device::flex()).unwrap();
+    let record = card.training.unwrap();
+    assert_eq!(record.episodes, Some(1));
+    assert_eq!(record.frames_seen, Some(8));
+    assert_eq!(record.towns.values().sum::<usize>(), 1);
+    let all = dataset::hashes::of_dataset(data.path()).unwrap();
+    let first: std::collections::BTreeMap<String, String> = all
+        .into_iter()
+        .filter(|(file, _)| file.contains("00000"))
+        .collect();
+    assert_eq!(first.len(), 2);
+    assert_eq!(record.data_sha256, first);
 }

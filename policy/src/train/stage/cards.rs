@@ -2,9 +2,11 @@
 //! (`latest.safetensors`, at every checkpoint of the run state) and the trained
 //! network with its [`TrainingRecord`] (`final.safetensors`).
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
-use crate::checkpoint::{ModelCard, TrainingRecord};
+use crate::checkpoint::{self, ModelCard, TrainingRecord};
+use crate::train::loader::TrainSet;
 use crate::train::spec::StageSpec;
 
 /// The card of the network at step `step` of a stage still in training (without the
@@ -18,14 +20,30 @@ pub(super) fn latest_card(spec: &StageSpec, run_dir: &Path, step: usize) -> Mode
     }
 }
 
-/// The card of the trained network: `steps` steps in all, on `samples_in_data`
-/// samples, in `wall_s` seconds of training over every session.
-pub(super) fn final_card(
-    spec: &StageSpec,
-    samples_in_data: usize,
-    steps: usize,
-    wall_s: f64,
-) -> ModelCard {
+/// The card of the trained network: `steps` steps in all, on `set` (the
+/// episodes it trained on), in `wall_s` seconds of training over every session.
+pub(super) fn final_card(spec: &StageSpec, set: &TrainSet, steps: usize, wall_s: f64) -> ModelCard {
+    let used = &set.index.episodes[..spec
+        .episodes
+        .unwrap_or(usize::MAX)
+        .min(set.index.episodes.len())];
+    let mut towns = BTreeMap::new();
+    for e in used {
+        *towns.entry(e.town.clone()).or_insert(0) += 1;
+    }
+    // A shard that cannot be read was skipped by the loader too: its hash is left out.
+    let data_sha256 = used
+        .iter()
+        .filter_map(|e| dataset::hashes::of_episodes(&set.dir, std::slice::from_ref(e)).ok())
+        .flatten()
+        .collect();
+    let own = (steps * spec.batch) as u64;
+    let before = match spec.init.as_ref().or(spec.teacher.as_ref()) {
+        None => Some(0),
+        Some(start) => checkpoint::read_manifest(start)
+            .ok()
+            .and_then(|(_, card)| card.training?.frames_seen),
+    };
     ModelCard {
         trained: true,
         description: describe(spec),
@@ -40,7 +58,7 @@ pub(super) fn final_card(
         training: Some(TrainingRecord {
             stage: spec.name.clone(),
             data: spec.data.display().to_string(),
-            samples_in_data,
+            samples_in_data: set.samples.len(),
             steps,
             batch: spec.batch,
             seed: spec.seed,
@@ -50,6 +68,11 @@ pub(super) fn final_card(
             machine: machine(),
             init: spec.init.as_ref().map(|p| p.display().to_string()),
             sampling: spec.sampling.clone(),
+            build: sim::output::provenance::build_id(),
+            episodes: spec.episodes,
+            towns,
+            frames_seen: before.map(|b| b + own),
+            data_sha256,
         }),
     }
 }

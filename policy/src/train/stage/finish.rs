@@ -38,7 +38,7 @@ impl Session<'_> {
         if self.spec.recalibrate_batches > 0 {
             net = self.recalibrate(net, device);
         }
-        let card = final_card(self.spec, self.set.samples.len(), steps, wall_s);
+        let card = final_card(self.spec, &self.set, steps, wall_s);
         let checkpoint = self.run_dir.join(FINAL_FILE);
         checkpoint::save(&net, &card, &checkpoint)?;
         Ok(StageOutcome {
