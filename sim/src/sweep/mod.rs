@@ -24,6 +24,7 @@ pub mod exact;
 pub mod execute;
 pub mod folder;
 pub mod merge;
+pub mod paired_binary;
 pub mod plan;
 pub mod stats;
 pub mod tables;
