@@ -19,6 +19,7 @@
 //!   of each group, as Markdown and CSV.
 //! - [`error`]: what can go wrong ([`SweepError`]).
 
+pub mod cluster;
 pub mod error;
 pub mod exact;
 pub mod execute;

@@ -25,6 +25,40 @@ pub fn wilson(successes: usize, n: usize, z: f64) -> (f64, f64) {
     ((centre - half).max(0.0), (centre + half).min(1.0))
 }
 
+/// How our estimate stands against a range the paper gives.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RangeCheck {
+    /// The point estimate lies in the paper's range.
+    Inside,
+    /// The point estimate lies outside it, but the interval reaches it.
+    Compatible,
+    /// Neither the estimate nor its interval reaches the range.
+    Outside,
+}
+
+impl RangeCheck {
+    /// `point` with its interval `ci` against the paper's range `paper` (each
+    /// (low, high), ends included).
+    pub fn of(point: f64, ci: (f64, f64), paper: (f64, f64)) -> RangeCheck {
+        if paper.0 <= point && point <= paper.1 {
+            RangeCheck::Inside
+        } else if ci.0 <= paper.1 && paper.0 <= ci.1 {
+            RangeCheck::Compatible
+        } else {
+            RangeCheck::Outside
+        }
+    }
+
+    /// "inside", "compatible", "outside".
+    pub fn word(self) -> &'static str {
+        match self {
+            RangeCheck::Inside => "inside",
+            RangeCheck::Compatible => "compatible",
+            RangeCheck::Outside => "outside",
+        }
+    }
+}
+
 /// A percentile bootstrap 95 % interval of the mean of `values` from `resamples`
 /// resamples drawn with a ChaCha8 generator seeded by `seed`; (mean, mean) for fewer
 /// than two values.
@@ -175,6 +209,28 @@ pub fn paired_in_blocks(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_range_check_says_inside_only_for_the_point_estimate() {
+        // The paper's range 80-100 % success.
+        let paper = (0.8, 1.0);
+        assert_eq!(RangeCheck::of(0.9, (0.7, 0.97), paper), RangeCheck::Inside);
+        assert_eq!(RangeCheck::of(0.8, (0.6, 0.9), paper), RangeCheck::Inside);
+        // The interval touches the range, the estimate does not: compatible, not inside.
+        assert_eq!(
+            RangeCheck::of(0.7, (0.55, 0.8), paper),
+            RangeCheck::Compatible
+        );
+        assert_eq!(RangeCheck::of(0.7, (0.5, 0.79), paper), RangeCheck::Outside);
+        // From above too.
+        let low = (0.0, 0.1);
+        assert_eq!(
+            RangeCheck::of(0.2, (0.05, 0.4), low),
+            RangeCheck::Compatible
+        );
+        assert_eq!(RangeCheck::of(0.2, (0.11, 0.4), low), RangeCheck::Outside);
+        assert_eq!(RangeCheck::Compatible.word(), "compatible");
+    }
 
     #[test]
     fn wilson_matches_known_values() {

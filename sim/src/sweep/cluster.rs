@@ -1,0 +1,261 @@
+//! Intervals clustered at the route: runs on one route share much of what
+//! happens on it, so a route, not a run, is the unit an interval may treat as
+//! independent. [`cluster_t_interval`] takes the mean of each route's values
+//! and a Student t interval over those G means with G - 1 degrees of freedom.
+//! With only a few routes the interval is wide and honest: its claim is about
+//! those routes' population, and with 4 routes 3 degrees of freedom.
+//!
+//! The percentile bootstrap over route x density blocks the page used covers
+//! far less than it says when routes differ (issue 50: about 80 % at a nominal
+//! 95 %); the tests below simulate both on the page's design (4 routes x 3
+//! densities x 3 seeds) with a route effect of half the run noise's standard
+//! deviation, and count their coverage (5000 pages: the t interval 94.8 %, the
+//! block bootstrap 76.4 %). The page's own components are for the
+//! registration to estimate and simulate the same way.
+
+/// The regularised incomplete beta function I_x(a, b), by the continued
+/// fraction of Numerical Recipes (`betacf`, modified Lentz), to about 1e-14.
+fn incomplete_beta(x: f64, a: f64, b: f64) -> f64 {
+    if x <= 0.0 {
+        return 0.0;
+    }
+    if x >= 1.0 {
+        return 1.0;
+    }
+    let ln_front = ln_gamma(a + b) - ln_gamma(a) - ln_gamma(b) + a * x.ln() + b * (1.0 - x).ln();
+    // The fraction converges fast for x < (a + 1) / (a + b + 2); use the symmetry otherwise.
+    if x < (a + 1.0) / (a + b + 2.0) {
+        ln_front.exp() * beta_fraction(x, a, b) / a
+    } else {
+        1.0 - ln_front.exp() * beta_fraction(1.0 - x, b, a) / b
+    }
+}
+
+fn beta_fraction(x: f64, a: f64, b: f64) -> f64 {
+    const TINY: f64 = 1e-300;
+    let (qab, qap, qam) = (a + b, a + 1.0, a - 1.0);
+    let mut c = 1.0;
+    let mut d = 1.0 - qab * x / qap;
+    if d.abs() < TINY {
+        d = TINY;
+    }
+    d = 1.0 / d;
+    let mut h = d;
+    for m in 1..300 {
+        let m = m as f64;
+        let m2 = 2.0 * m;
+        let aa = m * (b - m) * x / ((qam + m2) * (a + m2));
+        d = 1.0 + aa * d;
+        d = if d.abs() < TINY { TINY } else { d };
+        c = 1.0 + aa / c;
+        c = if c.abs() < TINY { TINY } else { c };
+        d = 1.0 / d;
+        h *= d * c;
+        let aa = -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2));
+        d = 1.0 + aa * d;
+        d = if d.abs() < TINY { TINY } else { d };
+        c = 1.0 + aa / c;
+        c = if c.abs() < TINY { TINY } else { c };
+        d = 1.0 / d;
+        let del = d * c;
+        h *= del;
+        if (del - 1.0).abs() < 1e-15 {
+            break;
+        }
+    }
+    h
+}
+
+/// ln Gamma(x) for x > 0 (Lanczos, g = 7, 9 terms; about 1e-15 relative).
+fn ln_gamma(x: f64) -> f64 {
+    const G: [f64; 9] = [
+        0.999_999_999_999_809_9,
+        676.520_368_121_885_1,
+        -1_259.139_216_722_402_8,
+        771.323_428_777_653_1,
+        -176.615_029_162_140_6,
+        12.507_343_278_686_905,
+        -0.138_571_095_265_720_12,
+        9.984_369_578_019_572e-6,
+        1.505_632_735_149_311_6e-7,
+    ];
+    if x < 0.5 {
+        // Reflection.
+        let pi = std::f64::consts::PI;
+        return (pi / (pi * x).sin()).ln() - ln_gamma(1.0 - x);
+    }
+    let x = x - 1.0;
+    let mut a = G[0];
+    let t = x + 7.5;
+    for (i, g) in G.iter().enumerate().skip(1) {
+        a += g / (x + i as f64);
+    }
+    0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + a.ln()
+}
+
+/// P(T <= t) for Student's t with `df` degrees of freedom.
+pub fn student_t_cdf(t: f64, df: f64) -> f64 {
+    let x = df / (df + t * t);
+    let tail = 0.5 * incomplete_beta(x, df / 2.0, 0.5);
+    if t >= 0.0 { 1.0 - tail } else { tail }
+}
+
+/// The `q` quantile of Student's t with `df` degrees of freedom (q in (0, 1)),
+/// by bisection on [`student_t_cdf`] to 1e-12.
+pub fn student_t_quantile(q: f64, df: f64) -> f64 {
+    assert!(q > 0.0 && q < 1.0 && df > 0.0, "q {q}, df {df}");
+    let (mut lo, mut hi) = (-1e6, 1e6);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if student_t_cdf(mid, df) < q {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+        if hi - lo < 1e-12 {
+            break;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+/// A two-sided interval at `level` (0.95: 95 %) for the mean over clusters of
+/// `values`, where `clusters[i]` names the cluster (route) of `values[i]`:
+/// each cluster's mean, then their mean with a Student t interval on G - 1
+/// degrees of freedom (every cluster weighs the same). Returns (mean, low,
+/// high); `None` with fewer than two clusters.
+pub fn cluster_t_interval(
+    values: &[f64],
+    clusters: &[usize],
+    level: f64,
+) -> Option<(f64, f64, f64)> {
+    let ids = super::stats::block_ids(clusters.iter());
+    let g = ids.iter().max().map_or(0, |m| m + 1);
+    if g < 2 || values.len() != clusters.len() {
+        return None;
+    }
+    let mut sums = vec![(0.0, 0usize); g];
+    for (&v, &i) in values.iter().zip(&ids) {
+        sums[i].0 += v;
+        sums[i].1 += 1;
+    }
+    let means: Vec<f64> = sums.iter().map(|(s, n)| s / *n as f64).collect();
+    let gf = g as f64;
+    let mean = means.iter().sum::<f64>() / gf;
+    let var = means.iter().map(|m| (m - mean).powi(2)).sum::<f64>() / (gf - 1.0);
+    let half = student_t_quantile(0.5 + level / 2.0, gf - 1.0) * (var / gf).sqrt();
+    Some((mean, mean - half, mean + half))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    #[test]
+    fn t_quantiles_match_the_tables() {
+        // R: qt(0.975, c(1, 2, 3, 5, 11, 30)); qt(0.95, 3).
+        for (df, want) in [
+            (1.0, 12.706_204_736_174_7),
+            (2.0, 4.302_652_729_749_464),
+            (3.0, 3.182_446_305_284_263),
+            (5.0, 2.570_581_835_636_314),
+            (11.0, 2.200_985_160_082_949),
+            (30.0, 2.042_272_456_301_238),
+        ] {
+            let got = student_t_quantile(0.975, df);
+            assert!((got - want).abs() < 1e-9, "df {df}: {got} against {want}");
+        }
+        assert!((student_t_quantile(0.95, 3.0) - 2.353_363_434_801_823).abs() < 1e-9);
+        assert!((student_t_cdf(0.0, 7.0) - 0.5).abs() < 1e-15);
+    }
+
+    #[test]
+    fn the_interval_is_over_route_means_with_g_minus_1_degrees_of_freedom() {
+        // Routes 0-3, unequal run counts: each route's mean weighs the same.
+        let values = [1.0, 1.0, 1.0, 0.0, 0.0, 2.0, 3.0, 3.0];
+        let clusters = [0, 0, 0, 1, 1, 2, 3, 3];
+        let (mean, lo, hi) = cluster_t_interval(&values, &clusters, 0.95).unwrap();
+        // Route means 1, 0, 2, 3: mean 1.5, sd sqrt(5/3), half = t(0.975, 3) sd / 2.
+        assert!((mean - 1.5).abs() < 1e-12);
+        let half = 3.182_446_305_284_263 * (5.0f64 / 3.0).sqrt() / 2.0;
+        assert!((hi - 1.5 - half).abs() < 1e-9 && (1.5 - lo - half).abs() < 1e-9);
+        assert_eq!(cluster_t_interval(&[1.0, 2.0], &[0, 0], 0.95), None);
+    }
+
+    /// The share of `sims` simulated pages whose interval holds the true mean 0:
+    /// `routes` routes, each with an effect of sd `route_sd`, `runs` runs on each
+    /// with noise of sd `run_sd`, the runs grouped in `densities` blocks per route.
+    fn coverage(
+        mut interval: impl FnMut(&[f64], &[usize], &[usize]) -> (f64, f64),
+        routes: usize,
+        runs: usize,
+        densities: usize,
+        route_sd: f64,
+        run_sd: f64,
+        sims: usize,
+    ) -> f64 {
+        let mut rng = ChaCha8Rng::seed_from_u64(50);
+        let mut normal = move || {
+            // Box-Muller.
+            let (u, v): (f64, f64) = (rng.random::<f64>().max(1e-300), rng.random());
+            (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
+        };
+        let mut hits = 0;
+        for _ in 0..sims {
+            let (mut values, mut route_of, mut block_of) = (Vec::new(), Vec::new(), Vec::new());
+            for r in 0..routes {
+                let effect = route_sd * normal();
+                for k in 0..runs {
+                    values.push(effect + run_sd * normal());
+                    route_of.push(r);
+                    block_of.push(r * densities + k % densities);
+                }
+            }
+            let (lo, hi) = interval(&values, &route_of, &block_of);
+            if lo <= 0.0 && 0.0 <= hi {
+                hits += 1;
+            }
+        }
+        hits as f64 / sims as f64
+    }
+
+    #[test]
+    fn with_four_routes_the_t_interval_covers_95_percent_and_the_block_bootstrap_does_not() {
+        // The page's design: 4 routes x 3 densities x 3 seeds = 36 pairs; route
+        // effects half the run noise (a difference that depends on the route).
+        let (routes, runs, densities, route_sd, run_sd) = (4, 9, 3, 0.5, 1.0);
+        let t = coverage(
+            |v, r, _| {
+                let (_, lo, hi) = cluster_t_interval(v, r, 0.95).unwrap();
+                (lo, hi)
+            },
+            routes,
+            runs,
+            densities,
+            route_sd,
+            run_sd,
+            5000,
+        );
+        let mut seed = 0;
+        let blocks = coverage(
+            |v, _, b| {
+                seed += 1;
+                super::super::stats::block_bootstrap_mean(v, b, 400, seed)
+            },
+            routes,
+            runs,
+            densities,
+            route_sd,
+            run_sd,
+            5000,
+        );
+        eprintln!(
+            "coverage at a nominal 95 %: t over 4 route means {t:.3}, block bootstrap {blocks:.3}"
+        );
+        // 5000 simulations: a binomial sd of 0.3 %.
+        assert!((0.94..=0.96).contains(&t), "t interval covers {t}");
+        assert!(blocks < 0.90, "the block bootstrap covers {blocks}");
+    }
+}
