@@ -71,10 +71,26 @@ pub struct Retarget {
     pub options: Vec<String>,
 }
 
+/// One set of units the closed-loop bar drives every driver on, with its table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BarSet {
+    /// The folder of its sweeps, one per driver (relative to the base: `out/bar`).
+    pub folder: String,
+    /// Its table, `policy table` of those sweeps (relative to the base:
+    /// `models/closed-loop.md`).
+    pub table: String,
+    /// The scenarios.
+    pub scenarios: Vec<PathBuf>,
+    /// The densities (`mrdrive sweep --densities`).
+    pub densities: String,
+    /// The seeds (`mrdrive sweep --seeds`).
+    pub seeds: String,
+}
+
 /// One driver of the closed-loop bar: a sweep folder, a model (or the expert), a scale.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BarDriver {
-    /// The sweep folder's name under `out/bar/`.
+    /// The sweep folder's name under each set's folder (`out/bar/`).
     pub label: String,
     /// The model under `models/` (`None`: the expert).
     pub model: Option<String>,
@@ -102,10 +118,9 @@ pub struct TrainPlan {
     pub parallel_lanes: bool,
     /// The drivers of the closed-loop bar.
     pub bar: Vec<BarDriver>,
-    /// The bar's scenarios.
-    pub bar_scenarios: Vec<PathBuf>,
-    /// The bar's densities (`mrdrive sweep --densities`).
-    pub bar_densities: String,
+    /// The units the bar drives each driver on: the paper's routes, then the
+    /// held-out ones (issue 48's "what it must show").
+    pub bar_sets: Vec<BarSet>,
     /// Trained after the bar, which does not need it: RA with five scales for the
     /// more-scales study.
     pub after_bar: Retarget,
@@ -203,16 +218,36 @@ impl TrainPlan {
                 bar("ra@0.75", Some("ra"), "0.75"),
                 bar("ra@1.0", Some("ra"), "1.0"),
             ],
-            bar_scenarios: [
-                "town01_route0",
-                "town01_route1",
-                "town02_route0",
-                "town02_route1",
-            ]
-            .iter()
-            .map(|r| PathBuf::from(format!("scenarios/paper/{r}.toml")))
-            .collect(),
-            bar_densities: "0:0,5:10,20:40".into(),
+            bar_sets: vec![
+                // The paper's routes, three densities, seeds 0-2: 18 runs a town.
+                BarSet {
+                    folder: "out/bar".into(),
+                    table: "models/closed-loop.md".into(),
+                    scenarios: [
+                        "town01_route0",
+                        "town01_route1",
+                        "town02_route0",
+                        "town02_route1",
+                    ]
+                    .iter()
+                    .map(|r| PathBuf::from(format!("scenarios/paper/{r}.toml")))
+                    .collect(),
+                    densities: "0:0,5:10,20:40".into(),
+                    seeds: "0,1,2".into(),
+                },
+                // Routes no dataset drove (held01, Town02's held-out routes) at 5 + 10.
+                BarSet {
+                    folder: "out/bar-heldout".into(),
+                    table: "models/closed-loop-heldout.md".into(),
+                    scenarios: (0..4)
+                        .map(|k| format!("held01_random{k}"))
+                        .chain((0..8).map(|k| format!("town02_random{k}")))
+                        .map(|r| PathBuf::from(format!("scenarios/heldout/{r}.toml")))
+                        .collect(),
+                    densities: "5:10".into(),
+                    seeds: "0".into(),
+                },
+            ],
             after_bar: retarget(
                 "ra5",
                 "ra",
@@ -235,8 +270,11 @@ impl TrainPlan {
             d.slice = 1;
             d.max_s = 20.0;
         }
-        plan.bar_scenarios.truncate(1);
-        plan.bar_densities = "0:0".into();
+        for set in &mut plan.bar_sets {
+            set.scenarios.truncate(1);
+            set.densities = "0:0".into();
+            set.seeds = "0".into();
+        }
         plan.curve.rounds = 2;
         plan.curve.steps = 4;
         plan.curve.scenarios.truncate(1);
@@ -481,10 +519,6 @@ impl TrainPlan {
         self.runs.display().to_string()
     }
 
-    fn sweeps(&self) -> String {
-        self.base.join("out/bar").display().to_string()
-    }
-
     fn retarget_step(&self, r: &Retarget) -> Step {
         let data = self
             .datasets
@@ -541,43 +575,41 @@ impl TrainPlan {
             });
             groups.extend(all.into_iter().map(|r| Group::One(self.retarget_step(r))));
         }
-        let sweeps = self.sweeps();
-        for b in &self.bar {
-            let mut args = vec!["sweep".to_string()];
-            args.extend(self.bar_scenarios.iter().map(|p| p.display().to_string()));
-            args.extend(strings(&["--delays", "0", "--scales"]));
-            args.extend([
-                b.scale.clone(),
-                "--densities".into(),
-                self.bar_densities.clone(),
-            ]);
-            args.extend(strings(&["--seeds", "0", "--out"]));
-            args.push(format!("{sweeps}/{}", b.label));
-            match &b.model {
-                Some(m) => {
-                    args.extend(["--checkpoint".into(), format!("{models}/{m}.safetensors")])
+        for set in &self.bar_sets {
+            let sweeps = self.base.join(&set.folder).display().to_string();
+            for b in &self.bar {
+                let mut args = vec!["sweep".to_string()];
+                args.extend(set.scenarios.iter().map(|p| p.display().to_string()));
+                args.extend(strings(&["--delays", "0", "--scales"]));
+                args.extend([b.scale.clone(), "--densities".into(), set.densities.clone()]);
+                args.extend(["--seeds".into(), set.seeds.clone(), "--out".into()]);
+                args.push(format!("{sweeps}/{}", b.label));
+                match &b.model {
+                    Some(m) => {
+                        args.extend(["--checkpoint".into(), format!("{models}/{m}.safetensors")])
+                    }
+                    None => args.push("--expert".into()),
                 }
-                None => args.push("--expert".into()),
+                let runs = set.scenarios.len() * list_len(&set.densities) * list_len(&set.seeds);
+                let work = Work::Drive {
+                    out: PathBuf::from(format!("{sweeps}/{}", b.label)),
+                    runs: runs as u32,
+                };
+                groups.push(Group::One(
+                    Step::new(format!("bar {} ({})", b.label, set.folder), args).doing(work),
+                ));
             }
-            let runs = self.bar_scenarios.len() * list_len(&self.bar_densities);
-            let work = Work::Drive {
-                out: PathBuf::from(format!("{sweeps}/{}", b.label)),
-                runs: runs as u32,
-            };
-            groups.push(Group::One(
-                Step::new(format!("bar {}", b.label), args).doing(work),
-            ));
+            groups.push(Group::One(Step::new(
+                format!("closed-loop table of {}", set.folder),
+                vec![
+                    "policy".into(),
+                    "table".into(),
+                    sweeps,
+                    "--out".into(),
+                    self.base.join(&set.table).display().to_string(),
+                ],
+            )));
         }
-        groups.push(Group::One(Step::new(
-            "closed-loop table",
-            vec![
-                "policy".into(),
-                "table".into(),
-                sweeps,
-                "--out".into(),
-                format!("{models}/closed-loop.md"),
-            ],
-        )));
         groups.push(Group::One(self.retarget_step(&self.after_bar)));
         groups
     }
@@ -902,11 +934,29 @@ mod tests {
             )
         );
         // 19 rounds of collect, label, train, drive, table; round 19 publishes the
-        // Original; `data info`; the retargeting set; then the lanes, the bar, RA5.
+        // Original; `data info`; the retargeting set; then the lanes, the bar on the
+        // paper's routes and on the held-out ones (six drivers and a table each), RA5.
         let publish = 19 * 5;
         assert!(all[publish].contains("--runs /c/runs/curve/slice-19 --out out/scratch/models"));
         assert_eq!(all[publish + 1], "data info /c/data/original");
-        assert_eq!(groups.len(), publish + 1 + 1 + 7 + 1 + 6 + 1 + 1);
+        assert_eq!(groups.len(), publish + 1 + 1 + 7 + 1 + 2 * (6 + 1) + 1);
+        // The bar: 18 runs a town and driver (seeds 0-2), then 12 held-out routes at 5 + 10.
+        let bar = joined(&groups[publish + 10])[0].clone();
+        assert!(
+            bar.starts_with("sweep scenarios/paper/town01_route0.toml")
+                && bar.contains("--densities 0:0,5:10,20:40 --seeds 0,1,2 --out out/scratch/out/bar/expert --expert"),
+            "{bar}"
+        );
+        let heldout = joined(&groups[publish + 17])[0].clone();
+        assert!(
+            heldout.starts_with("sweep scenarios/heldout/held01_random0.toml")
+                && heldout.contains("town02_random7.toml --delays 0 --scales 1.0 --densities 5:10 --seeds 0 --out out/scratch/out/bar-heldout/expert"),
+            "{heldout}"
+        );
+        assert_eq!(
+            joined(&groups[publish + 23])[0],
+            "policy table out/scratch/out/bar-heldout --out out/scratch/models/closed-loop-heldout.md"
+        );
         let Group::Lanes(lanes) = &groups[publish + 9] else {
             panic!("the retargeting stages run in lanes")
         };

@@ -298,7 +298,11 @@ impl Left {
         };
         part(self.collect, "collect # episodes", Kind::Collect);
         part(self.label, "label # episodes", Kind::Label);
-        part(self.train / 1000.0, "train #k samples", Kind::Train);
+        if self.train >= 10_000.0 {
+            part(self.train / 1000.0, "train #k samples", Kind::Train);
+        } else {
+            part(self.train, "train # samples", Kind::Train);
+        }
         part(self.drive, "drive # runs", Kind::Drive);
         if parts.is_empty() {
             return "nothing left".into();
@@ -406,15 +410,15 @@ mod tests {
         let rates = JobRates::default();
         let left = left(&plan.steps(1), tmp.path(), &rates);
         // 760 + 150 episodes; 19 rounds of 1000 x 32, NRA 0.75 and 1.0 at 600 x 32,
-        // RA at 600 x 32 x 2 scales, RA5 at 600 x 32 x 5; 19 x 12 curve runs and 6
-        // drivers x 12 bar runs.
+        // RA at 600 x 32 x 2 scales, RA5 at 600 x 32 x 5; 19 x 12 curve runs, and 6
+        // drivers x (36 runs on the paper's routes + 12 on the held-out ones).
         assert_eq!(left.collect, 910.0);
         assert_eq!(left.label, 910.0);
         assert_eq!(
             left.train,
             19.0 * 32_000.0 + 600.0 * 32.0 * (1.0 + 1.0 + 2.0 + 5.0)
         );
-        assert_eq!(left.drive, 19.0 * 12.0 + 6.0 * 12.0);
+        assert_eq!(left.drive, 19.0 * 12.0 + 6.0 * (36.0 + 12.0));
         // The two retargeting lanes run at once: the longer lane counts (RA, 2 scales,
         // against NRA 1.0 + NRA 0.75: the same), not both.
         let d = Rates::default();
@@ -434,10 +438,33 @@ mod tests {
         );
         assert!(
             left.line(&rates).contains(
-                "collect 910 episodes, label 910 episodes, train 781k samples, drive 300 runs"
+                "collect 910 episodes, label 910 episodes, train 781k samples, drive 516 runs"
             ),
             "{}",
             left.line(&rates)
+        );
+    }
+
+    #[test]
+    fn a_few_samples_are_not_rounded_to_thousands() {
+        let rates = JobRates::default();
+        let few = Left {
+            train: 32.0,
+            ..Left::default()
+        };
+        assert!(
+            few.line(&rates).ends_with("train 32 samples"),
+            "{}",
+            few.line(&rates)
+        );
+        let many = Left {
+            train: 32_000.0,
+            ..Left::default()
+        };
+        assert!(
+            many.line(&rates).ends_with("train 32k samples"),
+            "{}",
+            many.line(&rates)
         );
     }
 

@@ -26,7 +26,7 @@ pub struct TrainArgs {
     /// closed-loop bar, RA5 (`cargo xtask train`).
     #[arg(long, conflicts_with_all = ["stage", "synthetic"])]
     all: bool,
-    /// With `--all`: the folder whose models/, runs/ and out/bar/ the pipeline writes
+    /// With `--all`: the folder whose models/, runs/, out/bar/ and out/bar-heldout/ the pipeline writes
     /// (`--into .` replaces the shipped models/).
     #[arg(long, requires = "all")]
     into: Option<PathBuf>,
@@ -393,9 +393,14 @@ fn run_all(args: &TrainArgs) -> Result<()> {
         }
         other => other?,
     }
+    let tables: Vec<String> = plan
+        .bar_sets
+        .iter()
+        .map(|s| base.join(&s.table).display().to_string())
+        .collect();
     eprintln!(
-        "train --all: done; the closed-loop table is {}",
-        base.join("models/closed-loop.md").display()
+        "train --all: done; the closed-loop tables are {}",
+        tables.join(" and ")
     );
     Ok(())
 }
