@@ -184,17 +184,22 @@ mod tests {
         assert_eq!(cluster_t_interval(&[1.0, 2.0], &[0, 0], 0.95), None);
     }
 
-    /// The share of `sims` simulated pages whose interval holds the true mean 0:
-    /// `routes` routes, each with an effect of sd `route_sd`, `runs` runs on each
-    /// with noise of sd `run_sd`, the runs grouped in `densities` blocks per route.
-    fn coverage(
-        mut interval: impl FnMut(&[f64], &[usize], &[usize]) -> (f64, f64),
+    /// A simulated page: `routes` routes, each with an effect of sd `route_sd`,
+    /// `runs` runs on each with noise of sd `run_sd`, the runs grouped in
+    /// `densities` blocks per route; `sims` pages.
+    struct Design {
         routes: usize,
         runs: usize,
         densities: usize,
         route_sd: f64,
         run_sd: f64,
         sims: usize,
+    }
+
+    /// The share of the design's simulated pages whose interval holds the true mean 0.
+    fn coverage(
+        d: &Design,
+        mut interval: impl FnMut(&[f64], &[usize], &[usize]) -> (f64, f64),
     ) -> f64 {
         let mut rng = ChaCha8Rng::seed_from_u64(50);
         let mut normal = move || {
@@ -203,14 +208,14 @@ mod tests {
             (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
         };
         let mut hits = 0;
-        for _ in 0..sims {
+        for _ in 0..d.sims {
             let (mut values, mut route_of, mut block_of) = (Vec::new(), Vec::new(), Vec::new());
-            for r in 0..routes {
-                let effect = route_sd * normal();
-                for k in 0..runs {
-                    values.push(effect + run_sd * normal());
+            for r in 0..d.routes {
+                let effect = d.route_sd * normal();
+                for k in 0..d.runs {
+                    values.push(effect + d.run_sd * normal());
                     route_of.push(r);
-                    block_of.push(r * densities + k % densities);
+                    block_of.push(r * d.densities + k % d.densities);
                 }
             }
             let (lo, hi) = interval(&values, &route_of, &block_of);
@@ -218,39 +223,30 @@ mod tests {
                 hits += 1;
             }
         }
-        hits as f64 / sims as f64
+        hits as f64 / d.sims as f64
     }
 
     #[test]
     fn with_four_routes_the_t_interval_covers_95_percent_and_the_block_bootstrap_does_not() {
         // The page's design: 4 routes x 3 densities x 3 seeds = 36 pairs; route
         // effects half the run noise (a difference that depends on the route).
-        let (routes, runs, densities, route_sd, run_sd) = (4, 9, 3, 0.5, 1.0);
-        let t = coverage(
-            |v, r, _| {
-                let (_, lo, hi) = cluster_t_interval(v, r, 0.95).unwrap();
-                (lo, hi)
-            },
-            routes,
-            runs,
-            densities,
-            route_sd,
-            run_sd,
-            5000,
-        );
+        let page = Design {
+            routes: 4,
+            runs: 9,
+            densities: 3,
+            route_sd: 0.5,
+            run_sd: 1.0,
+            sims: 5000,
+        };
+        let t = coverage(&page, |v, r, _| {
+            let (_, lo, hi) = cluster_t_interval(v, r, 0.95).unwrap();
+            (lo, hi)
+        });
         let mut seed = 0;
-        let blocks = coverage(
-            |v, _, b| {
-                seed += 1;
-                super::super::stats::block_bootstrap_mean(v, b, 400, seed)
-            },
-            routes,
-            runs,
-            densities,
-            route_sd,
-            run_sd,
-            5000,
-        );
+        let blocks = coverage(&page, |v, _, b| {
+            seed += 1;
+            super::super::stats::block_bootstrap_mean(v, b, 400, seed)
+        });
         eprintln!(
             "coverage at a nominal 95 %: t over 4 route means {t:.3}, block bootstrap {blocks:.3}"
         );
