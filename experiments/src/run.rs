@@ -66,6 +66,15 @@ pub fn run_paper(
             dir.prepare(&plan)?;
             plans.push((u, dir, plan));
         }
+        let planned: usize = plans.iter().map(|(_, _, p)| p.runs.len()).sum();
+        let left = plans
+            .iter()
+            .map(|(_, dir, p)| p.runs.iter().filter(|s| !dir.is_done(s)).count())
+            .sum();
+        eprintln!(
+            "paper: {}",
+            plan_line(planned, left, &WallLog::read(&opts.out))
+        );
         // Seed by seed: the first pass is the paper's own protocol (one
         // rollout per route and density) over every experiment; later seeds
         // narrow the intervals. A run cut short still has whole tables.
@@ -108,6 +117,30 @@ pub fn run_paper(
     }
     outcome.written = report(cfg, opts)?;
     Ok(outcome)
+}
+
+/// Seconds a run of the paper takes on 2 cores when no run has been timed in the
+/// folder yet: the 2,088 runs of the page of 2026-12-05 took 10.6 h, and issue 46's
+/// kernels bring that to about 8.8 h (docs/bench.md), 15.2 s a run.
+pub const DEFAULT_RUN_S: f64 = 8.8 * 3600.0 / 2088.0;
+
+/// "N runs in the plan, D done, L left: about H h at S s a run (...)": the rest
+/// at the folder's own wall time per run ([`WallLog`]), else [`DEFAULT_RUN_S`].
+pub fn plan_line(planned: usize, left: usize, wall: &WallLog) -> String {
+    let (per_run, from) = if wall.runs > 0 {
+        (
+            wall.sweep_s / wall.runs as f64,
+            format!("this folder's {} runs so far", wall.runs),
+        )
+    } else {
+        (DEFAULT_RUN_S, "the estimate of docs/bench.md".to_string())
+    };
+    format!(
+        "{planned} runs in the plan, {} done, {left} left: about {:.1} h at {per_run:.1} s a run \
+         ({from})",
+        planned - left.min(planned),
+        left as f64 * per_run / 3600.0
+    )
 }
 
 /// A note when runs in the folder were made on CPUs other than `here` (a policy's run
@@ -252,6 +285,27 @@ mod tests {
         assert!(
             e.contains("docs/paper") && e.contains("(def)") && e.contains("--mixed-builds"),
             "{e}"
+        );
+    }
+
+    #[test]
+    fn the_plan_line_sizes_the_rest_at_the_folders_own_pace() {
+        let fresh = plan_line(2088, 2088, &WallLog::default());
+        assert_eq!(
+            fresh,
+            "2088 runs in the plan, 0 done, 2088 left: about 8.8 h at 15.2 s a run (the \
+             estimate of docs/bench.md)"
+        );
+        let timed = WallLog {
+            sweep_s: 3600.0,
+            runs: 300,
+            invocations: 1,
+            jobs: 2,
+        };
+        assert_eq!(
+            plan_line(2088, 1788, &timed),
+            "2088 runs in the plan, 300 done, 1788 left: about 6.0 h at 12.0 s a run (this \
+             folder's 300 runs so far)"
         );
     }
 
