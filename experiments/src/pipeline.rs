@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::Mutex;
 
-use crate::progress::{self, JobRates, Rates, Work};
+use crate::progress::{JobRates, Left, Rates, Work};
 
 /// A dataset of the study: `mrdrive collect --preset PRESET --out DIR --episodes N
 /// --max-s S`, then `mrdrive label DIR`.
@@ -615,6 +615,26 @@ impl TrainPlan {
     }
 }
 
+/// What is left of `groups` (the current step's group first), read under `dir`,
+/// at `rates` ([`crate::progress`]): lanes that run at once count by the longest.
+pub fn left(groups: &[Group], dir: &Path, rates: &JobRates) -> Left {
+    let mut out = Left::default();
+    for g in groups {
+        out.secs += match g {
+            Group::One(s) => out.add(&s.work, dir, rates),
+            Group::Lanes(lanes) => lanes
+                .iter()
+                .map(|lane| {
+                    lane.iter()
+                        .map(|s| out.add(&s.work, dir, rates))
+                        .sum::<f64>()
+                })
+                .fold(0.0, f64::max),
+        };
+    }
+    out
+}
+
 /// Steps of a retargeting stage (`policy::train::StageSpec`'s default for the
 /// retargeting stages).
 pub const RETARGET_STEPS: u64 = 600;
@@ -826,7 +846,7 @@ pub fn execute_until(
     };
     for (i, g) in groups.iter().enumerate() {
         let rates = rates_now();
-        let rest = progress::left(&groups[i..], dir, &rates);
+        let rest = left(&groups[i..], dir, &rates);
         note(&format!(
             "step {} of {}: {}",
             i + 1,
@@ -1063,6 +1083,49 @@ mod tests {
         assert!(notes.iter().any(|n| n.contains("(going on)")));
         assert!(notes.iter().any(|n| n == "lane one done"));
         assert!(!notes.iter().any(|n| n == "never"));
+    }
+
+    #[test]
+    fn the_rest_of_a_fresh_plan_adds_up_its_slices_rounds_and_lanes() {
+        let tmp = tempfile::tempdir().unwrap();
+        let cache = tmp.path().join("cache");
+        let plan = TrainPlan::full(tmp.path(), &cache, true);
+        let rates = JobRates::default();
+        let left = left(&plan.steps(1), tmp.path(), &rates);
+        // 760 + 150 episodes; 19 rounds of 1000 x 32, NRA 0.75 and 1.0 at 600 x 32,
+        // RA at 600 x 32 x 2 scales, RA5 at 600 x 32 x 5; 19 x 12 curve runs, and 6
+        // drivers x (36 runs on the paper's routes + 12 on the held-out ones).
+        assert_eq!(left.collect, 910.0);
+        assert_eq!(left.label, 910.0);
+        assert_eq!(
+            left.train,
+            19.0 * 32_000.0 + 600.0 * 32.0 * (1.0 + 1.0 + 2.0 + 5.0)
+        );
+        assert_eq!(left.drive, 19.0 * 12.0 + 6.0 * (36.0 + 12.0));
+        // The two retargeting lanes run at once: the longer lane counts (RA, 2 scales,
+        // against NRA 1.0 + NRA 0.75: the same), not both.
+        let d = Rates::default();
+        let serial =
+            910.0 * (d.collect_s + d.label_s) + left.train * d.train_s + left.drive * d.drive_s;
+        let lanes = 600.0 * 32.0 * 2.0 * d.train_s;
+        assert!(
+            (left.secs - (serial - lanes)).abs() < 1e-6,
+            "{} {}",
+            left.secs,
+            serial
+        );
+        assert!(
+            left.line(&rates).starts_with("about "),
+            "{}",
+            left.line(&rates)
+        );
+        assert!(
+            left.line(&rates).contains(
+                "collect 910 episodes, label 910 episodes, train 781k samples, drive 516 runs"
+            ),
+            "{}",
+            left.line(&rates)
+        );
     }
 
     #[test]

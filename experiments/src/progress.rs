@@ -1,7 +1,7 @@
 //! How far the training pipeline is and how long the rest will take
 //! (`mrdrive train --all` prints it before each step).
 //!
-//! Each [`Step`] says what it does in the units its time goes with ([`Work`]):
+//! Each step of the plan says what it does in the units its time goes with ([`Work`]):
 //! episodes collected, episodes labelled, samples trained, runs driven. What is
 //! left of a step is read from the cache (the episodes and labels in the
 //! dataset's folder, the run's `state/progress.json`, the records in the sweep's
@@ -11,8 +11,6 @@
 //! 2-core AMD EPYC (docs/training.md).
 
 use std::path::{Path, PathBuf};
-
-use crate::pipeline::{Group, Step};
 
 /// What a step does, in the units its time is counted in.
 #[derive(Debug, Clone, PartialEq)]
@@ -245,31 +243,20 @@ pub struct Left {
     pub secs: f64,
 }
 
-/// What is left of `groups` (the current step's group first), read under `dir`,
-/// at `rates`.
-pub fn left(groups: &[Group], dir: &Path, rates: &JobRates) -> Left {
-    let mut out = Left::default();
-    let step_secs = |s: &Step, out: &mut Left| {
-        let (kind, units) = s.work.left(dir);
+impl Left {
+    /// Adds what is left of `work` (read under `dir`) and returns the seconds it
+    /// will take at `rates`.
+    pub fn add(&mut self, work: &Work, dir: &Path, rates: &JobRates) -> f64 {
+        let (kind, units) = work.left(dir);
         match kind {
-            Kind::Collect => out.collect += units,
-            Kind::Label => out.label += units,
-            Kind::Train => out.train += units,
-            Kind::Drive => out.drive += units,
+            Kind::Collect => self.collect += units,
+            Kind::Label => self.label += units,
+            Kind::Train => self.train += units,
+            Kind::Drive => self.drive += units,
             Kind::Small => {}
         }
         units * rates.of(kind)
-    };
-    for g in groups {
-        out.secs += match g {
-            Group::One(s) => step_secs(s, &mut out),
-            Group::Lanes(lanes) => lanes
-                .iter()
-                .map(|lane| lane.iter().map(|s| step_secs(s, &mut out)).sum::<f64>())
-                .fold(0.0, f64::max),
-        };
     }
-    out
 }
 
 /// "41 h 05 min", "12 min", "under a minute".
@@ -318,7 +305,6 @@ impl Left {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pipeline::TrainPlan;
 
     fn touch(dir: &Path, names: impl IntoIterator<Item = String>) {
         std::fs::create_dir_all(dir).unwrap();
@@ -400,49 +386,6 @@ mod tests {
         assert_eq!(r.of(Kind::Label), 15.0);
         assert_eq!(r.of(Kind::Collect), Rates::default().collect_s);
         assert_eq!(r.of(Kind::Small), 0.0);
-    }
-
-    #[test]
-    fn the_rest_of_a_fresh_plan_adds_up_its_slices_rounds_and_lanes() {
-        let tmp = tempfile::tempdir().unwrap();
-        let cache = tmp.path().join("cache");
-        let plan = TrainPlan::full(tmp.path(), &cache, true);
-        let rates = JobRates::default();
-        let left = left(&plan.steps(1), tmp.path(), &rates);
-        // 760 + 150 episodes; 19 rounds of 1000 x 32, NRA 0.75 and 1.0 at 600 x 32,
-        // RA at 600 x 32 x 2 scales, RA5 at 600 x 32 x 5; 19 x 12 curve runs, and 6
-        // drivers x (36 runs on the paper's routes + 12 on the held-out ones).
-        assert_eq!(left.collect, 910.0);
-        assert_eq!(left.label, 910.0);
-        assert_eq!(
-            left.train,
-            19.0 * 32_000.0 + 600.0 * 32.0 * (1.0 + 1.0 + 2.0 + 5.0)
-        );
-        assert_eq!(left.drive, 19.0 * 12.0 + 6.0 * (36.0 + 12.0));
-        // The two retargeting lanes run at once: the longer lane counts (RA, 2 scales,
-        // against NRA 1.0 + NRA 0.75: the same), not both.
-        let d = Rates::default();
-        let serial =
-            910.0 * (d.collect_s + d.label_s) + left.train * d.train_s + left.drive * d.drive_s;
-        let lanes = 600.0 * 32.0 * 2.0 * d.train_s;
-        assert!(
-            (left.secs - (serial - lanes)).abs() < 1e-6,
-            "{} {}",
-            left.secs,
-            serial
-        );
-        assert!(
-            left.line(&rates).starts_with("about "),
-            "{}",
-            left.line(&rates)
-        );
-        assert!(
-            left.line(&rates).contains(
-                "collect 910 episodes, label 910 episodes, train 781k samples, drive 516 runs"
-            ),
-            "{}",
-            left.line(&rates)
-        );
     }
 
     #[test]

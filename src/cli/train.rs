@@ -346,7 +346,7 @@ fn run_all(args: &TrainArgs) -> Result<()> {
     let mut groups = plan.steps(from_round);
     if args.eta {
         let rates = experiments::progress::JobRates::default();
-        let left = experiments::progress::left(&groups, Path::new("."), &rates);
+        let left = experiments::pipeline::left(&groups, Path::new("."), &rates);
         println!("train --all: {} steps; {}", groups.len(), left.line(&rates));
         return Ok(());
     }
