@@ -1,6 +1,6 @@
 //! Exact unconditional tests for paired yes/no outcomes (success, a run with a
 //! collision) against a margin: non-inferiority and equivalence, with a size at
-//! the margin that never exceeds the nominal level.
+//! the margin that does not exceed the nominal level.
 //!
 //! Each of `n` pairs (the same route, density and seed driven by a and by b)
 //! falls in one of three cells: b yes and a no (`plus`, the difference b - a is
@@ -9,19 +9,21 @@
 //! differences by the margin and sign-flipping them (the sweep's
 //! [`super::exact::equivalence_p`]) assumes a symmetry 0/1 data cannot have:
 //! at the margin it rejects too often (issue 50: 5.8 % at a nominal 5 % for 36
-//! pairs and a margin of 1/6). Here the p-value is the largest probability,
-//! over every (p+, p-) on the null's boundary, of a statistic at least as
-//! extreme as the one observed (an exact unconditional test, as Suissa and
-//! Shuster's for McNemar's design): the statistic is `plus - minus`, whose
-//! upper tail grows as mass moves from -1 to a tie or from a tie to +1, so the
-//! largest probability over the whole null lies on its boundary
-//! delta = -margin, a line of one free parameter. That line is searched on a
-//! grid of [`GRID`] points, then around its best point by golden-section
-//! search; the tests below show the size at the margin is at most the nominal
-//! level at every point of a finer grid.
+//! pairs and a margin of 1/6).
+//!
+//! Here (an exact unconditional test, as Berger and Sidik's for this design)
+//! every outcome (plus, minus) is ranked by the score statistic of "delta >
+//! -margin" (Nam's and Tango's: [`statistic`]), and the p-value of an
+//! outcome is the largest probability, over every (p+, p-) of the null
+//! hypothesis, of an outcome ranked at least as high. The null is searched on
+//! [`BOUNDARY_POINTS`] points of its boundary delta = -margin and a grid of
+//! its interior ([`INTERIOR_STEPS`] a side); the tests below show the size at
+//! the margin is at most the nominal level on grids the test does not use.
 
-/// Points of the grid the null's boundary is searched on before refining.
-pub const GRID: usize = 2001;
+/// Points of the null's boundary (delta = -margin) the p-values are maximised over.
+pub const BOUNDARY_POINTS: usize = 4001;
+/// Steps a side of the grid over the null's interior.
+pub const INTERIOR_STEPS: usize = 100;
 
 /// ln(k!) for k in 0..=n.
 fn ln_factorials(n: usize) -> Vec<f64> {
@@ -35,92 +37,136 @@ fn ln_factorials(n: usize) -> Vec<f64> {
     out
 }
 
-/// P(plus - minus >= t) for n pairs whose cells have probabilities `up` (+1)
-/// and `down` (-1), the rest ties.
-fn upper_tail(n: usize, up: f64, down: f64, t: i64, lnf: &[f64]) -> f64 {
+/// The probability of `k_up` pairs at +1 and `k_down` at -1 of n, the cells'
+/// probabilities `up` and `down` (the rest ties).
+fn trinomial(n: usize, k_up: usize, k_down: usize, up: f64, down: f64, lnf: &[f64]) -> f64 {
+    let k_tie = n - k_up - k_down;
     let tie = (1.0 - up - down).max(0.0);
-    let ln = |p: f64, k: usize| if k == 0 { 0.0 } else { k as f64 * p.ln() };
-    let mut total = 0.0;
-    for k_up in 0..=n {
-        if k_up > 0 && up <= 0.0 {
-            break;
+    let term = |p: f64, k: usize| {
+        if k == 0 {
+            Some(0.0)
+        } else if p <= 0.0 {
+            None
+        } else {
+            Some(k as f64 * p.ln())
         }
-        // plus - minus >= t: minus <= plus - t.
-        let most_down = (k_up as i64 - t).min((n - k_up) as i64);
-        if most_down < 0 {
-            continue;
+    };
+    match (term(up, k_up), term(down, k_down), term(tie, k_tie)) {
+        (Some(a), Some(b), Some(c)) => {
+            (lnf[n] - lnf[k_up] - lnf[k_down] - lnf[k_tie] + a + b + c).exp()
         }
-        for k_down in 0..=most_down as usize {
-            if k_down > 0 && down <= 0.0 {
-                break;
-            }
-            let k_tie = n - k_up - k_down;
-            if k_tie > 0 && tie <= 0.0 {
-                continue;
-            }
-            let ln_p = lnf[n] - lnf[k_up] - lnf[k_down] - lnf[k_tie]
-                + ln(up, k_up)
-                + ln(down, k_down)
-                + ln(tie, k_tie);
-            total += ln_p.exp();
-        }
+        _ => 0.0,
     }
-    total.min(1.0)
 }
 
-/// The largest of `f` over [lo, hi]: the best of [`GRID`] evenly spaced points,
-/// then golden-section search between its neighbours.
-fn sup_on(lo: f64, hi: f64, f: impl Fn(f64) -> f64) -> f64 {
-    if hi <= lo {
-        return f(lo);
-    }
-    let step = (hi - lo) / (GRID - 1) as f64;
-    let (mut best_x, mut best) = (lo, f(lo));
-    for i in 1..GRID {
-        let x = lo + step * i as f64;
-        let v = f(x);
-        if v > best {
-            (best_x, best) = (x, v);
+/// The score statistic of outcome (plus, minus) of n pairs for "delta >
+/// -margin" (Nam 1997, Tango 1998): z = (d + margin) / sqrt(v / n), d = (plus -
+/// minus) / n, with the variance v = p+ + p- - (p+ - p-)^2 at the cells'
+/// maximum-likelihood probabilities under delta = -margin: p- the larger root
+/// of 2n q^2 - (x + y + margin (x + 3y + 2t)) q + y margin (1 + margin) = 0
+/// (x = plus, y = minus, t ties), p+ = p- - margin. Unlike the Wald statistic's
+/// observed variance, it is never 0: all pairs alike is strong evidence only
+/// as far as the null makes it unlikely.
+fn statistic(plus: usize, minus: usize, n: usize, margin: f64) -> f64 {
+    let nf = n as f64;
+    let (x, y) = (plus as f64, minus as f64);
+    let t = nf - x - y;
+    let b = x + y + margin * (x + 3.0 * y + 2.0 * t);
+    let c = y * margin * (1.0 + margin);
+    let q = (b + (b * b - 8.0 * nf * c).max(0.0).sqrt()) / (4.0 * nf);
+    let v = (2.0 * q - margin - margin * margin).max(1e-300);
+    let d = (x - y) / nf;
+    (d + margin) / (v / nf).sqrt()
+}
+
+/// The points (p+, p-) of the null "delta <= -margin" the p-values are maximised over.
+fn null_points(margin: f64) -> Vec<(f64, f64)> {
+    let hi = (1.0 - margin) / 2.0;
+    let mut pts: Vec<(f64, f64)> = (0..BOUNDARY_POINTS)
+        .map(|i| hi * i as f64 / (BOUNDARY_POINTS - 1) as f64)
+        .map(|x| (x, x + margin))
+        .collect();
+    for i in 0..=INTERIOR_STEPS {
+        let down = margin + (1.0 - margin) * i as f64 / INTERIOR_STEPS as f64;
+        let top = (down - margin).min(1.0 - down);
+        for j in 0..INTERIOR_STEPS {
+            pts.push((top * j as f64 / INTERIOR_STEPS as f64, down));
         }
     }
-    let (mut a, mut b) = ((best_x - step).max(lo), (best_x + step).min(hi));
-    let g = (5f64.sqrt() - 1.0) / 2.0;
-    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
-    let (mut fc, mut fd) = (f(c), f(d));
-    for _ in 0..60 {
-        if fc > fd {
-            (b, d, fd) = (d, c, fc);
-            c = b - g * (b - a);
-            fc = f(c);
-        } else {
-            (a, c, fc) = (c, d, fd);
-            d = a + g * (b - a);
-            fd = f(d);
+    pts
+}
+
+/// The p-values of every outcome of `n` pairs for non-inferiority at `margin`
+/// where yes is better: H0 "delta <= -margin" (b is worse than a by the margin
+/// or more) against "delta > -margin".
+#[derive(Debug, Clone)]
+pub struct NonInferiority {
+    n: usize,
+    /// p-value of outcome (plus, minus) at `plus * (n + 1) + minus`.
+    p: Vec<f64>,
+}
+
+impl NonInferiority {
+    /// The table for `n` pairs at `margin` (in (0, 1)).
+    pub fn new(n: usize, margin: f64) -> Self {
+        assert!(margin > 0.0 && margin < 1.0, "margin {margin}");
+        let lnf = ln_factorials(n);
+        // Outcomes from the strongest evidence down, grouped where the statistic ties.
+        let mut outcomes: Vec<(usize, usize, f64)> = (0..=n)
+            .flat_map(|a| (0..=n - a).map(move |b| (a, b)))
+            .map(|(a, b)| (a, b, statistic(a, b, n, margin)))
+            .collect();
+        outcomes.sort_by(|x, y| y.2.total_cmp(&x.2));
+        let mut group = Vec::with_capacity(outcomes.len());
+        let mut g = 0;
+        for k in 0..outcomes.len() {
+            if k > 0 && outcomes[k].2 != outcomes[k - 1].2 {
+                g += 1;
+            }
+            group.push(g);
         }
+        let groups = g + 1;
+        // For each group, the largest probability over the null of reaching it.
+        let mut worst = vec![0.0f64; groups];
+        let mut cum = vec![0.0f64; groups];
+        for (up, down) in null_points(margin) {
+            cum.iter_mut().for_each(|c| *c = 0.0);
+            for (k, &(a, b, _)) in outcomes.iter().enumerate() {
+                cum[group[k]] += trinomial(n, a, b, up, down, &lnf);
+            }
+            let mut running = 0.0;
+            for (c, w) in cum.iter().zip(worst.iter_mut()) {
+                running += c;
+                *w = w.max(running);
+            }
+        }
+        let mut p = vec![1.0; (n + 1) * (n + 1)];
+        for (k, &(a, b, _)) in outcomes.iter().enumerate() {
+            p[a * (n + 1) + b] = worst[group[k]].min(1.0);
+        }
+        NonInferiority { n, p }
     }
-    best.max(fc).max(fd)
+
+    /// The p-value of `plus` pairs where only b said yes and `minus` where only a did.
+    pub fn p(&self, plus: usize, minus: usize) -> f64 {
+        assert!(
+            plus + minus <= self.n,
+            "{plus} + {minus} discordant pairs of {}",
+            self.n
+        );
+        self.p[plus * (self.n + 1) + minus]
+    }
 }
 
 /// The exact unconditional p-value of non-inferiority for paired yes/no
-/// outcomes where yes is better: H0 "delta <= -margin" (b is worse than a by
-/// the margin or more) against "delta > -margin", from `plus` pairs where only
-/// b said yes and `minus` where only a did, of `n` pairs. `margin` in (0, 1).
+/// outcomes where yes is better ([`NonInferiority`]), from `plus` pairs where
+/// only b said yes and `minus` where only a did, of `n` pairs; 1 without pairs.
 /// Reject H0 at level alpha when the p-value is at most alpha.
 pub fn noninferiority_p(plus: usize, minus: usize, n: usize, margin: f64) -> f64 {
-    assert!(
-        plus + minus <= n,
-        "{plus} + {minus} discordant pairs of {n}"
-    );
-    assert!(margin > 0.0 && margin < 1.0, "margin {margin}");
     if n == 0 {
         return 1.0;
     }
-    let lnf = ln_factorials(n);
-    let t = plus as i64 - minus as i64;
-    // The boundary delta = -margin: p+ = x, p- = x + margin, x in [0, (1 - margin) / 2].
-    sup_on(0.0, (1.0 - margin) / 2.0, |x| {
-        upper_tail(n, x, x + margin, t, &lnf)
-    })
+    NonInferiority::new(n, margin).p(plus, minus)
 }
 
 /// The same where no is better (a run with a collision): H0 "delta >= margin"
@@ -141,52 +187,38 @@ pub fn equivalence_p(plus: usize, minus: usize, n: usize, margin: f64) -> f64 {
 mod tests {
     use super::*;
 
-    /// Every (plus, minus) outcome of n pairs with its p-value from `p`, which
-    /// depends on plus - minus only (computed once for each).
-    fn outcomes(n: usize, p: impl Fn(usize, usize) -> f64) -> Vec<(usize, usize, f64)> {
-        let mut by_t = std::collections::HashMap::new();
-        (0..=n)
-            .flat_map(|a| (0..=n - a).map(move |b| (a, b)))
-            .map(|(a, b)| {
-                let t = a as i64 - b as i64;
-                let v = *by_t.entry(t).or_insert_with(|| p(a, b));
-                (a, b, v)
-            })
-            .collect()
-    }
-
-    /// The probability, at cell probabilities (up, down), that the test rejects at `alpha`.
+    /// The probability, at cell probabilities (up, down), that the test whose
+    /// p-values are `table` rejects at `alpha`.
     fn rejection_probability(
         n: usize,
-        table: &[(usize, usize, f64)],
+        table: &NonInferiority,
         alpha: f64,
         up: f64,
         down: f64,
     ) -> f64 {
         let lnf = ln_factorials(n);
-        let tie = 1.0 - up - down;
-        let ln = |p: f64, k: usize| if k == 0 { 0.0 } else { k as f64 * p.ln() };
-        table
-            .iter()
-            .filter(|(_, _, p)| *p <= alpha)
-            .map(|&(a, b, _)| {
-                (lnf[n] - lnf[a] - lnf[b] - lnf[n - a - b]
-                    + ln(up, a)
-                    + ln(down, b)
-                    + ln(tie, n - a - b))
-                .exp()
-            })
+        (0..=n)
+            .flat_map(|a| (0..=n - a).map(move |b| (a, b)))
+            .filter(|&(a, b)| table.p(a, b) <= alpha)
+            .map(|(a, b)| trinomial(n, a, b, up, down, &lnf))
             .sum()
     }
 
-    /// The largest rejection probability at `alpha` on the null's boundary, on a
-    /// grid of 20001 points that is not the test's own; `table` holds every
-    /// outcome's p-value for n pairs at `margin`.
-    fn size_at_margin(n: usize, margin: f64, table: &[(usize, usize, f64)], alpha: f64) -> f64 {
+    /// The largest rejection probability over the null on grids the test does not
+    /// use: 20001 points of the boundary and a 57 x 57 grid of the interior.
+    fn size(n: usize, margin: f64, table: &NonInferiority, alpha: f64) -> f64 {
         let hi = (1.0 - margin) / 2.0;
-        (0..=20_000)
+        let boundary = (0..=20_000)
             .map(|i| hi * (i as f64 + 0.37) / 20_000.37)
-            .map(|x| rejection_probability(n, table, alpha, x, x + margin))
+            .map(|x| (x, x + margin));
+        let interior = (0..57).flat_map(|i| {
+            let down = margin + (1.0 - margin) * (i as f64 + 0.5) / 57.0;
+            let top = (down - margin).min(1.0 - down);
+            (0..57).map(move |j| (top * (j as f64 + 0.5) / 57.0, down))
+        });
+        boundary
+            .chain(interior)
+            .map(|(up, down)| rejection_probability(n, table, alpha, up, down))
             .fold(0.0, f64::max)
     }
 
@@ -196,9 +228,9 @@ mod tests {
         // its family of 28 tests.
         let n = 36;
         for margin in [1.0 / 6.0, 1.0 / 12.0, 0.25] {
-            let table = outcomes(n, |a, b| noninferiority_p(a, b, n, margin));
+            let table = NonInferiority::new(n, margin);
             for alpha in [0.05, 0.05 / 28.0] {
-                let size = size_at_margin(n, margin, &table, alpha);
+                let size = size(n, margin, &table, alpha);
                 eprintln!("36 pairs, margin {margin:.4}, alpha {alpha:.5}: size {size:.5}");
                 assert!(size <= alpha, "margin {margin}, alpha {alpha}: size {size}");
                 // And the test is not empty: it rejects with some probability.
@@ -213,83 +245,87 @@ mod tests {
     #[test]
     fn the_shifted_sign_flip_it_replaces_rejects_too_often_at_the_margin() {
         // Issue 50's finding, reproduced: 36 pairs, margin 1/6, nominal 5 %.
-        let n = 36;
-        let margin = 1.0 / 6.0;
-        // Its p-value depends on both cells, not on their difference only.
-        let table: Vec<(usize, usize, f64)> = (0..=n)
+        let (n, margin) = (36, 1.0 / 6.0);
+        let lnf = ln_factorials(n);
+        let rejects: Vec<(usize, usize)> = (0..=n)
             .flat_map(|a| (0..=n - a).map(move |b| (a, b)))
-            .map(|(a, b)| (a, b, shifted_sign_flip(a, b)))
+            .filter(|&(a, b)| {
+                let mut d = vec![1.0 + margin; a];
+                d.extend(std::iter::repeat_n(-1.0 + margin, b));
+                d.extend(std::iter::repeat_n(margin, n - a - b));
+                super::super::exact::sign_flip_p(&d, super::super::exact::Alternative::Greater)
+                    <= 0.05
+            })
             .collect();
         let hi = (1.0 - margin) / 2.0;
         let worst = (0..=2000)
             .map(|i| hi * i as f64 / 2000.0)
-            .map(|x| rejection_probability(n, &table, 0.05, x, x + margin))
+            .map(|x| {
+                rejects
+                    .iter()
+                    .map(|&(a, b)| trinomial(n, a, b, x, x + margin, &lnf))
+                    .sum::<f64>()
+            })
             .fold(0.0, f64::max);
         eprintln!("the shifted sign-flip test at margin 1/6, nominal 0.05: size {worst:.4}");
         assert!(worst > 0.055, "{worst}");
     }
 
-    /// The shifted sign-flip p-value of 36 pairs at margin 1/6 (issue 50).
-    fn shifted_sign_flip(a: usize, b: usize) -> f64 {
-        let (n, margin) = (36, 1.0 / 6.0);
-        {
-            let mut d = vec![1.0 + margin; a];
-            d.extend(std::iter::repeat_n(-1.0 + margin, b));
-            d.extend(std::iter::repeat_n(margin, n - a - b));
-            super::super::exact::sign_flip_p(&d, super::super::exact::Alternative::Greater)
-        }
-    }
-
     #[test]
-    fn the_p_value_is_the_largest_tail_on_the_boundary() {
-        // 5 pairs, 3 for b, 0 for a, margin 0.2: the tail P(plus - minus >= 3) at
-        // every boundary point of a fine grid is at most the p-value, and one comes
-        // within 1e-9 of it.
-        let (n, m) = (5, 0.2);
-        let p = noninferiority_p(3, 0, n, m);
+    fn a_p_value_bounds_the_tail_at_every_null_point() {
+        // 12 pairs at margin 0.2: for each outcome, the probability of an outcome
+        // ranked at least as high is at most its p-value at points of the null the
+        // test did not search (to 1e-6: the test searches a grid), and reaches it
+        // within 1e-3 somewhere on the boundary.
+        let (n, m) = (12, 0.2);
+        let table = NonInferiority::new(n, m);
         let lnf = ln_factorials(n);
-        let hi = (1.0 - m) / 2.0;
-        let tails: Vec<f64> = (0..=100_000)
-            .map(|i| hi * i as f64 / 100_000.0)
-            .map(|x| upper_tail(n, x, x + m, 3, &lnf))
+        let all: Vec<(usize, usize)> = (0..=n)
+            .flat_map(|a| (0..=n - a).map(move |b| (a, b)))
             .collect();
-        let best = tails.iter().copied().fold(0.0, f64::max);
-        assert!(best <= p + 1e-12 && p - best < 1e-9, "{p} {best}");
-        // The tail by brute force over the 3^5 outcomes at one point.
-        let (up, down) = (0.3, 0.5);
-        let mut brute = 0.0;
-        for code in 0..3usize.pow(5) {
-            let (mut c, mut s, mut pr) = (code, 0i64, 1.0);
-            for _ in 0..5 {
-                match c % 3 {
-                    0 => (s, pr) = (s + 1, pr * up),
-                    1 => (s, pr) = (s - 1, pr * down),
-                    _ => pr *= 1.0 - up - down,
-                }
-                c /= 3;
+        let hi = (1.0 - m) / 2.0;
+        for &(a, b) in &all {
+            let z = statistic(a, b, n, m);
+            let tail = |up: f64, down: f64| -> f64 {
+                all.iter()
+                    .filter(|&&(c, d)| statistic(c, d, n, m) >= z)
+                    .map(|&(c, d)| trinomial(n, c, d, up, down, &lnf))
+                    .sum()
+            };
+            let p = table.p(a, b);
+            let mut best = 0.0f64;
+            for i in 0..=997 {
+                let x = hi * (i as f64 + 0.5) / 998.0;
+                best = best.max(tail(x, x + m));
             }
-            if s >= 3 {
-                brute += pr;
+            for (up, down) in [(0.0, 0.9), (0.1, 0.5), (0.05, 0.3), (0.3, 0.6)] {
+                assert!(tail(up, down) <= p + 1e-6, "({a}, {b}) at ({up}, {down})");
             }
+            // The test's own grid of the boundary finds its largest point to 1e-6.
+            assert!(
+                best <= p + 1e-6 && p - best < 1e-3,
+                "({a}, {b}): {p} {best}"
+            );
         }
-        assert!((upper_tail(5, up, down, 3, &lnf) - brute).abs() < 1e-14);
     }
 
     #[test]
-    fn equivalence_needs_both_sides_and_more_evidence_gives_smaller_p() {
+    fn all_pairs_alike_shows_equivalence_and_equivalence_needs_both_sides() {
         let n = 36;
-        // All ties: no evidence of a difference either way.
-        let p_ties = equivalence_p(0, 0, n, 1.0 / 6.0);
-        // b wins 12 more pairs than a: far from equivalent.
-        let p_apart = equivalence_p(12, 0, n, 1.0 / 6.0);
-        assert!(p_ties < p_apart, "{p_ties} {p_apart}");
-        assert!(p_apart > 0.5);
+        // 36 ties: equivalent within 1/6 at 1 % (the null's likeliest way to give
+        // them, p- = 1/6 and p+ = 0, gives all 36 alike with probability 0.0014; the
+        // outcomes ranked above them add the rest).
+        let ties = equivalence_p(0, 0, n, 1.0 / 6.0);
+        assert!(ties > (5.0f64 / 6.0).powi(36) && ties < 0.01, "{ties}");
+        // b wins 12 more pairs than a: far from equivalent, though not inferior.
+        assert!(equivalence_p(12, 0, n, 1.0 / 6.0) > 0.5);
+        assert!(noninferiority_p(12, 0, n, 1.0 / 6.0) < 1e-3);
         assert_eq!(
             equivalence_p(3, 1, n, 0.25),
             noninferiority_p(3, 1, n, 0.25).max(noninferiority_p(1, 3, n, 0.25))
         );
-        // More pairs, same shares: smaller p.
-        assert!(noninferiority_p(0, 0, 72, 1.0 / 6.0) < noninferiority_p(0, 0, 36, 1.0 / 6.0));
+        // More pairs, the same shares: a smaller p.
+        assert!(noninferiority_p(2, 1, 72, 1.0 / 6.0) < noninferiority_p(1, 0, 36, 1.0 / 6.0));
         // The lower-is-better test is the mirror image.
         assert_eq!(
             noninferiority_lower_p(2, 5, n, 0.1),
