@@ -147,6 +147,11 @@ fn npcs_drive_every_turn_of_carlas_towns_without_touching_a_curb() {
 
 /// Two simulated minutes with 20 vehicles and 40 pedestrians under the real light controller.
 fn soak_two_minutes(town: Arc<Town>, seed: u64) -> world::traffic::TrafficStats {
+    soak(town, seed, 120).stats()
+}
+
+/// 20 vehicles and 40 walkers (`seed`) driven `seconds` under the town's cycling lights.
+fn soak(town: Arc<Town>, seed: u64, seconds: u32) -> Traffic {
     let cfg = TrafficConfig {
         vehicles: 20,
         pedestrians: 40,
@@ -157,7 +162,7 @@ fn soak_two_minutes(town: Arc<Town>, seed: u64) -> world::traffic::TrafficStats 
     let n = town.lights.len();
     let mut tr = Traffic::new(town, cfg, None);
     let mut states = Vec::new();
-    for tick in 0..(40 * 120) {
+    for tick in 0..(40 * seconds) {
         if tick > 0 {
             lights.step(f64::from(world::physics::DT_S));
         }
@@ -165,7 +170,7 @@ fn soak_two_minutes(town: Arc<Town>, seed: u64) -> world::traffic::TrafficStats 
         states.extend((0..n).map(|i| lights.state(LightIdx(i as u32))));
         tr.step(&states);
     }
-    tr.stats()
+    tr
 }
 
 fn assert_clean(name: &str, s: world::traffic::TrafficStats) {
@@ -341,5 +346,68 @@ fn a_sweep_follows_a_chain_of_short_pieces_so_parallel_movements_do_not_conflict
                 assert!(off < 1.0, "piece #{} swept {off:.2} m off at {p}", piece.0);
             }
         }
+    }
+}
+
+#[test]
+fn a_car_on_a_road_shorter_than_its_release_gives_back_the_junction_behind_it() {
+    // Town03's road 14 is 6.4 m between junctions 685 and 678. A car that came out of
+    // 685 and waits at 678's entry had its rear less than a metre past 685, so it kept
+    // 685's lane, and could not ask for 678's (one reservation at a time): it stood
+    // there holding #715 while the cars asking for #715 stood behind it (seed 1: from
+    // 80 s on, 779 s by 800 s). Now a car whose rear has left its junction gives it
+    // back once it stands at the next junction's entry.
+    let Some(town) = carla(
+        "a_car_on_a_road_shorter_than_its_release_gives_back_the_junction_behind_it",
+        "Town03",
+    ) else {
+        return;
+    };
+    let tr = soak(town.clone(), 1, 180);
+    let stuck: Vec<String> = tr
+        .incidents()
+        .iter()
+        .filter(|i| i.kind == world::traffic::IncidentKind::Deadlock)
+        .filter(|i| {
+            i.a.reservation.is_some() && i.a.lane.as_ref().is_some_and(|l| l.junction.is_none())
+        })
+        .map(|i| i.to_string())
+        .collect();
+    assert!(stuck.is_empty(), "{stuck:#?}");
+}
+
+#[test]
+fn a_car_waits_clear_of_a_turn_that_swings_over_its_usual_place() {
+    // Town03's junction 813: the right turn of road 822 swings its body over the lane
+    // of road 22 where cars wait to enter #815 (road 817); they wait 1.5 m further
+    // back. Town01, Town02 and our towns have no such place: every car waits where it
+    // did, so their traffic is unchanged.
+    let test = "a_car_waits_clear_of_a_turn_that_swings_over_its_usual_place";
+    let Some(town03) = carla(test, "Town03") else {
+        return;
+    };
+    let conflicts = world::rules::JunctionConflicts::new(&town03);
+    let entry = entry_piece(&town03, "817", -1);
+    assert!(conflicts.hold_back_m(entry) > 0.0);
+    let mut towns: Vec<(String, Arc<Town>)> = [
+        GridTownParams::gen01(),
+        GridTownParams::gen02(),
+        GridTownParams::gen03(),
+    ]
+    .into_iter()
+    .map(|p| (p.name.clone(), generated(p)))
+    .collect();
+    for name in ["Town01", "Town02"] {
+        towns.push((
+            name.into(),
+            carla(test, name).expect("CARLA's towns are there"),
+        ));
+    }
+    for (name, town) in towns {
+        let c = world::rules::JunctionConflicts::new(&town);
+        let held: Vec<usize> = (0..town.lanes.len())
+            .filter(|&i| c.hold_back_m(LaneIdx(i as u32)) > 0.0)
+            .collect();
+        assert!(held.is_empty(), "{name}: {held:?}");
     }
 }

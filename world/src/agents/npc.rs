@@ -409,12 +409,15 @@ pub fn decide(
             accel = accel.min(free + idm_term(p, v, end, 0.0, p.stop_gap_m));
         }
     }
-    // Junction entry without a reservation.
+    // Junction entry without a reservation: wait before it, further back where a
+    // car of another movement would swing over the usual place (`hold_back_m`).
     if let Some((lane, d)) = next_junction_lane(town, npc, vp)
         && npc.reservation != Some(lane)
         && d > -0.5
     {
-        accel = accel.min(free + idm_term(p, v, d, 0.0, p.stop_gap_m));
+        let back = rules.conflicts.hold_back_m(lane);
+        let gap = if d - back > -0.5 { d - back } else { d };
+        accel = accel.min(free + idm_term(p, v, gap, 0.0, p.stop_gap_m));
     }
     accel = accel.clamp(-vp.brake_decel_mps2, p.max_accel_mps2);
 

@@ -67,6 +67,10 @@ pub struct JunctionConflicts {
     /// Each lane's [`movement`], where it is more than the lane itself (a
     /// junction with chained lanes); empty otherwise.
     movements: Vec<Vec<LaneIdx>>,
+    /// For each entry lane of a junction, how far before its usual waiting
+    /// place a car waits for it (metres; 0 almost everywhere): see
+    /// [`JunctionConflicts::hold_back_m`].
+    hold_back: Vec<f32>,
 }
 
 /// Where a car's body is while it drives one connecting lane: its centre
@@ -107,11 +111,31 @@ impl JunctionConflicts {
             }
         }
         let half = vp.half_extents() + Vec2::splat(CLEARANCE_M * 0.5);
+        let mut hold_back = vec![0.0; town.lanes.len()];
         for lanes in by_junction.values() {
             let sweeps: Vec<Sweep> = lanes
                 .iter()
                 .map(|&l| lane_sweep(town, vp, lateral_accel_mps2, LaneIdx(l as u32)))
                 .collect();
+            // A car enters a turn faster than the sweep's curve speed (it brakes
+            // into it) and swings wider: the places where cars wait are kept clear
+            // of that drive too.
+            let entering: Vec<Sweep> = lanes
+                .iter()
+                .map(|&l| {
+                    let v = entry_speed_mps(town, LaneIdx(l as u32), lateral_accel_mps2);
+                    sweep(town, vp, v, LaneIdx(l as u32))
+                })
+                .collect();
+            for &entry in lanes {
+                hold_back[entry] = entry_hold_back_m(
+                    town,
+                    vp,
+                    LaneIdx(entry as u32),
+                    lanes,
+                    &[&sweeps, &entering],
+                );
+            }
             for (k, &a) in lanes.iter().enumerate() {
                 for (m, &b) in lanes.iter().enumerate().skip(k + 1) {
                     if centrelines_within(town, a, b, CONFLICT_M)
@@ -142,7 +166,23 @@ impl JunctionConflicts {
             by_lane,
             gives_way_to,
             movements,
+            hold_back,
         }
+    }
+
+    /// How far before the usual place a car waits to enter junction lane
+    /// `lane` (metres): 0, unless a car standing there, its front bumper
+    /// [`WAIT_GAP_M`] before the lane, would be touched by a car driving
+    /// another movement of the junction, swept at its curve speeds or at the
+    /// speed it enters the turn with ([`entry_speed_mps`]): a right turn too
+    /// tight to steer swings its body over the lane beside its exit, where the
+    /// cars of that road wait for their turn (Town03's junction 813). Then the
+    /// car waits this much further back, the first place every such sweep
+    /// misses, in steps of [`SWEEP_STEP_M`] up to [`MAX_HOLD_BACK_M`]. 0 for a
+    /// lane outside junctions or not entered from outside its junction, and for
+    /// every lane of Town01, Town02 and our generated towns.
+    pub fn hold_back_m(&self, lane: LaneIdx) -> f32 {
+        self.hold_back.get(lane.0 as usize).copied().unwrap_or(0.0)
     }
 
     /// The lanes `lane` conflicts with (none for a lane outside junctions).
@@ -170,6 +210,98 @@ impl JunctionConflicts {
             .get(lane.0 as usize)
             .map_or(&[], |v| &v[..])
     }
+}
+
+/// Where a car waits before a junction lane (front bumper to the lane's start,
+/// metres): the NPCs' standstill gap (`NpcParams::stop_gap_m`).
+pub const WAIT_GAP_M: f32 = 0.5;
+
+/// The farthest a car waits before its usual waiting place (metres).
+pub const MAX_HOLD_BACK_M: f32 = 8.0;
+
+/// The deceleration an NPC brakes into a curve with (metres per second
+/// squared; `NpcParams::comfort_decel_mps2`).
+const CURVE_BRAKE_MPS2: f32 = 3.0;
+
+/// The speed a car enters connecting lane `lane` with when it brakes into its
+/// sharpest curve at [`CURVE_BRAKE_MPS2`] and reaches that curve's speed there
+/// (metres per second; at most the lane's limit).
+pub fn entry_speed_mps(town: &Town, lane: LaneIdx, lateral_accel_mps2: f32) -> f32 {
+    let l = town.lane(lane);
+    let pts: Vec<Vec2> = l.centerline.iter().map(|p| p.truncate()).collect();
+    let sharpest = pts
+        .windows(3)
+        .enumerate()
+        .map(|(i, w)| (i + 1, curvature(w[0], w[1], w[2])))
+        .fold((0, 0.0f32), |a, b| if b.1 > a.1 { b } else { a });
+    if sharpest.1 <= 1e-4 {
+        return l.speed_limit_mps;
+    }
+    let vc = crate::rules::pursuit::curve_speed_mps(sharpest.1, lateral_accel_mps2);
+    let s = l.s.get(sharpest.0).copied().unwrap_or(0.0);
+    (vc * vc + 2.0 * CURVE_BRAKE_MPS2 * s)
+        .sqrt()
+        .min(l.speed_limit_mps)
+        .max(CREEP_MPS)
+}
+
+/// [`JunctionConflicts::hold_back_m`] for `entry`, a lane of the junction
+/// whose lanes are `lanes` (indices into the town's lanes), swept each way of
+/// `sweeps` (one sweep per lane, in `lanes`' order).
+fn entry_hold_back_m(
+    town: &Town,
+    vp: &VehicleParams,
+    entry: LaneIdx,
+    lanes: &[usize],
+    sweeps: &[&[Sweep]],
+) -> f32 {
+    let e = town.lane(entry);
+    // Entered from outside the junction (the first lane of a movement).
+    let approaches: Vec<LaneIdx> = e
+        .predecessors
+        .iter()
+        .copied()
+        .filter(|p| town.lanes[p.0 as usize].junction != e.junction)
+        .collect();
+    if approaches.is_empty() {
+        return 0.0;
+    }
+    // The lanes of movements from the same approach lanes: their cars queue
+    // with this one.
+    let same_approach = |l: usize| {
+        movement_before(town, LaneIdx(l as u32)).iter().any(|b| {
+            town.lanes[b.0 as usize]
+                .predecessors
+                .iter()
+                .any(|q| approaches.contains(q))
+        })
+    };
+    let others: Vec<&Sweep> = lanes
+        .iter()
+        .enumerate()
+        .filter(|&(_, &l)| !same_approach(l))
+        .flat_map(|(k, _)| sweeps.iter().map(move |s| &s[k]))
+        .collect();
+    let half = vp.half_extents() + Vec2::splat(CLEARANCE_M * 0.5);
+    let mut back = 0.0;
+    while back <= MAX_HOLD_BACK_M {
+        let clear = approaches.iter().all(|&a| {
+            let l = town.lane(a);
+            let s = l.length_m() - WAIT_GAP_M - vp.length_m * 0.5 - back;
+            let (p, yaw, _) = l.pose_at(s.max(0.0));
+            let standing = Sweep {
+                poses: vec![(p, Vec2::from_angle(yaw))],
+                lo: p,
+                hi: p,
+            };
+            others.iter().all(|o| !sweeps_touch(&standing, o, half))
+        });
+        if clear {
+            return back;
+        }
+        back += SWEEP_STEP_M;
+    }
+    MAX_HOLD_BACK_M
 }
 
 /// The lanes of the movement through a junction that starts at connecting lane

@@ -179,7 +179,16 @@ impl Traffic {
                     .find(|l| self.town.lanes[l.0 as usize].junction.is_some())
                     == Some(&res);
             let inside_or_ahead = inside || ahead;
-            let left = !inside_or_ahead && n.path.s_m > half + 1.0;
+            // Left: the rear a metre past the junction; or, on a road too short for
+            // that (Town03's road 14, 6.4 m between junctions 685 and 678), the rear
+            // past it and the front at the next junction's entry, where the car waits
+            // for a reservation it may ask for only once this one is given back.
+            let at_next_entry = || {
+                npc::next_junction_lane(&self.town, n, &vp)
+                    .is_some_and(|(l, d)| l != res && d < AT_ENTRY_M)
+            };
+            let left = !inside_or_ahead
+                && (n.path.s_m > half + 1.0 || (n.path.s_m > half && at_next_entry()));
             let lost = !inside_or_ahead
                 && !left
                 && now != rules::conflicts::movement_exit(&self.town, res);
@@ -321,6 +330,11 @@ pub const GRIDLOCK_AFTER_S: f32 = 5.0;
 
 /// How far along its path a standing car looks for the car it waits behind (metres).
 const WAIT_BEHIND_M: f32 = 30.0;
+
+/// Within this distance of a junction lane's start (front bumper, metres) a car
+/// stands at that junction's entry: it means to stop `NpcParams::stop_gap_m` (0.5 m)
+/// before it, and its IDM brakes it to a stop up to a metre and a half before.
+const AT_ENTRY_M: f32 = 2.0;
 
 impl Traffic {
     /// The NPC (index) holding a lane that conflicts with `lane`, other than `id`.
