@@ -180,6 +180,13 @@ fn count_files(dir: &Path, prefix: &str, suffix: &str) -> u32 {
     })
 }
 
+/// Episodes of the slice after the first `from`, up to `end`, whose files
+/// (`PREFIX-NNNNN.safetensors`) dataset folder `dir` does not hold yet.
+fn slice_left(dir: &Path, prefix: &str, from: u32, end: u32) -> f64 {
+    let have = count_files(dir, prefix, ".safetensors");
+    f64::from(end - have.clamp(from.min(end), end))
+}
+
 /// The step a run folder's state has reached (0 without one).
 fn run_step(run: &Path) -> u64 {
     let text = std::fs::read_to_string(run.join("state/progress.json")).unwrap_or_default();
@@ -194,20 +201,14 @@ impl Work {
     /// (the plan's working directory; absolute paths are left as they are).
     pub fn left(&self, dir: &Path) -> (Kind, f64) {
         match self {
-            Work::Collect { dir: d, from, end } => {
-                let have = count_files(&dir.join(d), "episode-", ".safetensors");
-                (
-                    Kind::Collect,
-                    f64::from(end - have.clamp(*from.min(end), *end)),
-                )
-            }
-            Work::Label { dir: d, from, end } => {
-                let have = count_files(&dir.join(d), "labels-", ".safetensors");
-                (
-                    Kind::Label,
-                    f64::from(end - have.clamp(*from.min(end), *end)),
-                )
-            }
+            Work::Collect { dir: d, from, end } => (
+                Kind::Collect,
+                slice_left(&dir.join(d), "episode-", *from, *end),
+            ),
+            Work::Label { dir: d, from, end } => (
+                Kind::Label,
+                slice_left(&dir.join(d), "labels-", *from, *end),
+            ),
             Work::Train {
                 run,
                 steps,
