@@ -93,6 +93,11 @@ pub struct Npc {
     pub path: LanePath,
     /// The connecting lane it may enter, if granted.
     pub reservation: Option<LaneIdx>,
+    /// The connecting lane it still holds while its rear leaves it, once the
+    /// next one was granted: two junctions less than a car length apart
+    /// (Town03's road 14), where it stands at the second's entry with its rear
+    /// still in the first ([`crate::traffic::Reservations`]).
+    pub leaving: Option<LaneIdx>,
     /// The connecting lane it is asking for and the tick it started asking.
     pub request: Option<(LaneIdx, u64)>,
     /// The lane change it has planned for its next turn, if any.

@@ -340,6 +340,39 @@ fn along_movement(
     found
 }
 
+/// The lane a car enters junction lane `lane`'s movement from: the last lane
+/// before its junction, following first predecessors (None for a lane
+/// outside junctions or one no lane leads to).
+pub fn movement_entry(town: &Town, lane: LaneIdx) -> Option<LaneIdx> {
+    let junction = town.lanes[lane.0 as usize].junction?;
+    let mut at = lane;
+    for _ in 0..town.lanes.len() {
+        let &prev = town.lanes[at.0 as usize].predecessors.first()?;
+        if town.lanes[prev.0 as usize].junction != Some(junction) {
+            return Some(prev);
+        }
+        at = prev;
+    }
+    None
+}
+
+/// Whether connecting lanes `a` and `b` belong to two movements driven side
+/// by side: from neighbouring lanes of one road into the neighbouring lanes
+/// of one road, the one on the right staying on the right (a double right
+/// turn, two lanes going straight on). Such lanes may still conflict: their
+/// cars' bodies come close where one lags the other by part of the turn
+/// (Town06's junction 509, Town03's 545), not where they drive beside each
+/// other; [`crate::traffic::Reservations`] lets them enter together. Town01,
+/// Town02 and our generated towns with one lane each way have no such pairs.
+pub fn side_by_side(town: &Town, a: LaneIdx, b: LaneIdx) -> bool {
+    let (Some(ia), Some(ib)) = (movement_entry(town, a), movement_entry(town, b)) else {
+        return false;
+    };
+    let (oa, ob) = (movement_exit(town, a), movement_exit(town, b));
+    let (ia, oa) = (&town.lanes[ia.0 as usize], &town.lanes[oa.0 as usize]);
+    (ia.right == Some(ib) && oa.right == Some(ob)) || (ia.left == Some(ib) && oa.left == Some(ob))
+}
+
 /// The lane a car leaves `entry`'s movement by: the first lane out of the
 /// junction, following first successors (`entry` itself if it leads nowhere).
 pub fn movement_exit(town: &Town, entry: LaneIdx) -> LaneIdx {

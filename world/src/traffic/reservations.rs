@@ -14,6 +14,13 @@
 //! waits while a vehicle is about to enter that lane
 //! ([`Traffic::must_give_way`], [`rules::must_give_way`]).
 //!
+//! Two refinements: where two junctions are closer than a car
+//! (`chained_junctions`), a car asks for the next junction's lane while it
+//! still holds the last (`Npc::leaving` until its rear is out); and the cars
+//! standing at the entries of a double turn's two lanes
+//! ([`rules::conflicts::side_by_side`]) enter together
+//! (`Traffic::free_but_beside`).
+//!
 //! A circle of cars each waiting for the next (four cars round a full
 //! roundabout, each with no room on the ring after its junction) would wait
 //! forever: after [`GRIDLOCK_AFTER_S`] of standing, its cars that wait for
@@ -21,8 +28,9 @@
 //! (`break_gridlocks`).
 
 use super::Traffic;
+use crate::agents::VehicleParams;
 use crate::agents::npc::{self, Npc};
-use crate::map::{LaneIdx, LightIdx, LightState};
+use crate::map::{LaneIdx, LightIdx, LightState, Town};
 use crate::rules::{self, JunctionConflicts};
 
 /// Junction reservations: who holds which connecting lane.
@@ -160,49 +168,20 @@ impl Traffic {
     pub(super) fn update_reservations(&mut self, lights: &[LightState]) {
         let tick = self.stats.ticks;
         let vp = self.cfg.vehicle;
-        let half = vp.length_m * 0.5;
         // Release: left the junction, or now stopping for a light before it.
         for i in 0..self.npcs.len() {
             let n = &self.npcs[i];
-            let Some(res) = n.reservation else { continue };
-            // In its movement (the reserved lane and the lanes of its junction after
-            // it: `rules::conflicts::movement`), or it is the next junction lane on
-            // the path (a path round a roundabout may come back to the same lane
-            // later: that is not this one).
-            let now = n.path.lane();
-            let in_junction = self.town.lanes[now.0 as usize].junction.is_some();
-            let inside = in_junction && self.rules.conflicts.in_movement(res, now);
-            let ahead = !in_junction
-                && n.path
-                    .lanes
-                    .iter()
-                    .find(|l| self.town.lanes[l.0 as usize].junction.is_some())
-                    == Some(&res);
-            let inside_or_ahead = inside || ahead;
-            // Left: the rear a metre past the junction; or, on a road too short for
-            // that (Town03's road 14, 6.4 m between junctions 685 and 678), the rear
-            // past it and the front at the next junction's entry, where the car waits
-            // for a reservation it may ask for only once this one is given back.
-            let at_next_entry = || {
-                npc::next_junction_lane(&self.town, n, &vp)
-                    .is_some_and(|(l, d)| l != res && d < AT_ENTRY_M)
-            };
-            let left = !inside_or_ahead
-                && (n.path.s_m > half + 1.0 || (n.path.s_m > half && at_next_entry()));
-            let lost = !inside_or_ahead
-                && !left
-                && now != rules::conflicts::movement_exit(&self.town, res);
-            let before = ahead;
-            let entry = npc::next_junction_lane(&self.town, n, &vp)
-                .filter(|(l, _)| *l == res)
-                .map(|(_, d)| d);
-            let stop_for_light = before
-                && entry.is_some_and(|d_entry| {
-                    self.light_stop(n, lights)
-                        .is_some_and(|(stop, d, _)| stop && d > -0.3 && d <= d_entry + 0.1)
-                });
-            if left || lost || stop_for_light {
-                let id = n.id;
+            let id = n.id;
+            if let Some(res) = n.leaving
+                && self.gives_back(n, res, lights)
+            {
+                self.reservations.release(res, id);
+                self.npcs[i].leaving = None;
+            }
+            let n = &self.npcs[i];
+            if let Some(res) = n.reservation
+                && self.gives_back(n, res, lights)
+            {
                 self.reservations.release(res, id);
                 self.npcs[i].reservation = None;
             }
@@ -215,10 +194,19 @@ impl Traffic {
                 n.request = None;
                 continue;
             };
-            if n.reservation.is_some() {
-                // One reservation at a time: the next is asked for once the last is released.
-                n.request = None;
-                continue;
+            // One reservation at a time: the next is asked for once the last is
+            // given back; but where the road between the two junctions is too
+            // short for a car waiting at the second to have left the first
+            // (`chained_junctions`), it asks while it holds the last, which it
+            // keeps as `leaving`.
+            if let Some(res) = n.reservation {
+                let chained = n.leaving.is_none()
+                    && lane != res
+                    && chained_junctions(&self.town, &self.rules.conflicts, &vp, n, res, lane, d);
+                if !chained {
+                    n.request = None;
+                    continue;
+                }
             }
             let v = n.state.speed_mps;
             let near = d < v * v / (2.0 * self.cfg.npc.comfort_decel_mps2) + 10.0;
@@ -270,7 +258,9 @@ impl Traffic {
             if self.must_give_way(lane, id) {
                 continue;
             }
-            if queued_behind || !self.reservations.free_for(&self.rules.conflicts, lane, id) {
+            let free = self.reservations.free_for(&self.rules.conflicts, lane, id)
+                || self.free_but_beside(lane, id, d_entry);
+            if queued_behind || !free {
                 waiting.push(lane);
                 if let Some(h) = self.conflicting_holder(lane, id) {
                     held_by.push((i, h));
@@ -313,9 +303,7 @@ impl Traffic {
                 continue;
             }
             self.reservations.grant(lane, id);
-            let n = &mut self.npcs[i];
-            n.reservation = Some(lane);
-            n.request = None;
+            self.npcs[i].take_grant(lane);
         }
         self.break_gridlocks(&occ, &room_waits, &held_by);
         if let Some(l) = ego_junction_lane {
@@ -331,12 +319,131 @@ pub const GRIDLOCK_AFTER_S: f32 = 5.0;
 /// How far along its path a standing car looks for the car it waits behind (metres).
 const WAIT_BEHIND_M: f32 = 30.0;
 
+/// How far (front bumper, metres) a car may have driven into its lane for a
+/// car beside it to enter the neighbouring lane with it
+/// (`Traffic::free_but_beside`): two cars that move off a stop line together.
+const ENTER_TOGETHER_M: f32 = 2.0;
+
 /// Within this distance of a junction lane's start (front bumper, metres) a car
 /// stands at that junction's entry: it means to stop `NpcParams::stop_gap_m` (0.5 m)
 /// before it, and its IDM brakes it to a stop up to a metre and a half before.
 const AT_ENTRY_M: f32 = 2.0;
 
+/// Whether NPC `n`, on the exit of junction lane `res` and `d_m` (front
+/// bumper, metres) before the entry of the next junction's lane `next`,
+/// would stand waiting for `next` with its rear still less than the release
+/// distance (1 m) out of `res`'s junction: the road between them is shorter
+/// than a car length, that metre, the place it waits back from the entry
+/// (`JunctionConflicts::hold_back_m`) and the slack of its stop
+/// ([`AT_ENTRY_M`]). Town03's road 14 (6.4 m between junctions 685 and 678).
+fn chained_junctions(
+    town: &Town,
+    conflicts: &JunctionConflicts,
+    vp: &VehicleParams,
+    n: &Npc,
+    res: LaneIdx,
+    next: LaneIdx,
+    d_m: f32,
+) -> bool {
+    let on_exit = n.path.lane() == rules::conflicts::movement_exit(town, res);
+    let link_m = n.path.s_m + vp.length_m * 0.5 + d_m;
+    on_exit && link_m < vp.length_m + 1.0 + conflicts.hold_back_m(next) + AT_ENTRY_M
+}
+
+impl Npc {
+    /// Takes a granted junction lane; one still held (the car stands at this
+    /// junction's entry with its rear in the last) is kept as `leaving`.
+    fn take_grant(&mut self, lane: LaneIdx) {
+        if let Some(last) = self.reservation.replace(lane) {
+            self.leaving = Some(last);
+        }
+        self.request = None;
+    }
+}
+
 impl Traffic {
+    /// Whether NPC `n` gives back its hold on junction lane `res`: it has
+    /// left the junction, is lost (neither in its movement, nor before it, nor
+    /// on its exit), or now stops for a light before it.
+    fn gives_back(&self, n: &Npc, res: LaneIdx, lights: &[LightState]) -> bool {
+        let vp = self.cfg.vehicle;
+        let half = vp.length_m * 0.5;
+        // In its movement (the reserved lane and the lanes of its junction after
+        // it: `rules::conflicts::movement`), or it is the next junction lane on
+        // the path (a path round a roundabout may come back to the same lane
+        // later: that is not this one).
+        let now = n.path.lane();
+        let in_junction = self.town.lanes[now.0 as usize].junction.is_some();
+        let inside = in_junction && self.rules.conflicts.in_movement(res, now);
+        let ahead = !in_junction
+            && n.path
+                .lanes
+                .iter()
+                .find(|l| self.town.lanes[l.0 as usize].junction.is_some())
+                == Some(&res);
+        let inside_or_ahead = inside || ahead;
+        // Left: the rear a metre past the junction; or, on a road too short for
+        // that (Town03's road 14, 6.4 m between junctions 685 and 678), the rear
+        // past it and the front at the next junction's entry, where the car waits
+        // for a reservation it may ask for only once this one is given back.
+        let at_next_entry = || {
+            npc::next_junction_lane(&self.town, n, &vp)
+                .is_some_and(|(l, d)| l != res && d < AT_ENTRY_M)
+        };
+        let left =
+            !inside_or_ahead && (n.path.s_m > half + 1.0 || (n.path.s_m > half && at_next_entry()));
+        let lost =
+            !inside_or_ahead && !left && now != rules::conflicts::movement_exit(&self.town, res);
+        let entry = npc::next_junction_lane(&self.town, n, &vp)
+            .filter(|(l, _)| *l == res)
+            .map(|(_, d)| d);
+        let stop_for_light = ahead
+            && entry.is_some_and(|d_entry| {
+                self.light_stop(n, lights)
+                    .is_some_and(|(stop, d, _)| stop && d > -0.3 && d <= d_entry + 0.1)
+            });
+        left || lost || stop_for_light
+    }
+
+    /// Whether `lane` is free for NPC `id`, standing `d_m` (front bumper,
+    /// metres) before its entry, but for cars entering a lane beside it
+    /// ([`rules::conflicts::side_by_side`]) at the same time: every other
+    /// holder of a lane conflicting with `lane` holds such a lane and has
+    /// driven at most [`ENTER_TOGETHER_M`] into it, and this car stands at
+    /// its own entry. The two lanes of a double turn then go together on a
+    /// green, as in CARLA, while a car is still kept from entering half a turn
+    /// behind the car beside, where their bodies would meet.
+    fn free_but_beside(&self, lane: LaneIdx, id: u32, d_m: f32) -> bool {
+        if d_m > AT_ENTRY_M + self.rules.conflicts.hold_back_m(lane) {
+            return false;
+        }
+        let half = self.cfg.vehicle.length_m * 0.5;
+        let mut beside = false;
+        let all_beside = self.rules.conflicts.of(lane).iter().all(|&c| {
+            self.reservations.holders(c).iter().all(|&h| {
+                if h == id {
+                    return true;
+                }
+                let Some(n) = (h as usize).checked_sub(1).and_then(|k| self.npcs.get(k)) else {
+                    return false; // the ego (0) holds it
+                };
+                let now = n.path.lane();
+                let into_m = if now == c {
+                    n.path.s_m + half
+                } else if self.town.lanes[now.0 as usize].junction.is_none() {
+                    0.0
+                } else {
+                    f32::INFINITY
+                };
+                let ok = into_m <= ENTER_TOGETHER_M
+                    && rules::conflicts::side_by_side(&self.town, lane, c);
+                beside |= ok;
+                ok
+            })
+        });
+        all_beside && beside
+    }
+
     /// The NPC (index) holding a lane that conflicts with `lane`, other than `id`.
     fn conflicting_holder(&self, lane: LaneIdx, id: u32) -> Option<usize> {
         self.reservations
@@ -437,9 +544,7 @@ impl Traffic {
             let id = self.npcs[i].id;
             if in_circle[i] && self.reservations.free_for(&self.rules.conflicts, lane, id) {
                 self.reservations.grant(lane, id);
-                let npc = &mut self.npcs[i];
-                npc.reservation = Some(lane);
-                npc.request = None;
+                self.npcs[i].take_grant(lane);
                 self.stats.gridlocks_broken += 1;
             }
         }

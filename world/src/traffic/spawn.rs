@@ -130,6 +130,7 @@ impl Traffic {
                 ground_z: z,
                 path,
                 reservation: None,
+                leaving: None,
                 request: None,
                 change,
                 stuck_ticks: 0,
@@ -176,7 +177,10 @@ impl Traffic {
     pub fn place_npc(&mut self, index: usize, path: LanePath) {
         let n = &mut self.npcs[index];
         let id = n.id;
-        if let Some(r) = n.reservation.take() {
+        for r in [n.reservation.take(), n.leaving.take()]
+            .into_iter()
+            .flatten()
+        {
             self.reservations.release(r, id);
         }
         let (p, yaw, z) = self.town.lane(path.lane()).pose_at(path.s_m);

@@ -816,3 +816,165 @@ fn an_npc_stops_at_a_dead_end() {
     assert!(n.state.speed_mps < 0.1);
     assert_eq!(tr.stats().respawns(), 0);
 }
+
+#[test]
+fn a_car_between_junctions_closer_than_a_car_asks_for_the_next_while_it_leaves_the_last() {
+    // Town03's road 14 (lane -5) is 6.4 m between junctions 685 and 678. A car out of
+    // 685's #716 waits for 678's #721 back from its entry (a turn there swings over
+    // the usual place: `hold_back_m`), its rear still in 685; one reservation at a
+    // time, it could not ask for #721 before giving #716 back, nor give #716 back
+    // before moving on: it stood there for good (seed 3's soak, from 2682 s, with
+    // the cars asking for #716 and #719 behind it). Now it asks for #721 while it
+    // holds #716, and gives #716 back once its rear is out.
+    let test =
+        "a_car_between_junctions_closer_than_a_car_asks_for_the_next_while_it_leaves_the_last";
+    let Some(dir) = crate::testdata::carla_dir(test) else {
+        return;
+    };
+    let town = Arc::new(Town::from_xodr_file(dir.join("Town03.xodr")).unwrap());
+    let link = LaneIdx(
+        town.lanes
+            .iter()
+            .position(|l| l.road_id == "14" && l.od_lane == -5)
+            .expect("Town03 has road 14 lane -5") as u32,
+    );
+    let on_road = |lanes: &[LaneIdx], road: &str| {
+        *lanes
+            .iter()
+            .find(|l| town.lanes[l.0 as usize].road_id == road)
+            .unwrap_or_else(|| panic!("road 14 lane -5 links to road {road}"))
+    };
+    // The movement's first piece: the lane a car asks for.
+    let mut last = on_road(&town.lanes[link.0 as usize].predecessors, "679");
+    while let Some(&p) = town.lanes[last.0 as usize]
+        .predecessors
+        .iter()
+        .find(|p| town.lanes[p.0 as usize].junction == town.lanes[last.0 as usize].junction)
+    {
+        last = p;
+    }
+    let next = on_road(&town.lanes[link.0 as usize].successors, "686");
+    let mut tr = Traffic::new(town.clone(), cfg(1, 0, 3), None);
+    let half = tr.config().vehicle.length_m * 0.5;
+    // At rest with its rear 1.4 m inside 685, holding #716, going into #721.
+    let mut path = LanePath::new(link, 1.0);
+    path.lanes.push_back(next);
+    tr.place_npc(0, path);
+    let id = tr.npcs()[0].id;
+    tr.reservations.grant(last, id);
+    tr.npcs[0].reservation = Some(last);
+    let green = vec![LightState::Green; town.lights.len()];
+    let mut held_both = false;
+    let mut entered_at = None;
+    for tick in 0..(40 * 20) {
+        tr.step(&green);
+        let n = &tr.npcs()[0];
+        let rear_in_last = n.path.lane() == link && n.path.s_m < half;
+        assert!(
+            !rear_in_last || tr.reservations().holders(last).contains(&id),
+            "gave #{} back with its rear in it (tick {tick})",
+            last.0
+        );
+        held_both |= tr.reservations().holders(last).contains(&id)
+            && tr.reservations().holders(next).contains(&id);
+        if n.path.lane() == next && entered_at.is_none() {
+            entered_at = Some(tick);
+        }
+    }
+    assert!(
+        held_both,
+        "never asked for #{} while holding #{}",
+        next.0, last.0
+    );
+    let entered = entered_at.expect("entered the next junction");
+    assert!(entered < 40 * 10, "entered at tick {entered}");
+    assert!(!tr.reservations().holders(last).contains(&id));
+    assert_eq!(tr.npcs()[0].leaving, None);
+}
+
+#[test]
+fn the_two_lanes_of_a_double_turn_go_together_but_not_half_a_turn_apart() {
+    // Town06's junction 509 (generated lights): road 20's lanes -5 and -6 both turn
+    // right, into neighbouring lanes. Their cars' bodies come within the clearance
+    // only where the inner car lags the outer by part of the turn, so the lanes
+    // conflict; one car at a time turned on a 10-s green, and road 20's cars waited
+    // 62-68 s (35, 21 and 20 stops over 60 s in the hour's soaks, seeds 1-3). Cars
+    // standing at the two entries now go together; a car is still kept from entering
+    // while the car beside is half-way through the turn.
+    let test = "the_two_lanes_of_a_double_turn_go_together_but_not_half_a_turn_apart";
+    let Some(dir) = crate::testdata::carla_dir(test) else {
+        return;
+    };
+    let (town, _) = crate::map::load_xodr_file(
+        dir.join("Town06.xodr"),
+        &crate::map::LoadOptions {
+            unsignalled: crate::map::UnsignalledJunctions::GenerateLights,
+        },
+    )
+    .unwrap();
+    let town = Arc::new(town);
+    // Road 20's lane `od` and the connecting lane on road `turn` it leads into.
+    let approach = |od: i32, turn: &str| {
+        (0..town.lanes.len())
+            .map(|i| LaneIdx(i as u32))
+            .find_map(|l| {
+                let x = &town.lanes[l.0 as usize];
+                let into = x
+                    .successors
+                    .iter()
+                    .find(|s| town.lanes[s.0 as usize].road_id == turn)?;
+                (x.road_id == "20" && x.od_lane == od).then_some((l, *into))
+            })
+            .unwrap_or_else(|| panic!("Town06: road 20 lane {od} into road {turn}"))
+    };
+    let (outer_in, outer) = approach(-5, "509");
+    let (inner_in, inner) = approach(-6, "524");
+    assert!(crate::rules::conflicts::side_by_side(&town, outer, inner));
+    assert!(tr_conflicts(&town).of(outer).contains(&inner));
+    let green = vec![LightState::Green; town.lights.len()];
+    let half = VehicleParams::default().length_m * 0.5;
+    // At rest, front bumpers 0.6 m before the two entries.
+    let at_entry = |lane: LaneIdx, into: LaneIdx| {
+        let mut p = LanePath::new(lane, town.lane(lane).length_m() - half - 0.6);
+        p.lanes.push_back(into);
+        p
+    };
+    let mut tr = Traffic::new(town.clone(), cfg(2, 0, 1), None);
+    tr.place_npc(0, at_entry(outer_in, outer));
+    tr.place_npc(1, at_entry(inner_in, inner));
+    let mut together = false;
+    for _ in 0..(40 * 15) {
+        tr.step(&green);
+        together |=
+            tr.npcs()[0].reservation == Some(outer) && tr.npcs()[1].reservation == Some(inner);
+    }
+    assert!(together, "the two cars never held their lanes at once");
+    assert_eq!(tr.stats().npc_npc_collisions, 0);
+    // The outer car half-way through its turn: the inner car waits.
+    let mut tr = Traffic::new(town.clone(), cfg(2, 0, 1), None);
+    let movement = crate::rules::conflicts::movement(&town, outer);
+    let (k, &turn) = movement
+        .iter()
+        .enumerate()
+        .max_by(|a, b| {
+            town.lane(*a.1)
+                .length_m()
+                .total_cmp(&town.lane(*b.1).length_m())
+        })
+        .unwrap();
+    let mut p = LanePath::new(turn, town.lane(turn).length_m() * 0.5);
+    p.lanes.extend(&movement[k + 1..]);
+    tr.place_npc(0, p);
+    let id = tr.npcs()[0].id;
+    tr.reservations.grant(outer, id);
+    tr.npcs[0].reservation = Some(outer);
+    tr.place_npc(1, at_entry(inner_in, inner));
+    for _ in 0..20 {
+        tr.step(&green);
+        assert_eq!(tr.npcs()[1].reservation, None, "entered half a turn behind");
+    }
+}
+
+fn tr_conflicts(town: &Town) -> crate::rules::JunctionConflicts {
+    crate::rules::JunctionConflicts::new(town)
+}
