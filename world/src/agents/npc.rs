@@ -33,7 +33,7 @@ use crate::map::town::{LaneIdx, LightIdx, LightState, Town};
 use crate::road::geometry::curvature;
 use crate::road::lane_path::LanePath;
 use crate::rules::ahead::{ActorView, nearest_ahead, walker_horizon_s};
-use crate::rules::{self, RuleBook};
+use crate::rules::{self, JunctionConflicts, RuleBook};
 use glam::Vec2;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
@@ -210,11 +210,21 @@ fn extend(
     }
 }
 
+/// A planned lane change is given up when less road than this is left
+/// before the lane's end, beyond the stopping distance (metres): the car
+/// then takes a way on from its own lane. A lane shorter than this (that
+/// leads on) is never planned to change from ([`choose_with_neighbours`]).
+pub const CHANGE_GIVE_UP_M: f32 = 25.0;
+
 /// The way on from `last` drawn among its own successors and those of its
 /// same-direction neighbours that lead to a road it does not reach: (the
 /// lane it is taken from, the successor). `None` (nothing drawn) when
-/// `last` is a junction lane or has no neighbour with such a way on. A lane
-/// whose own ways lead nowhere (or that ends) can only be left by a lane
+/// `last` is a junction lane or has no neighbour with such a way on, and
+/// when it is shorter than [`CHANGE_GIVE_UP_M`] and leads on: a change
+/// planned there would be given up as soon as the car is on it, and the car
+/// would come onto it without the way on it takes (Town03's road 14, 6.4 m
+/// between two junctions, where such a car stopped over the next entry). A
+/// lane whose own ways lead nowhere (or that ends) can only be left by a lane
 /// beside it.
 fn choose_with_neighbours(
     town: &Town,
@@ -226,6 +236,9 @@ fn choose_with_neighbours(
         return None;
     }
     let leads_on = |l: LaneIdx| leads_on(town, l);
+    if lane.length_m() < CHANGE_GIVE_UP_M && !leads_nowhere(town, last) {
+        return None;
+    }
     // The road a way on leads to: its successor's road (or its own).
     let exit_road = |l: LaneIdx| {
         let d = &town.lanes[l.0 as usize];
@@ -276,6 +289,51 @@ pub struct Decision {
     pub accel_mps2: f32,
     /// The acceleration it would ask with nothing ahead (to tell "waiting" from "stuck").
     pub free_accel_mps2: f32,
+}
+
+/// Within this distance of a junction lane's start (front bumper, metres) a car
+/// stands at that junction's entry: it means to stop `NpcParams::stop_gap_m` (0.5 m)
+/// before it, and its IDM brakes it to a stop up to a metre and a half before.
+pub const AT_ENTRY_M: f32 = 2.0;
+
+/// The shortest road between two junctions on which a car waiting at the
+/// second's lane `next` has its rear out of the first by the release metre
+/// (metres): a car length, that metre, the place it waits back from the entry
+/// (`JunctionConflicts::hold_back_m`) and the slack of its stop
+/// ([`AT_ENTRY_M`]). Shorter (Town03's road 14, 6.4 m between junctions 685
+/// and 678), the two junctions are chained: a car asks for the second's lane
+/// while it holds the first's, and brakes for the second's entry from inside
+/// the first ([`chained_junction_lane`]).
+pub fn chained_link_m(conflicts: &JunctionConflicts, vp: &VehicleParams, next: LaneIdx) -> f32 {
+    vp.length_m + 1.0 + conflicts.hold_back_m(next) + AT_ENTRY_M
+}
+
+/// For an NPC inside a junction whose road out leads, in less than
+/// [`chained_link_m`], into the next junction: that junction's lane on its
+/// path and the path distance from its front bumper to the lane's entry
+/// (metres). None elsewhere ([`next_junction_lane`] serves cars outside
+/// junctions).
+pub fn chained_junction_lane(
+    town: &Town,
+    conflicts: &JunctionConflicts,
+    npc: &Npc,
+    params: &VehicleParams,
+) -> Option<(LaneIdx, f32)> {
+    let lanes = &npc.path.lanes;
+    let junction = town.lanes[lanes[0].0 as usize].junction?;
+    let mut off = -npc.path.s_m;
+    let mut k = 0;
+    while k < lanes.len() && town.lanes[lanes[k].0 as usize].junction == Some(junction) {
+        off += town.lane(lanes[k]).length_m();
+        k += 1;
+    }
+    let link = *lanes.get(k)?;
+    let next = *lanes.get(k + 1)?;
+    let link_m = town.lane(link).length_m();
+    let chained = town.lanes[link.0 as usize].junction.is_none()
+        && town.lanes[next.0 as usize].junction.is_some()
+        && link_m < chained_link_m(conflicts, params, next);
+    chained.then_some((next, off + link_m - params.length_m * 0.5))
 }
 
 /// The junction lane an NPC must reserve next: (lane, path distance from its front bumper to the lane's entry).
@@ -417,6 +475,7 @@ pub fn decide(
     // Junction entry without a reservation: wait before it, further back where a
     // car of another movement would swing over the usual place (`hold_back_m`).
     if let Some((lane, d)) = next_junction_lane(town, npc, vp)
+        .or_else(|| chained_junction_lane(town, &rules.conflicts, npc, vp))
         && npc.reservation != Some(lane)
         && d > -0.5
     {

@@ -15,8 +15,9 @@
 //! ([`Traffic::must_give_way`], [`rules::must_give_way`]).
 //!
 //! Two refinements: where two junctions are closer than a car
-//! (`chained_junctions`), a car asks for the next junction's lane while it
-//! still holds the last (`Npc::leaving` until its rear is out); and the cars
+//! (`npc::chained_link_m`), a car asks for the next junction's lane from
+//! inside the first and while it still holds the first (`Npc::leaving`
+//! until its rear is out); and the cars
 //! standing at the entries of a double turn's two lanes
 //! ([`rules::conflicts::side_by_side`]) enter together
 //! (`Traffic::free_but_beside`).
@@ -190,7 +191,12 @@ impl Traffic {
         let occ = self.occupants();
         let mut requests: Vec<(u64, u32, usize, LaneIdx)> = Vec::new();
         for (i, n) in self.npcs.iter_mut().enumerate() {
-            let Some((lane, d)) = npc::next_junction_lane(&self.town, n, &vp) else {
+            // Inside a junction chained to the next (`npc::chained_link_m`), the
+            // next junction's lane is asked for from there.
+            let inside = self.town.lanes[n.path.lane().0 as usize].junction.is_some();
+            let Some((lane, d)) = npc::next_junction_lane(&self.town, n, &vp)
+                .or_else(|| npc::chained_junction_lane(&self.town, &self.rules.conflicts, n, &vp))
+            else {
                 n.request = None;
                 continue;
             };
@@ -202,7 +208,16 @@ impl Traffic {
             if let Some(res) = n.reservation {
                 let chained = n.leaving.is_none()
                     && lane != res
-                    && chained_junctions(&self.town, &self.rules.conflicts, &vp, n, res, lane, d);
+                    && (inside
+                        || chained_junctions(
+                            &self.town,
+                            &self.rules.conflicts,
+                            &vp,
+                            n,
+                            res,
+                            lane,
+                            d,
+                        ));
                 if !chained {
                     n.request = None;
                     continue;
@@ -324,18 +339,13 @@ const WAIT_BEHIND_M: f32 = 30.0;
 /// (`Traffic::free_but_beside`): two cars that move off a stop line together.
 const ENTER_TOGETHER_M: f32 = 2.0;
 
-/// Within this distance of a junction lane's start (front bumper, metres) a car
-/// stands at that junction's entry: it means to stop `NpcParams::stop_gap_m` (0.5 m)
-/// before it, and its IDM brakes it to a stop up to a metre and a half before.
-const AT_ENTRY_M: f32 = 2.0;
-
 /// Whether NPC `n`, on the exit of junction lane `res` and `d_m` (front
 /// bumper, metres) before the entry of the next junction's lane `next`,
 /// would stand waiting for `next` with its rear still less than the release
 /// distance (1 m) out of `res`'s junction: the road between them is shorter
 /// than a car length, that metre, the place it waits back from the entry
 /// (`JunctionConflicts::hold_back_m`) and the slack of its stop
-/// ([`AT_ENTRY_M`]). Town03's road 14 (6.4 m between junctions 685 and 678).
+/// ([`npc::AT_ENTRY_M`]). Town03's road 14 (6.4 m between junctions 685 and 678).
 fn chained_junctions(
     town: &Town,
     conflicts: &JunctionConflicts,
@@ -347,7 +357,7 @@ fn chained_junctions(
 ) -> bool {
     let on_exit = n.path.lane() == rules::conflicts::movement_exit(town, res);
     let link_m = n.path.s_m + vp.length_m * 0.5 + d_m;
-    on_exit && link_m < vp.length_m + 1.0 + conflicts.hold_back_m(next) + AT_ENTRY_M
+    on_exit && link_m < npc::chained_link_m(conflicts, vp, next)
 }
 
 impl Npc {
@@ -375,12 +385,16 @@ impl Traffic {
         let now = n.path.lane();
         let in_junction = self.town.lanes[now.0 as usize].junction.is_some();
         let inside = in_junction && self.rules.conflicts.in_movement(res, now);
-        let ahead = !in_junction
-            && n.path
-                .lanes
-                .iter()
-                .find(|l| self.town.lanes[l.0 as usize].junction.is_some())
-                == Some(&res);
+        // (From inside a junction: the next junction's lane on the path, one
+        // asked for where the two are chained, `npc::chained_junction_lane`.)
+        let junction_now = self.town.lanes[now.0 as usize].junction;
+        let ahead = n
+            .path
+            .lanes
+            .iter()
+            .skip_while(|l| in_junction && self.town.lanes[l.0 as usize].junction == junction_now)
+            .find(|l| self.town.lanes[l.0 as usize].junction.is_some())
+            == Some(&res);
         let inside_or_ahead = inside || ahead;
         // Left: the rear a metre past the junction; or, on a road too short for
         // that (Town03's road 14, 6.4 m between junctions 685 and 678), the rear
@@ -388,7 +402,7 @@ impl Traffic {
         // for a reservation it may ask for only once this one is given back.
         let at_next_entry = || {
             npc::next_junction_lane(&self.town, n, &vp)
-                .is_some_and(|(l, d)| l != res && d < AT_ENTRY_M)
+                .is_some_and(|(l, d)| l != res && d < npc::AT_ENTRY_M)
         };
         let left =
             !inside_or_ahead && (n.path.s_m > half + 1.0 || (n.path.s_m > half && at_next_entry()));
@@ -414,7 +428,7 @@ impl Traffic {
     /// green, as in CARLA, while a car is still kept from entering half a turn
     /// behind the car beside, where their bodies would meet.
     fn free_but_beside(&self, lane: LaneIdx, id: u32, d_m: f32) -> bool {
-        if d_m > AT_ENTRY_M + self.rules.conflicts.hold_back_m(lane) {
+        if d_m > npc::AT_ENTRY_M + self.rules.conflicts.hold_back_m(lane) {
             return false;
         }
         let half = self.cfg.vehicle.length_m * 0.5;

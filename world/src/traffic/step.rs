@@ -16,10 +16,6 @@ use crate::rules;
 
 /// An NPC stopped this long counts as a deadlock (seconds).
 const DEADLOCK_S: f32 = 60.0;
-/// A planned lane change is given up when less road than this is left
-/// before the lane's end, beyond the stopping distance (metres): the car
-/// then takes a way on from its own lane.
-const CHANGE_GIVE_UP_M: f32 = 25.0;
 /// A walker held up by a vehicle this long turns back (seconds).
 const WALKER_PATIENCE_S: f32 = 0.5;
 
@@ -45,7 +41,7 @@ impl Traffic {
             let n = &mut self.npcs[i];
             // A lane that leads nowhere has no way on to give the change up for.
             let optional = !npc::leads_nowhere(&self.town, c.from);
-            if optional && left < v * v / (2.0 * decel) + CHANGE_GIVE_UP_M {
+            if optional && left < v * v / (2.0 * decel) + npc::CHANGE_GIVE_UP_M {
                 n.change = None;
                 npc::extend_path(&self.town, &mut n.path, &mut n.rng, 80.0);
                 self.stats.lane_changes_given_up += 1;

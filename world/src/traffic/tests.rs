@@ -978,3 +978,124 @@ fn the_two_lanes_of_a_double_turn_go_together_but_not_half_a_turn_apart() {
 fn tr_conflicts(town: &Town) -> crate::rules::JunctionConflicts {
     crate::rules::JunctionConflicts::new(town)
 }
+
+#[test]
+fn no_lane_change_is_planned_on_a_road_too_short_to_make_it() {
+    // A change planned on a lane shorter than `CHANGE_GIVE_UP_M` (that leads on) is
+    // given up as soon as the car is on it, and until then the car comes onto it not
+    // knowing its way on: on Town03's road 14 (6.4 m between two junctions, before the
+    // lane links of junction 685 were read right) such a car stood over the next
+    // junction's entry. Town03's road 35 (lane -1, 8.9 m) is such a lane today: the
+    // lane beside it leads to a road its own ways do not.
+    let test = "no_lane_change_is_planned_on_a_road_too_short_to_make_it";
+    let Some(dir) = crate::testdata::carla_dir(test) else {
+        return;
+    };
+    let town = Town::from_xodr_file(dir.join("Town03.xodr")).unwrap();
+    let lane = LaneIdx(
+        town.lanes
+            .iter()
+            .position(|l| l.road_id == "35" && l.od_lane == -1 && l.junction.is_none())
+            .expect("Town03 has road 35 lane -1") as u32,
+    );
+    assert!(town.lane(lane).length_m() < crate::agents::npc::CHANGE_GIVE_UP_M);
+    // The road a way on leads to (as `choose_with_neighbours` reads it).
+    let exit_road = |l: &LaneIdx| {
+        let d = &town.lanes[l.0 as usize];
+        d.successors.first().map_or(d.road_id.clone(), |s| {
+            town.lanes[s.0 as usize].road_id.clone()
+        })
+    };
+    let own: Vec<String> = town.lanes[lane.0 as usize]
+        .successors
+        .iter()
+        .map(exit_road)
+        .collect();
+    let x = &town.lanes[lane.0 as usize];
+    let beside: Vec<String> = [x.left, x.right]
+        .into_iter()
+        .flatten()
+        .flat_map(|n| town.lanes[n.0 as usize].successors.iter().map(exit_road))
+        .collect();
+    assert!(
+        beside.iter().any(|r| !own.contains(r)),
+        "{own:?} {beside:?}"
+    );
+    for seed in 0..64 {
+        let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(seed);
+        let mut path = LanePath::new(lane, 1.0);
+        let mut change = None;
+        crate::agents::npc::extend_path_planning(&town, &mut path, &mut rng, 80.0, &mut change);
+        assert_eq!(change, None, "seed {seed}");
+        assert!(path.lanes.len() > 1, "seed {seed}: no way on drawn");
+    }
+}
+
+#[test]
+fn a_car_through_a_junction_chained_to_the_next_holds_the_next_before_its_entry() {
+    // Town03's junctions 685 and 678 are 6.4 m apart (road 14). A car coming through
+    // 685 asked for 678's lane only once on road 14, where the car beside it had just
+    // taken a crossing one; it stood with its front at 678's entry, inside the other
+    // car's turn, and the two waited for each other (seeds 1 and 2: 7 and 6 stops over
+    // 60 s). Now it asks from inside 685 (and brakes for 678's entry from there), so
+    // it holds 678's lane before a car beside can take a crossing one; without that,
+    // this car is refused and never goes on.
+    let test = "a_car_through_a_junction_chained_to_the_next_holds_the_next_before_its_entry";
+    let Some(dir) = crate::testdata::carla_dir(test) else {
+        return;
+    };
+    let town = Arc::new(Town::from_xodr_file(dir.join("Town03.xodr")).unwrap());
+    let link = LaneIdx(
+        town.lanes
+            .iter()
+            .position(|l| l.road_id == "14" && l.od_lane == -5)
+            .expect("Town03 has road 14 lane -5") as u32,
+    );
+    let pick = |lanes: &[LaneIdx], road: &str| {
+        *lanes
+            .iter()
+            .find(|l| town.lanes[l.0 as usize].road_id == road)
+            .unwrap_or_else(|| panic!("road 14 lane -5 links to road {road}"))
+    };
+    let next = pick(&town.lanes[link.0 as usize].successors, "686");
+    let mut first = pick(&town.lanes[link.0 as usize].predecessors, "679");
+    while let Some(&p) = town.lanes[first.0 as usize]
+        .predecessors
+        .iter()
+        .find(|p| town.lanes[p.0 as usize].junction == town.lanes[first.0 as usize].junction)
+    {
+        first = p;
+    }
+    let movement = crate::rules::conflicts::movement(&town, first);
+    let mut tr = Traffic::new(town.clone(), cfg(1, 0, 3), None);
+    let vp = tr.config().vehicle;
+    // At the start of its movement through 685 at 8 m/s, holding it.
+    let mut path = LanePath::new(first, 0.0);
+    path.lanes
+        .extend(movement[1..].iter().copied().chain([link, next]));
+    tr.place_npc(0, path);
+    let id = tr.npcs()[0].id;
+    tr.reservations.grant(first, id);
+    tr.npcs[0].reservation = Some(first);
+    tr.npcs[0].state.speed_mps = 8.0;
+    let crossing = tr.rules.conflicts.of(next)[0];
+    let green = vec![LightState::Green; town.lights.len()];
+    let mut entered = false;
+    for tick in 0..(40 * 10) {
+        tr.step(&green);
+        // Another car takes a lane crossing 678's as this one comes onto road 14.
+        if tr.npcs()[0].path.lane() == link {
+            tr.reservations.grant(crossing, 99);
+        }
+        let n = &tr.npcs()[0];
+        let over = n.path.lane() == next
+            || (n.path.lane() == link
+                && n.path.s_m + vp.length_m * 0.5 > town.lane(link).length_m());
+        assert!(
+            !over || n.reservation == Some(next),
+            "over 678's entry without its lane at tick {tick}"
+        );
+        entered |= n.path.lane() == next;
+    }
+    assert!(entered, "never went on into 678");
+}

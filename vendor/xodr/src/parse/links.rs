@@ -130,6 +130,12 @@ pub(crate) struct Topology {
 /// link to reach it.
 const REACH: f64 = 1e-2;
 
+/// mrdrive's patch: how far apart, in metres, two places on a road may be and
+/// still be the one place where a section ends and the next starts (both read
+/// from the same `s` attribute; whole roads dropped start at 0 and end at
+/// their length).
+const TOUCH: f64 = 1e-6;
+
 impl Topology {
     /// The index of `road`'s first permanent lane section with lanes.
     pub(crate) fn first_section(&self, road: &str) -> usize {
@@ -443,9 +449,21 @@ fn cross(
                     else {
                         continue;
                     };
+                    // mrdrive's patch: the connecting road may begin (or end, entered
+                    // there) with sections too short to bake (CARLA's Town04, road 688:
+                    // 1.7 um); the link names their lane, whose own link names the one
+                    // after.
+                    let to = match topo.roads.get(&c.connecting_road) {
+                        Some(road) => {
+                            let forward = c.contact == Contact::Start;
+                            let place = if forward { 0.0 } else { road.length };
+                            through_sections(road, place, forward, link.to).0
+                        }
+                        None => Some(link.to),
+                    };
                     out.extend(at(
                         c.contact,
-                        lookup(topo, &c.connecting_road, section, Some(link.to)),
+                        lookup(topo, &c.connecting_road, section, to),
                     ));
                 }
             }
@@ -460,17 +478,26 @@ fn cross(
 /// where it leaves the last of them. Each such section's lane `id` names the next
 /// lane by its own link (the first, as xodr reads links elsewhere; none: the same
 /// id). `None`: the lane has no place in such a section (it ends there).
+///
+/// A dropped section is entered where it touches `place` (within
+/// [`TOUCH`]), not within [`REACH`]: a section that bakes may be shorter than
+/// `REACH` (CARLA's Town04, road 581: 9.7 mm), and a link must not step over
+/// it; and each is passed once (the section just left touches the place it
+/// is left at too).
 fn through_sections(road: &RoadInfo, place: f64, forward: bool, id: i32) -> (Option<i32>, f64) {
     let (mut id, mut place) = (id, place);
+    let mut passed = vec![false; road.dropped.len()];
     for _ in 0..road.dropped.len() {
-        let next = road.dropped.iter().find(|d| {
-            if forward {
-                (d.start - place).abs() <= REACH
-            } else {
-                (d.end - place).abs() <= REACH
-            }
+        let next = road.dropped.iter().enumerate().find(|(k, d)| {
+            !passed[*k]
+                && if forward {
+                    (d.start - place).abs() <= TOUCH
+                } else {
+                    (d.end - place).abs() <= TOUCH
+                }
         });
-        let Some(d) = next else { break };
+        let Some((k, d)) = next else { break };
+        passed[k] = true;
         let Some((preds, succs)) = d.links.get(&id) else {
             return (None, place);
         };

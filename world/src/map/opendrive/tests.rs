@@ -898,3 +898,115 @@ fn a_link_steps_through_a_section_too_short_to_have_lanes_by_its_own_links() {
         start.truncate()
     ));
 }
+
+/// Road 1 of [`SHORT_LAST_SECTION`] drawn as CARLA's Town04 draws its connecting
+/// road 581: a section 9.7 mm long (which bakes), then one of 0.1 um and, at the
+/// road's end, one of 10 um (which do not), each lane linking to the next.
+fn short_sections_in_a_row() -> String {
+    let section = |s: &str, links: &str| {
+        format!(
+            r#"<laneSection s="{s}">
+        <center><lane id="0" type="none"/></center>
+        <right><lane id="-1" type="driving"><link>{links}</link><width sOffset="0" a="3.5" b="0" c="0" d="0"/></lane></right>
+      </laneSection>"#
+        )
+    };
+    let on = r#"<predecessor id="-1"/><successor id="-1"/>"#;
+    let sections = [
+        section("0", r#"<successor id="-1"/>"#),
+        section("9.5", on),
+        section("9.5097", on),
+        section("9.5097001", on),
+        section("19.99999", r#"<predecessor id="-1"/><successor id="-2"/>"#),
+    ]
+    .join("\n      ");
+    let first = SHORT_LAST_SECTION.find("<laneSection").unwrap();
+    let last = SHORT_LAST_SECTION.find("</lanes>").unwrap();
+    format!(
+        "{}{sections}\n    {}",
+        &SHORT_LAST_SECTION[..first],
+        &SHORT_LAST_SECTION[last..]
+    )
+}
+
+#[test]
+fn a_link_steps_over_sections_too_short_to_bake_but_not_over_one_that_bakes() {
+    // Town04's road 581 (junction 569): its lane in the 9.7-mm section was reached
+    // from no lane (the link from the section before stepped over it, to the dropped
+    // section 9.7 mm on), and its last lane led nowhere (past the dropped last section
+    // the link looked it up again, by the id it had just read from it).
+    let (town, report) = load_xodr_str(
+        &short_sections_in_a_row(),
+        "short-sections",
+        &LoadOptions::default(),
+    )
+    .unwrap();
+    assert!(report.warnings.is_empty(), "{:#?}", report.warnings);
+    let mut road1: Vec<usize> = (0..town.lanes.len())
+        .filter(|&i| town.lanes[i].road_id == "1")
+        .collect();
+    road1.sort_by(|&a, &b| {
+        town.lanes[a].centerline[0]
+            .x
+            .total_cmp(&town.lanes[b].centerline[0].x)
+    });
+    assert_eq!(road1.len(), 3, "the 9.5-m, 9.7-mm and 10.5-m sections bake");
+    let idx = |i: usize| crate::map::LaneIdx(road1[i] as u32);
+    assert_eq!(town.lanes[road1[0]].successors, [idx(1)]);
+    assert_eq!(town.lanes[road1[1]].successors, [idx(2)]);
+    assert_eq!(
+        road_lanes(&town, &town.lanes[road1[2]].successors),
+        [("2".to_string(), -2)]
+    );
+}
+
+#[test]
+fn a_junction_link_steps_through_a_connecting_roads_first_section_too_short_to_bake() {
+    // Town04's road 688 (junction 669) and Town06's road 715 (junction 704) begin
+    // with a section 1.7 um long, and the junction's <laneLink> names that section's
+    // lane (here lane -2, which links on to lane -1): the connecting road was reached
+    // from no lane.
+    let right = r#"<right><lane id="-1" type="driving" level="false"><width sOffset="0" a="3.5" b="0" c="0" d="0"/>
+                <link><predecessor id="-1"/><successor id="-1"/></link></lane></right>
+        </laneSection></lanes>"#;
+    let short_first = format!(
+        r#"<laneSection s="0">
+            <center><lane id="0" type="none" level="false"/></center>
+            <right><lane id="-2" type="driving" level="false"><width sOffset="0" a="3.5" b="0" c="0" d="0"/>
+                <link><predecessor id="-1"/><successor id="-1"/></link></lane></right>
+        </laneSection><laneSection s="1.7e-6">
+            <center><lane id="0" type="none" level="false"/></center>
+            {right}"#
+    );
+    let connecting = CONNECTING_ROAD
+        .replace(
+            &CONNECTING_ROAD[CONNECTING_ROAD.find("<laneSection").unwrap()
+                ..CONNECTING_ROAD.find("</lanes>").unwrap() + "</lanes>".len()],
+            &short_first,
+        )
+        .replace(
+            r#"<predecessor id="-1"/><successor id="-1"/></link></lane></right>
+        </laneSection></lanes>"#,
+            r#"<predecessor id="-2"/><successor id="-1"/></link></lane></right>
+        </laneSection></lanes>"#,
+        );
+    let connections = r#"
+        <connection id="0" incomingRoad="1" connectingRoad="3" contactPoint="start"><laneLink from="-1" to="-2"/></connection>
+    "#;
+    let xml = TWO_ROADS_AND_A_JUNCTION
+        .replace("@CONNECTING@", &connecting)
+        .replace("@CONNECTIONS@", connections);
+    let (town, report) = load_xodr_str(&xml, "gap", &LoadOptions::default()).unwrap();
+    let unreached: Vec<&String> = report
+        .warnings
+        .iter()
+        .filter(|w| w.contains("reached from no lane"))
+        .collect();
+    assert!(unreached.is_empty(), "{unreached:#?}");
+    let west = town
+        .lanes
+        .iter()
+        .find(|l| l.road_id == "1" && l.od_lane == -1)
+        .expect("road 1 lane -1");
+    assert_eq!(road_lanes(&town, &west.successors), [("3".to_string(), -1)]);
+}
