@@ -193,6 +193,7 @@ impl Traffic {
         n.stopped_ticks = 0;
         npc::extend_path_planning(&self.town, &mut n.path, &mut n.rng, 80.0, &mut n.change);
         self.physics.teleport(id, p, yaw);
+        self.physics.set_ground_z(id, z);
         self.refresh_views();
     }
 

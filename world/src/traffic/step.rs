@@ -134,6 +134,10 @@ impl Traffic {
             kerb::cross_kerbs(&mut s, &vp, before, sidewalks);
             n.state = s;
             let travelled = n.path.advance_to(&self.town, s.position);
+            // The ground under it is its lane's, bridges included (Town03, Town04).
+            let (_, _, z) = self.town.lane(n.path.lane()).pose_at(n.path.s_m);
+            n.ground_z = z;
+            self.physics.set_ground_z(n.id, z);
             if let Some((dist, light)) = stop_before
                 && dist >= 0.0
                 && travelled > dist

@@ -1099,3 +1099,38 @@ fn a_car_through_a_junction_chained_to_the_next_holds_the_next_before_its_entry(
     }
     assert!(entered, "never went on into 678");
 }
+
+#[test]
+fn an_npc_stands_on_its_lanes_height_as_it_drives() {
+    // Town04's roads climb to bridges (road 39 is 10.7 m up where it crosses road 47).
+    // An NPC kept the height it was spawned at: a car on the bridge met the cars
+    // below it (seed 2's soak: three NPC-NPC contacts at that crossing).
+    let test = "an_npc_stands_on_its_lanes_height_as_it_drives";
+    let Some(dir) = crate::testdata::carla_dir(test) else {
+        return;
+    };
+    let town = Arc::new(Town::from_xodr_file(dir.join("Town04.xodr")).unwrap());
+    // A ramp: a lane outside junctions that climbs more than 2 m.
+    let ramp = (0..town.lanes.len())
+        .find(|&i| {
+            let l = &town.lanes[i];
+            l.junction.is_none()
+                && l.length_m() > 60.0
+                && l.centerline.last().unwrap().z - l.centerline[0].z > 2.0
+        })
+        .map(|i| LaneIdx(i as u32))
+        .expect("Town04 has a ramp");
+    let mut tr = Traffic::new(town.clone(), cfg(1, 0, 1), None);
+    tr.place_npc(0, LanePath::new(ramp, 1.0));
+    let id = tr.npcs()[0].id;
+    let z0 = tr.npcs()[0].ground_z;
+    let green = vec![LightState::Green; town.lights.len()];
+    for _ in 0..(40 * 12) {
+        tr.step(&green);
+    }
+    let n = &tr.npcs()[0];
+    let (_, _, lane_z) = town.lane(n.path.lane()).pose_at(n.path.s_m);
+    assert!(n.ground_z - z0 > 0.3, "climbed {} m", n.ground_z - z0);
+    assert_eq!(n.ground_z, lane_z);
+    assert_eq!(tr.physics().ground_z(id), Some(lane_z));
+}
