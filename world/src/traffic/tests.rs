@@ -828,32 +828,15 @@ fn a_car_between_junctions_closer_than_a_car_asks_for_the_next_while_it_leaves_t
     // holds #716, and gives #716 back once its rear is out.
     let test =
         "a_car_between_junctions_closer_than_a_car_asks_for_the_next_while_it_leaves_the_last";
-    let Some(dir) = crate::testdata::carla_dir(test) else {
+    let Some(Road14 {
+        town,
+        link,
+        first: last,
+        next,
+    }) = town03_road_14(test)
+    else {
         return;
     };
-    let town = Arc::new(Town::from_xodr_file(dir.join("Town03.xodr")).unwrap());
-    let link = LaneIdx(
-        town.lanes
-            .iter()
-            .position(|l| l.road_id == "14" && l.od_lane == -5)
-            .expect("Town03 has road 14 lane -5") as u32,
-    );
-    let on_road = |lanes: &[LaneIdx], road: &str| {
-        *lanes
-            .iter()
-            .find(|l| town.lanes[l.0 as usize].road_id == road)
-            .unwrap_or_else(|| panic!("road 14 lane -5 links to road {road}"))
-    };
-    // The movement's first piece: the lane a car asks for.
-    let mut last = on_road(&town.lanes[link.0 as usize].predecessors, "679");
-    while let Some(&p) = town.lanes[last.0 as usize]
-        .predecessors
-        .iter()
-        .find(|p| town.lanes[p.0 as usize].junction == town.lanes[last.0 as usize].junction)
-    {
-        last = p;
-    }
-    let next = on_road(&town.lanes[link.0 as usize].successors, "686");
     let mut tr = Traffic::new(town.clone(), cfg(1, 0, 3), None);
     let half = tr.config().vehicle.length_m * 0.5;
     // At rest with its rear 1.4 m inside 685, holding #716, going into #721.
@@ -1041,31 +1024,15 @@ fn a_car_through_a_junction_chained_to_the_next_holds_the_next_before_its_entry(
     // it holds 678's lane before a car beside can take a crossing one; without that,
     // this car is refused and never goes on.
     let test = "a_car_through_a_junction_chained_to_the_next_holds_the_next_before_its_entry";
-    let Some(dir) = crate::testdata::carla_dir(test) else {
+    let Some(Road14 {
+        town,
+        link,
+        first,
+        next,
+    }) = town03_road_14(test)
+    else {
         return;
     };
-    let town = Arc::new(Town::from_xodr_file(dir.join("Town03.xodr")).unwrap());
-    let link = LaneIdx(
-        town.lanes
-            .iter()
-            .position(|l| l.road_id == "14" && l.od_lane == -5)
-            .expect("Town03 has road 14 lane -5") as u32,
-    );
-    let pick = |lanes: &[LaneIdx], road: &str| {
-        *lanes
-            .iter()
-            .find(|l| town.lanes[l.0 as usize].road_id == road)
-            .unwrap_or_else(|| panic!("road 14 lane -5 links to road {road}"))
-    };
-    let next = pick(&town.lanes[link.0 as usize].successors, "686");
-    let mut first = pick(&town.lanes[link.0 as usize].predecessors, "679");
-    while let Some(&p) = town.lanes[first.0 as usize]
-        .predecessors
-        .iter()
-        .find(|p| town.lanes[p.0 as usize].junction == town.lanes[first.0 as usize].junction)
-    {
-        first = p;
-    }
     let movement = crate::rules::conflicts::movement(&town, first);
     let mut tr = Traffic::new(town.clone(), cfg(1, 0, 3), None);
     let vp = tr.config().vehicle;
@@ -1133,4 +1100,48 @@ fn an_npc_stands_on_its_lanes_height_as_it_drives() {
     assert!(n.ground_z - z0 > 0.3, "climbed {} m", n.ground_z - z0);
     assert_eq!(n.ground_z, lane_z);
     assert_eq!(tr.physics().ground_z(id), Some(lane_z));
+}
+
+/// Town03's road 14, lane -5: 6.4 m between junctions 685 and 678.
+struct Road14 {
+    town: Arc<Town>,
+    /// Road 14's lane -5.
+    link: LaneIdx,
+    /// The first piece of 685's movement onto it (road 679): the lane a car asks for.
+    first: LaneIdx,
+    /// 678's lane it leads into (road 686).
+    next: LaneIdx,
+}
+
+/// [`Road14`], or None after skipping `test` where CARLA's towns are missing.
+fn town03_road_14(test: &str) -> Option<Road14> {
+    let dir = crate::testdata::carla_dir(test)?;
+    let town = Arc::new(Town::from_xodr_file(dir.join("Town03.xodr")).unwrap());
+    let link = LaneIdx(
+        town.lanes
+            .iter()
+            .position(|l| l.road_id == "14" && l.od_lane == -5)
+            .expect("Town03 has road 14 lane -5") as u32,
+    );
+    let on_road = |lanes: &[LaneIdx], road: &str| {
+        *lanes
+            .iter()
+            .find(|l| town.lanes[l.0 as usize].road_id == road)
+            .unwrap_or_else(|| panic!("road 14 lane -5 links to road {road}"))
+    };
+    let next = on_road(&town.lanes[link.0 as usize].successors, "686");
+    let mut first = on_road(&town.lanes[link.0 as usize].predecessors, "679");
+    while let Some(&p) = town.lanes[first.0 as usize]
+        .predecessors
+        .iter()
+        .find(|p| town.lanes[p.0 as usize].junction == town.lanes[first.0 as usize].junction)
+    {
+        first = p;
+    }
+    Some(Road14 {
+        town,
+        link,
+        first,
+        next,
+    })
 }
