@@ -913,7 +913,11 @@ fn the_two_lanes_of_a_double_turn_go_together_but_not_half_a_turn_apart() {
     let (outer_in, outer) = approach(-5, "509");
     let (inner_in, inner) = approach(-6, "524");
     assert!(crate::rules::conflicts::side_by_side(&town, outer, inner));
-    assert!(tr_conflicts(&town).of(outer).contains(&inner));
+    assert!(
+        crate::rules::JunctionConflicts::new(&town)
+            .of(outer)
+            .contains(&inner)
+    );
     let green = vec![LightState::Green; town.lights.len()];
     let half = VehicleParams::default().length_m * 0.5;
     // At rest, front bumpers 0.6 m before the two entries.
@@ -956,10 +960,6 @@ fn the_two_lanes_of_a_double_turn_go_together_but_not_half_a_turn_apart() {
         tr.step(&green);
         assert_eq!(tr.npcs()[1].reservation, None, "entered half a turn behind");
     }
-}
-
-fn tr_conflicts(town: &Town) -> crate::rules::JunctionConflicts {
-    crate::rules::JunctionConflicts::new(town)
 }
 
 #[test]
