@@ -127,13 +127,20 @@ impl JunctionConflicts {
                     sweep(town, vp, v, LaneIdx(l as u32))
                 })
                 .collect();
+            // A car that waited at its entry meets a lane that starts at an
+            // angle to its approach with the approach's heading, and swings
+            // wider than the lane's own start has it (Town04's road 691).
+            let from_wait: Vec<Sweep> = lanes
+                .iter()
+                .map(|&l| lane_sweep_from_wait(town, vp, lateral_accel_mps2, LaneIdx(l as u32)))
+                .collect();
             for &entry in lanes {
                 hold_back[entry] = entry_hold_back_m(
                     town,
                     vp,
                     LaneIdx(entry as u32),
                     lanes,
-                    &[&sweeps, &entering],
+                    &[&sweeps, &entering, &from_wait],
                 );
             }
             for (k, &a) in lanes.iter().enumerate() {
@@ -464,12 +471,46 @@ pub fn lane_sweep(
     lane: LaneIdx,
 ) -> Sweep {
     let [slow, fast] = sweep_speeds_mps(town, lane, lateral_accel_mps2);
-    let mut a = sweep(town, vp, slow, lane);
-    let b = sweep(town, vp, fast, lane);
-    a.poses.extend(b.poses);
-    a.lo = a.lo.min(b.lo);
-    a.hi = a.hi.max(b.hi);
-    a
+    sweep(town, vp, slow, lane).join(sweep(town, vp, fast, lane))
+}
+
+/// Where a car's body is while it drives `lane` from where it waited for it,
+/// on each approach from outside the junction, at either of its
+/// [`sweep_speeds_mps`]: the drives of [`sweep_from_wait`] together (no
+/// footprints for a lane entered from inside its junction).
+pub fn lane_sweep_from_wait(
+    town: &Town,
+    vp: &VehicleParams,
+    lateral_accel_mps2: f32,
+    lane: LaneIdx,
+) -> Sweep {
+    let l = town.lane(lane);
+    let speeds = sweep_speeds_mps(town, lane, lateral_accel_mps2);
+    l.predecessors
+        .iter()
+        .filter(|p| town.lane(**p).junction != l.junction)
+        .flat_map(|&a| speeds.map(|v| sweep_from_wait(town, vp, v, a, lane)))
+        .flatten()
+        .fold(Sweep::empty(), Sweep::join)
+}
+
+impl Sweep {
+    /// A sweep with no footprints (touches nothing).
+    pub fn empty() -> Sweep {
+        Sweep {
+            poses: Vec::new(),
+            lo: Vec2::splat(f32::INFINITY),
+            hi: Vec2::splat(f32::NEG_INFINITY),
+        }
+    }
+
+    /// The footprints of both sweeps, this one's first.
+    pub fn join(mut self, other: Sweep) -> Sweep {
+        self.poses.extend(other.poses);
+        self.lo = self.lo.min(other.lo);
+        self.hi = self.hi.max(other.hi);
+        self
+    }
 }
 
 /// Drives a car of `vp` through `lane` as an NPC would, at `speed_mps`
@@ -479,6 +520,57 @@ pub fn lane_sweep(
 /// until the car's rear is 1 m past the lane's end (as a reservation is
 /// released) or it has driven three times the lane's length.
 pub fn sweep(town: &Town, vp: &VehicleParams, speed_mps: f32, lane: LaneIdx) -> Sweep {
+    let (p0, yaw0, _) = town.lane(lane).pose_at(0.0);
+    drive_through(
+        town,
+        vp,
+        speed_mps,
+        LanePath::new(lane, 0.0),
+        (p0, yaw0),
+        lane,
+    )
+}
+
+/// Drives `lane` as [`sweep`] does, but from where a car waits to enter it:
+/// standing on `approach` (a lane leading into it from outside its
+/// junction), its front bumper [`WAIT_GAP_M`] before the lane, on the
+/// approach's centreline and heading. A car that starts there meets the lane
+/// with the approach's heading, not the lane's: where a connecting road
+/// starts at an angle to the road before it (Town04's road 691, 17 degrees
+/// off road 9), it turns further than its lane and swings wider than
+/// [`sweep`]'s car. The footprints are kept from the car's centre entering
+/// `lane`, as [`sweep`]'s start. None when the approach is shorter than the
+/// car's place there.
+pub fn sweep_from_wait(
+    town: &Town,
+    vp: &VehicleParams,
+    speed_mps: f32,
+    approach: LaneIdx,
+    lane: LaneIdx,
+) -> Option<Sweep> {
+    let a = town.lane(approach);
+    let s = a.length_m() - WAIT_GAP_M - vp.length_m * 0.5;
+    if s < 0.0 {
+        return None;
+    }
+    let (p0, yaw0, _) = a.pose_at(s);
+    let mut path = LanePath::new(approach, s);
+    path.lanes.push_back(lane);
+    Some(drive_through(town, vp, speed_mps, path, (p0, yaw0), lane))
+}
+
+/// The drive of [`sweep`] and [`sweep_from_wait`]: a car at `start` (centre,
+/// yaw in radians) at `speed_mps` along `path`, whose lane `lane` is swept;
+/// footprints are kept from the car's centre leaving the path's first lane
+/// (from the start where that lane is `lane`).
+fn drive_through(
+    town: &Town,
+    vp: &VehicleParams,
+    speed_mps: f32,
+    mut path: LanePath,
+    start: (Vec2, f32),
+    lane: LaneIdx,
+) -> Sweep {
     let l = town.lane(lane);
     let v = speed_mps.max(0.1);
     let len = l.length_m();
@@ -487,7 +579,6 @@ pub fn sweep(town: &Town, vp: &VehicleParams, speed_mps: f32, lane: LaneIdx) -> 
     // with its pursuit point still on the path: past a path's end the car
     // would steer for the end point, off the lanes (a connecting road in
     // lane sections of 0.3 m, Town06's, is a chain of such lanes).
-    let mut path = LanePath::new(lane, 0.0);
     let mut beyond_m = 0.0;
     let mut last_lane = l;
     while beyond_m < leave_m + pursuit_lookahead_m(v) && path.lanes.len() < MAX_SWEEP_LANES {
@@ -498,11 +589,20 @@ pub fn sweep(town: &Town, vp: &VehicleParams, speed_mps: f32, lane: LaneIdx) -> 
         last_lane = town.lane(next);
         beyond_m += last_lane.length_m();
     }
-    let (p0, yaw0, _) = l.pose_at(0.0);
+    let before_m = if path.lane() == lane {
+        0.0
+    } else {
+        path.remaining_m(town) - beyond_m - len
+    };
+    let (p0, yaw0) = start;
     let mut state = VehicleState::at_rest(p0, yaw0);
     state.speed_mps = v;
-    let max_ticks = ((3.0 * len + 2.0 * leave_m) / (v * DT_S)).ceil() as usize;
-    let mut poses = vec![(p0, Vec2::from_angle(yaw0))];
+    let max_ticks = ((before_m + 3.0 * len + 2.0 * leave_m) / (v * DT_S)).ceil() as usize;
+    let first = path.lane();
+    let mut poses = Vec::new();
+    if first == lane {
+        poses.push((p0, Vec2::from_angle(yaw0)));
+    }
     let mut last = p0;
     for _ in 0..max_ticks {
         let steer = pursuit_steer(town, vp, &state, &path);
@@ -514,6 +614,13 @@ pub fn sweep(town: &Town, vp: &VehicleParams, speed_mps: f32, lane: LaneIdx) -> 
         state.step(vp, control, DT_S);
         state.speed_mps = v;
         path.advance_to(town, state.position);
+        if poses.is_empty() {
+            if path.lane() == first {
+                continue;
+            }
+            poses.push((state.position, Vec2::from_angle(state.yaw)));
+            last = state.position;
+        }
         if (state.position - last).length() >= SWEEP_STEP_M {
             poses.push((state.position, Vec2::from_angle(state.yaw)));
             last = state.position;

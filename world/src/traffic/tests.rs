@@ -875,6 +875,22 @@ fn a_car_between_junctions_closer_than_a_car_asks_for_the_next_while_it_leaves_t
     assert_eq!(tr.npcs()[0].leaving, None);
 }
 
+/// A road's lane `od` (OpenDRIVE ids) and the connecting lane on road `turn`
+/// it leads into.
+fn lane_into(town: &Town, road: &str, od: i32, turn: &str) -> (LaneIdx, LaneIdx) {
+    (0..town.lanes.len())
+        .map(|i| LaneIdx(i as u32))
+        .find_map(|l| {
+            let x = &town.lanes[l.0 as usize];
+            let into = x
+                .successors
+                .iter()
+                .find(|s| town.lanes[s.0 as usize].road_id == turn)?;
+            (x.road_id == road && x.od_lane == od).then_some((l, *into))
+        })
+        .unwrap_or_else(|| panic!("{}: road {road} lane {od} into road {turn}", town.name))
+}
+
 #[test]
 fn the_two_lanes_of_a_double_turn_go_together_but_not_half_a_turn_apart() {
     // Town06's junction 509 (generated lights): road 20's lanes -5 and -6 both turn
@@ -896,22 +912,8 @@ fn the_two_lanes_of_a_double_turn_go_together_but_not_half_a_turn_apart() {
     )
     .unwrap();
     let town = Arc::new(town);
-    // Road 20's lane `od` and the connecting lane on road `turn` it leads into.
-    let approach = |od: i32, turn: &str| {
-        (0..town.lanes.len())
-            .map(|i| LaneIdx(i as u32))
-            .find_map(|l| {
-                let x = &town.lanes[l.0 as usize];
-                let into = x
-                    .successors
-                    .iter()
-                    .find(|s| town.lanes[s.0 as usize].road_id == turn)?;
-                (x.road_id == "20" && x.od_lane == od).then_some((l, *into))
-            })
-            .unwrap_or_else(|| panic!("Town06: road 20 lane {od} into road {turn}"))
-    };
-    let (outer_in, outer) = approach(-5, "509");
-    let (inner_in, inner) = approach(-6, "524");
+    let (outer_in, outer) = lane_into(&town, "20", -5, "509");
+    let (inner_in, inner) = lane_into(&town, "20", -6, "524");
     assert!(crate::rules::conflicts::side_by_side(&town, outer, inner));
     assert!(
         crate::rules::JunctionConflicts::new(&town)
@@ -1144,4 +1146,87 @@ fn town03_road_14(test: &str) -> Option<Road14> {
         first,
         next,
     })
+}
+
+#[test]
+fn a_car_waits_clear_of_a_turn_that_starts_at_an_angle_to_its_road() {
+    // Town04's junction 690 (generated lights): connecting road 691 starts 17
+    // degrees off road 9, the road before it, and turns right in 8 m. A car that
+    // waited at its entry meets it with road 9's heading and swings 1.5 m wider
+    // than a car started on the lane's own heading; its body reached over road
+    // 52's lane -1, where a car stood waiting to enter road 701 (seeds 2 and 3 of
+    // the hour's soaks, one contact each). That car now waits where the wider
+    // drive misses it (`JunctionConflicts::hold_back_m`).
+    let test = "a_car_waits_clear_of_a_turn_that_starts_at_an_angle_to_its_road";
+    let Some(dir) = crate::testdata::carla_dir(test) else {
+        return;
+    };
+    let (town, _) = crate::map::load_xodr_file(
+        dir.join("Town04.xodr"),
+        &crate::map::LoadOptions {
+            unsignalled: crate::map::UnsignalledJunctions::GenerateLights,
+        },
+    )
+    .unwrap();
+    let town = Arc::new(town);
+    let (turner_in, turn) = lane_into(&town, "9", 1, "691");
+    let (waiter_in, wait) = lane_into(&town, "52", -1, "701");
+    assert!(
+        crate::rules::JunctionConflicts::new(&town)
+            .of(wait)
+            .contains(&turn)
+    );
+    let green = vec![LightState::Green; town.lights.len()];
+    let half = VehicleParams::default().length_m * 0.5;
+    let on = |lane: LaneIdx, into: LaneIdx, back_m: f32| {
+        let mut p = LanePath::new(lane, town.lane(lane).length_m() - half - back_m);
+        p.lanes.push_back(into);
+        p
+    };
+    // The other car's road red: it comes up to its entry and stands where it
+    // stands for a reservation too (`npc::decide`), the turner kept 60 m back.
+    let waiter_red: Vec<LightState> = town
+        .lights
+        .iter()
+        .map(|l| {
+            if l.stop_lines.iter().any(|s| s.lane == waiter_in) {
+                LightState::Red
+            } else {
+                LightState::Green
+            }
+        })
+        .collect();
+    assert!(waiter_red.contains(&LightState::Red));
+    let mut tr = Traffic::new(town.clone(), cfg(2, 0, 1), None);
+    tr.place_npc(0, on(turner_in, turn, 60.0));
+    tr.place_npc(1, on(waiter_in, wait, 20.0));
+    let mut still_s = 0.0;
+    for _ in 0..(40 * 30) {
+        tr.step(&waiter_red);
+        tr.place_npc(0, on(turner_in, turn, 60.0));
+        still_s = if tr.npcs()[1].state.speed_mps < 0.1 {
+            still_s + DT_S
+        } else {
+            0.0
+        };
+        if still_s > 2.0 {
+            break;
+        }
+    }
+    assert!(
+        still_s > 2.0 && tr.npcs()[1].path.lane() == waiter_in,
+        "the car did not wait"
+    );
+    // The turner from rest at its entry, on its green; then the other's green.
+    tr.place_npc(0, on(turner_in, turn, 0.6));
+    let (mut turned, mut through) = (false, false);
+    for k in 0..(40 * 30) {
+        tr.step(if k < 40 * 15 { &waiter_red } else { &green });
+        let lane = tr.npcs()[0].path.lane();
+        turned |= k < 40 * 15 && lane != turner_in && lane != turn;
+        through |= tr.npcs()[1].path.lane() != waiter_in;
+    }
+    assert_eq!(tr.stats().npc_npc_collisions, 0, "{:?}", tr.incidents());
+    assert!(turned, "the turner never went through");
+    assert!(through, "the waiting car never entered");
 }
