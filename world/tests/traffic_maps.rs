@@ -35,10 +35,6 @@ fn heading_change_rad(l: &world::DriveLane) -> f32 {
     d0.perp_dot(d1).atan2(d0.dot(d1)).abs()
 }
 
-/// Every connecting lane of every junction and every curved road (turning
-/// more than 0.5 rad), driven by one NPC from 20 m before its start (lights
-/// green): it gets through without touching a curb. Returns the smallest
-/// clearance to a static collider on the way (metres).
 /// Traffic of one NPC and no walkers (seed 1), to place where a test wants it.
 fn one_npc(town: &Arc<Town>) -> Traffic {
     let cfg = TrafficConfig {
@@ -50,6 +46,10 @@ fn one_npc(town: &Arc<Town>) -> Traffic {
     Traffic::new(town.clone(), cfg, None)
 }
 
+/// Every connecting lane of every junction and every curved road (turning
+/// more than 0.5 rad), driven by one NPC from 20 m before its start (lights
+/// green): it gets through without touching a curb. Returns the smallest
+/// clearance to a static collider on the way (metres).
 fn drive_every_turn(town: &Arc<Town>) -> f32 {
     let mut tr = one_npc(town);
     assert_eq!(tr.realised_vehicles(), 1);
@@ -410,4 +410,47 @@ fn a_car_waits_clear_of_a_turn_that_swings_over_its_usual_place() {
             .collect();
         assert!(held.is_empty(), "{name}: {held:?}");
     }
+}
+
+#[test]
+fn a_car_through_a_junction_sees_the_next_across_a_road_of_several_sections() {
+    // Town03's junctions 595 and 524 are 3.5 m apart, over two lane sections
+    // (road 11, then road 38). A car coming through 595 at 7 m/s looked for 524's
+    // lane only once out of 595, 6 m before 524's entry: too late to stop where it
+    // waits (`hold_back_m`), it braked to a stand 0.7 m into the swing of 524's turn
+    // on road 526 and was struck (seed 3's soak, 868 s). From inside 595 it now sees
+    // 524's entry over both sections (`npc::chained_junction_lane`).
+    let test = "a_car_through_a_junction_sees_the_next_across_a_road_of_several_sections";
+    let Some(town) = carla(test, "Town03") else {
+        return;
+    };
+    let road_lane =
+        |road: &str, od: i32| find_lane(&town, road, od, "road", |l| l.junction.is_none());
+    let (road11, road38) = (road_lane("11", -5), road_lane("38", -5));
+    assert_eq!(town.lane(road11).successors, vec![road38]);
+    let next = *town
+        .lane(road38)
+        .successors
+        .first()
+        .expect("road 38 leads into junction 524");
+    let into_11 = *town
+        .lane(road11)
+        .predecessors
+        .first()
+        .expect("road 11 is entered from junction 595");
+    assert!(town.lane(into_11).junction.is_some() && town.lane(next).junction.is_some());
+    let mut tr = one_npc(&town);
+    let mut path = LanePath::new(into_11, 0.0);
+    path.lanes.extend([road11, road38, next]);
+    tr.place_npc(0, path);
+    let vp = tr.config().vehicle;
+    let conflicts = world::rules::JunctionConflicts::new(&town);
+    let (lane, d) =
+        world::agents::npc::chained_junction_lane(&town, &conflicts, &tr.npcs()[0], &vp)
+            .expect("524's lane seen from inside 595");
+    let link_m = town.lane(road11).length_m() + town.lane(road38).length_m();
+    assert!(link_m < world::agents::npc::chained_link_m(&conflicts, &vp, next));
+    let want = town.lane(into_11).length_m() + link_m - vp.length_m * 0.5;
+    assert_eq!(lane, next);
+    assert!((d - want).abs() < 1e-3, "{d} m to the entry, want {want}");
 }

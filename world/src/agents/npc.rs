@@ -309,7 +309,8 @@ pub fn chained_link_m(conflicts: &JunctionConflicts, vp: &VehicleParams, next: L
 }
 
 /// For an NPC inside a junction whose road out leads, in less than
-/// [`chained_link_m`], into the next junction: that junction's lane on its
+/// [`chained_link_m`] (over one lane section or several), into the next
+/// junction: that junction's lane on its
 /// path and the path distance from its front bumper to the lane's entry
 /// (metres). None elsewhere ([`next_junction_lane`] serves cars outside
 /// junctions).
@@ -327,12 +328,16 @@ pub fn chained_junction_lane(
         off += town.lane(lanes[k]).length_m();
         k += 1;
     }
-    let link = *lanes.get(k)?;
-    let next = *lanes.get(k + 1)?;
-    let link_m = town.lane(link).length_m();
-    let chained = town.lanes[link.0 as usize].junction.is_none()
-        && town.lanes[next.0 as usize].junction.is_some()
-        && link_m < chained_link_m(conflicts, params, next);
+    // The road out, in as many lane sections as it has (Town03's roads 11 and
+    // 38 between junctions 595 and 524, 3.5 m in all), up to the next
+    // junction's lane.
+    let mut link_m = 0.0;
+    while town.lanes[lanes.get(k)?.0 as usize].junction.is_none() {
+        link_m += town.lane(lanes[k]).length_m();
+        k += 1;
+    }
+    let next = lanes[k];
+    let chained = link_m > 0.0 && link_m < chained_link_m(conflicts, params, next);
     chained.then_some((next, off + link_m - params.length_m * 0.5))
 }
 
