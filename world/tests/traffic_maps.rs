@@ -454,3 +454,49 @@ fn a_car_through_a_junction_sees_the_next_across_a_road_of_several_sections() {
     assert_eq!(lane, next);
     assert!((d - want).abs() < 1e-3, "{d} m to the entry, want {want}");
 }
+
+#[test]
+fn no_walker_stands_in_a_driving_lane() {
+    // Where a junction's connecting roads overlap, one road's sidewalk lane can run
+    // across another's turn: Town03's junction 793 had a walk node 1.7 m from road
+    // 806's lane centre (3.5 m wide). A walker waiting there to cross held up the
+    // car turning through it, and waited for that car (seed 1: the car and the four
+    // queued behind it stood for the rest of the hour once the chained junctions
+    // changed the traffic). The walk graph keeps no node where a walker's body would
+    // be in a lane; Town01's, Town02's and our towns' graphs have none such.
+    let test = "no_walker_stands_in_a_driving_lane";
+    let Some(town03) = carla(test, "Town03") else {
+        return;
+    };
+    let mut towns: Vec<(String, Arc<Town>)> = [
+        GridTownParams::gen01(),
+        GridTownParams::gen02(),
+        GridTownParams::gen03(),
+    ]
+    .into_iter()
+    .map(|p| (p.name.clone(), generated(p)))
+    .collect();
+    for name in ["Town01", "Town02", "Town04"] {
+        towns.push((
+            name.into(),
+            carla(test, name).expect("CARLA's towns are there"),
+        ));
+    }
+    towns.push(("Town03".into(), town03));
+    for (name, town) in towns {
+        let g = world::agents::pedestrian::WalkGraph::new(&town, &Default::default());
+        let lanes = world::rules::LaneGrid::new(&town, 8.0);
+        let radius = world::physics::PEDESTRIAN_RADIUS_M;
+        let in_lane: Vec<_> = g
+            .nodes
+            .iter()
+            .filter(|n| lanes.within_any_lane(&town, n.position, radius))
+            .map(|n| n.position)
+            .collect();
+        assert!(
+            in_lane.is_empty(),
+            "{name}: walk nodes in a lane at {in_lane:?}"
+        );
+        assert!(g.nodes.len() > 500, "{name}: {} walk nodes", g.nodes.len());
+    }
+}

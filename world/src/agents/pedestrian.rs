@@ -1,7 +1,9 @@
 //! Pedestrians: walkers on a graph of sidewalks and crossings.
 //!
 //! The [`WalkGraph`] has nodes about 3 m apart along each sidewalk's middle
-//! line, edges between neighbours, links between sidewalk ends that meet at a
+//! line (none where a walker would stand in a driving lane: a sidewalk lane
+//! of one of a junction's connecting roads can lie across another's turn),
+//! edges between neighbours, links between sidewalk ends that meet at a
 //! corner (within `corner_link_m`), an edge across each crosswalk (its two
 //! ends join the nearest sidewalk nodes) and "jaywalk" edges straight across
 //! the road between facing sidewalks. A walker heads for a random goal node
@@ -21,6 +23,7 @@ use crate::agents::actor::ActorKind;
 use crate::map::town::Town;
 use crate::physics::PEDESTRIAN_RADIUS_M;
 use crate::rules::ahead::ActorView;
+use crate::rules::lanes::LaneGrid;
 use glam::Vec2;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
@@ -109,6 +112,14 @@ impl WalkGraph {
     pub fn new(town: &Town, params: &PedestrianParams) -> WalkGraph {
         let mut g = WalkGraph::default();
         let mut ends: Vec<(u32, u32)> = Vec::new(); // (node, sidewalk)
+        // A place on a sidewalk where a walker would stand in a driving lane
+        // is no place to walk: where a junction's connecting roads overlap, one
+        // road's sidewalk lane can lie across another's turn (Town03's
+        // junction 793: a node 1.7 m from road 806's lane, where a walker
+        // waiting to cross held up the car whose turn it stood in, and the car
+        // the walker). The sidewalk is cut there; each piece has its ends.
+        let lanes = LaneGrid::new(town, 8.0);
+        let on_road = |p: Vec2| lanes.within_any_lane(town, p, PEDESTRIAN_RADIUS_M);
         for (si, sw) in town.sidewalks.iter().enumerate() {
             let n = sw.inner.len().min(sw.outer.len());
             if n < 2 {
@@ -120,20 +131,45 @@ impl WalkGraph {
                     sw.inner[i].z + sw.height_m,
                 )
             };
-            let first = g.nodes.len() as u32;
-            let mut last_kept = mid(0).0.truncate();
-            g.add_node(last_kept, mid(0).1, si as u32);
-            for i in 1..n {
+            // The piece being walked: its first node and last kept point.
+            let mut piece: Option<(u32, Vec2)> = None;
+            let mut last_off_road: Option<(Vec2, f32)> = None;
+            for i in 0..n {
                 let (p, z) = mid(i);
-                if (p.truncate() - last_kept).length() >= 3.0 || i == n - 1 {
-                    let prev = g.nodes.len() as u32 - 1;
-                    let id = g.add_node(p.truncate(), z, si as u32);
-                    g.link(prev, id, EdgeKind::Sidewalk);
-                    last_kept = p.truncate();
+                let p = p.truncate();
+                if on_road(p) {
+                    // Close the piece at the last place off the road.
+                    if let Some((first, last_kept)) = piece.take() {
+                        if let Some((q, qz)) = last_off_road
+                            && q != last_kept
+                        {
+                            let prev = g.nodes.len() as u32 - 1;
+                            let id = g.add_node(q, qz, si as u32);
+                            g.link(prev, id, EdgeKind::Sidewalk);
+                        }
+                        ends.push((first, si as u32));
+                        ends.push((g.nodes.len() as u32 - 1, si as u32));
+                    }
+                    last_off_road = None;
+                    continue;
+                }
+                last_off_road = Some((p, z));
+                match piece {
+                    None => piece = Some((g.add_node(p, z, si as u32), p)),
+                    Some((first, last_kept)) => {
+                        if (p - last_kept).length() >= 3.0 || i == n - 1 {
+                            let prev = g.nodes.len() as u32 - 1;
+                            let id = g.add_node(p, z, si as u32);
+                            g.link(prev, id, EdgeKind::Sidewalk);
+                            piece = Some((first, p));
+                        }
+                    }
                 }
             }
-            ends.push((first, si as u32));
-            ends.push((g.nodes.len() as u32 - 1, si as u32));
+            if let Some((first, _)) = piece {
+                ends.push((first, si as u32));
+                ends.push((g.nodes.len() as u32 - 1, si as u32));
+            }
         }
         // Corners: join each sidewalk end to the nearest node of another sidewalk.
         for &(e, si) in &ends {

@@ -204,8 +204,15 @@ impl LaneGrid {
 
     /// Whether `p` lies within the paved width of some driving lane, whatever its direction.
     pub fn on_any_lane(&self, town: &Town, p: Vec2) -> bool {
+        self.within_any_lane(town, p, 0.0)
+    }
+
+    /// Whether `p` lies within the paved width of some driving lane widened
+    /// by `margin_m` on each side (metres), whatever its direction.
+    pub fn within_any_lane(&self, town: &Town, p: Vec2, margin_m: f32) -> bool {
         self.lanes_near(p).into_iter().any(|lane| {
-            project_on_lane(town, lane, p).is_some_and(|lp| lp.distance_m <= lp.width_m * 0.5)
+            project_on_lane(town, lane, p)
+                .is_some_and(|lp| lp.distance_m <= lp.width_m * 0.5 + margin_m)
         })
     }
 
