@@ -423,8 +423,8 @@ impl Traffic {
     /// metres) before its entry, but for cars entering a lane beside it
     /// ([`rules::conflicts::side_by_side`]) at the same time: every other
     /// holder of a lane conflicting with `lane` holds such a lane and has
-    /// driven at most [`ENTER_TOGETHER_M`] into it, and this car stands at
-    /// its own entry. The two lanes of a double turn then go together on a
+    /// driven at most [`ENTER_TOGETHER_M`] into it, this car's front is at
+    /// most that far behind the other's, and this car stands at its own entry. The two lanes of a double turn then go together on a
     /// green, as in CARLA, while a car is still kept from entering half a turn
     /// behind the car beside, where their bodies would meet.
     fn free_but_beside(&self, lane: LaneIdx, id: u32, d_m: f32) -> bool {
@@ -441,15 +441,22 @@ impl Traffic {
                 let Some(n) = (h as usize).checked_sub(1).and_then(|k| self.npcs.get(k)) else {
                     return false; // the ego (0) holds it
                 };
+                // How far its front is into its lane (negative: before the entry).
                 let now = n.path.lane();
                 let into_m = if now == c {
                     n.path.s_m + half
                 } else if self.town.lanes[now.0 as usize].junction.is_none() {
-                    0.0
+                    npc::next_junction_lane(&self.town, n, &self.cfg.vehicle)
+                        .filter(|&(l, _)| l == c)
+                        .map_or(0.0, |(_, d)| -d)
                 } else {
                     f32::INFINITY
                 };
+                // Beside it, not a part of the turn behind: this car's front at
+                // most `ENTER_TOGETHER_M` behind the other's (Town03's junction
+                // 545, where an inner car 5 m behind the outer one swung into it).
                 let ok = into_m <= ENTER_TOGETHER_M
+                    && d_m + into_m <= ENTER_TOGETHER_M
                     && rules::conflicts::side_by_side(&self.town, lane, c);
                 beside |= ok;
                 ok

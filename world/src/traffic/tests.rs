@@ -962,6 +962,23 @@ fn the_two_lanes_of_a_double_turn_go_together_but_not_half_a_turn_apart() {
         tr.step(&green);
         assert_eq!(tr.npcs()[1].reservation, None, "entered half a turn behind");
     }
+    // The outer car's front 1 m into its lane, the inner car's 1.5 m before its
+    // own: 2.5 m behind, it waits (Town03's junction 545: an inner car let in 5 m
+    // behind the outer one swung into it half-way through the turn).
+    let mut tr = Traffic::new(town.clone(), cfg(2, 0, 1), None);
+    let mut p = LanePath::new(outer_in, town.lane(outer_in).length_m() - half + 1.0);
+    p.lanes.extend(&movement);
+    tr.place_npc(0, p);
+    let id = tr.npcs()[0].id;
+    tr.reservations.grant(outer, id);
+    tr.npcs[0].reservation = Some(outer);
+    let mut p = LanePath::new(inner_in, town.lane(inner_in).length_m() - half - 1.5);
+    p.lanes.push_back(inner);
+    tr.place_npc(1, p);
+    for _ in 0..20 {
+        tr.step(&green);
+        assert_eq!(tr.npcs()[1].reservation, None, "entered 2.5 m behind");
+    }
 }
 
 #[test]
