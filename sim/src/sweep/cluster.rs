@@ -119,16 +119,11 @@ pub fn student_t_quantile(q: f64, df: f64) -> f64 {
     0.5 * (lo + hi)
 }
 
-/// A two-sided interval at `level` (0.95: 95 %) for the mean over clusters of
-/// `values`, where `clusters[i]` names the cluster (route) of `values[i]`:
-/// each cluster's mean, then their mean with a Student t interval on G - 1
-/// degrees of freedom (every cluster weighs the same). Returns (mean, low,
-/// high); `None` with fewer than two clusters.
-pub fn cluster_t_interval(
-    values: &[f64],
-    clusters: &[usize],
-    level: f64,
-) -> Option<(f64, f64, f64)> {
+/// The mean of the cluster means of `values` (`clusters[i]` names the
+/// cluster, the route, of `values[i]`; every cluster weighs the same), its
+/// standard error and degrees of freedom (G - 1); `None` with fewer than two
+/// clusters or lengths that differ.
+fn over_cluster_means(values: &[f64], clusters: &[usize]) -> Option<(f64, f64, f64)> {
     let ids = super::stats::block_ids(clusters.iter());
     let g = ids.iter().max().map_or(0, |m| m + 1);
     if g < 2 || values.len() != clusters.len() {
@@ -143,8 +138,64 @@ pub fn cluster_t_interval(
     let gf = g as f64;
     let mean = means.iter().sum::<f64>() / gf;
     let var = means.iter().map(|m| (m - mean).powi(2)).sum::<f64>() / (gf - 1.0);
-    let half = student_t_quantile(0.5 + level / 2.0, gf - 1.0) * (var / gf).sqrt();
+    Some((mean, (var / gf).sqrt(), gf - 1.0))
+}
+
+/// A two-sided interval at `level` (0.95: 95 %) for the mean over clusters of
+/// `values`, where `clusters[i]` names the cluster (route) of `values[i]`:
+/// each cluster's mean, then their mean with a Student t interval on G - 1
+/// degrees of freedom (every cluster weighs the same). Returns (mean, low,
+/// high); `None` with fewer than two clusters.
+pub fn cluster_t_interval(
+    values: &[f64],
+    clusters: &[usize],
+    level: f64,
+) -> Option<(f64, f64, f64)> {
+    let (mean, se, df) = over_cluster_means(values, clusters)?;
+    let half = student_t_quantile(0.5 + level / 2.0, df) * se;
     Some((mean, mean - half, mean + half))
+}
+
+/// The p-value of a t test over cluster means (as [`cluster_t_interval`]) of
+/// "the mean is `null_mean`" against `alternative` (above it, below it, or
+/// either side). Where every cluster mean is the same (no spread), 0 when the
+/// mean lies strictly on the alternative's side of the null and 1 otherwise.
+/// `None` with fewer than two clusters.
+pub fn cluster_t_p(
+    values: &[f64],
+    clusters: &[usize],
+    null_mean: f64,
+    alternative: super::exact::Alternative,
+) -> Option<f64> {
+    use super::exact::Alternative;
+    let (mean, se, df) = over_cluster_means(values, clusters)?;
+    let d = mean - null_mean;
+    if se <= 0.0 {
+        let on_side = match alternative {
+            Alternative::Greater => d > 0.0,
+            Alternative::Less => d < 0.0,
+            Alternative::TwoSided => d != 0.0,
+        };
+        return Some(if on_side { 0.0 } else { 1.0 });
+    }
+    let t = d / se;
+    Some(match alternative {
+        Alternative::Greater => 1.0 - student_t_cdf(t, df),
+        Alternative::Less => student_t_cdf(t, df),
+        Alternative::TwoSided => (2.0 * student_t_cdf(-t.abs(), df)).min(1.0),
+    })
+}
+
+/// The p-value of "the mean lies within ±`margin`" by two one-sided t tests
+/// over cluster means ([`cluster_t_p`]): the larger of "above -margin" and
+/// "below +margin". Its size at either end of the margin is at most the
+/// one-sided test's, alpha where the cluster means are normal (the tests below
+/// simulate it for counts too). `None` with fewer than two clusters.
+pub fn cluster_t_equivalence_p(values: &[f64], clusters: &[usize], margin: f64) -> Option<f64> {
+    use super::exact::Alternative;
+    let above = cluster_t_p(values, clusters, -margin, Alternative::Greater)?;
+    let below = cluster_t_p(values, clusters, margin, Alternative::Less)?;
+    Some(above.max(below))
 }
 
 #[cfg(test)]
@@ -224,6 +275,109 @@ mod tests {
             }
         }
         hits as f64 / d.sims as f64
+    }
+
+    #[test]
+    fn the_t_test_over_route_means_matches_scipy() {
+        // Route means 1, 0, 2, 3; SciPy 1.17.1 `ttest_1samp(m, -0.5, alternative="greater")`
+        // = 0.026681361358470955, `ttest_1samp(m, 3, alternative="less")` =
+        // 0.051364039429199496, two-sided 0.10272807885839899.
+        use super::super::exact::Alternative::{Greater, Less, TwoSided};
+        let values = [1.0, 1.0, 1.0, 0.0, 0.0, 2.0, 3.0, 3.0];
+        let clusters = [0, 0, 0, 1, 1, 2, 3, 3];
+        let up = cluster_t_p(&values, &clusters, -0.5, Greater).unwrap();
+        let down = cluster_t_p(&values, &clusters, 3.0, Less).unwrap();
+        assert!((up - 0.026_681_361_358_470_955).abs() < 1e-10, "{up}");
+        assert!((down - 0.051_364_039_429_199_496).abs() < 1e-10, "{down}");
+        let two = cluster_t_p(&values, &clusters, 3.0, TwoSided).unwrap();
+        assert!((two - 0.102_728_078_858_398_99).abs() < 1e-10, "{two}");
+        // Equivalence within ±2 about 1.5 is the larger of the two one-sided tests.
+        let eq = cluster_t_equivalence_p(&values, &clusters, 2.0).unwrap();
+        let want = cluster_t_p(&values, &clusters, -2.0, Greater)
+            .unwrap()
+            .max(cluster_t_p(&values, &clusters, 2.0, Less).unwrap());
+        assert_eq!(eq, want);
+        // No spread: decided by the side the mean lies on.
+        assert_eq!(
+            cluster_t_p(&[0.0; 4], &[0, 1, 2, 3], -0.25, Greater),
+            Some(0.0)
+        );
+        assert_eq!(
+            cluster_t_p(&[0.0; 4], &[0, 1, 2, 3], 0.0, Greater),
+            Some(1.0)
+        );
+        assert_eq!(cluster_t_equivalence_p(&[1.0, 2.0], &[0, 0], 1.0), None);
+    }
+
+    #[test]
+    fn the_equivalence_test_over_route_means_rejects_at_most_alpha_at_the_margin() {
+        // The page's design (4 routes x 9 pairs), the true mean difference at the
+        // margin (+0.25 lane crossings a run), so "within ±0.25" is false: the
+        // test may say it holds at most 5 % of the time. Differences of two
+        // Poisson counts per pair, the rates varying by route (counts, as the
+        // page's lane crossings and red lights are), and normal ones.
+        let mut rng = ChaCha8Rng::seed_from_u64(51);
+        let poisson = |lambda: f64, rng: &mut ChaCha8Rng| {
+            // Knuth's method: lambda is small here.
+            let (l, mut k, mut p) = ((-lambda).exp(), 0.0, 1.0);
+            loop {
+                p *= rng.random::<f64>();
+                if p <= l {
+                    return k;
+                }
+                k += 1.0;
+            }
+        };
+        let margin = 0.25;
+        let sims = 5000;
+        let clusters: Vec<usize> = (0..36).map(|i| i / 9).collect();
+        let mut rejected = 0;
+        for _ in 0..sims {
+            let mut values = Vec::with_capacity(36);
+            for _ in 0..4 {
+                let base = 0.5 + 1.5 * rng.random::<f64>();
+                for _ in 0..9 {
+                    let a = poisson(base, &mut rng);
+                    let b = poisson(base + margin, &mut rng);
+                    values.push(b - a);
+                }
+            }
+            if cluster_t_equivalence_p(&values, &clusters, margin).unwrap() <= 0.05 {
+                rejected += 1;
+            }
+        }
+        let size = rejected as f64 / sims as f64;
+        eprintln!("size at the margin, Poisson counts, 4 routes x 9: {size:.4}");
+        // 5000 simulations: a binomial sd of 0.3 % at 5 %.
+        assert!(
+            size <= 0.05 + 0.006,
+            "rejects {size} of the time at the margin"
+        );
+        // Normal differences with a route effect half the run noise: the
+        // one-sided t test's size is exactly alpha, TOST's at most that.
+        let mut normal = || {
+            let (u, v): (f64, f64) = (rng.random::<f64>().max(1e-300), rng.random());
+            (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
+        };
+        let mut rejected = 0;
+        for _ in 0..sims {
+            let mut values = Vec::with_capacity(36);
+            for _ in 0..4 {
+                let effect = 0.5 * normal();
+                for _ in 0..9 {
+                    values.push(margin + effect + normal());
+                }
+            }
+            if cluster_t_equivalence_p(&values, &clusters, margin).unwrap() <= 0.05 {
+                rejected += 1;
+            }
+        }
+        let size = rejected as f64 / sims as f64;
+        eprintln!("size at the margin, normal, 4 routes x 9: {size:.4}");
+        assert!(
+            size <= 0.05 + 0.006,
+            "rejects {size} of the time at the margin"
+        );
     }
 
     #[test]
