@@ -200,9 +200,13 @@ impl Comparison {
             )
         };
         let blocks = block_ids(pairs.iter().map(|(x, _)| x.block_key()));
+        let routes = block_ids(pairs.iter().map(|(x, _)| x.route.clone()));
         let cmp = |f: &dyn Fn(&Run) -> f64| {
             let (xa, xb) = col(f);
-            paired_in_blocks(&xa, &xb, &blocks, RESAMPLES, BOOTSTRAP_SEED)
+            Paired {
+                clusters: routes.clone(),
+                ..paired_in_blocks(&xa, &xb, &blocks, RESAMPLES, BOOTSTRAP_SEED)
+            }
         };
         Comparison {
             red: cmp(&|r| f64::from(r.record.result.count(RedLight))),
