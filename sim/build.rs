@@ -1,8 +1,12 @@
-//! Embeds the git commit the simulator was built from, for result records.
+//! Embeds the git commit the simulator was built from, for result records
+//! (with `-dirty` where tracked files had uncommitted changes: such a build is
+//! not one commit's, and a registered study refuses its records). The script
+//! reruns only when HEAD or a branch moves, so an edit made after that rerun
+//! goes unseen: `-dirty` is a lower bound. Build a study from a fresh worktree.
 
 fn main() {
     let commit = std::process::Command::new("git")
-        .args(["describe", "--always", "--abbrev=12"])
+        .args(["describe", "--always", "--dirty", "--abbrev=12"])
         .output()
         .ok()
         .filter(|o| o.status.success())

@@ -140,6 +140,36 @@ fn the_quick_paper_writes_every_table_and_figure_and_resumes() {
         "{err}"
     );
     std::fs::write(&one, &text).unwrap();
+    // The page says it is not a registered study's; once the folder is registered,
+    // a record whose build does not descend from the registering commit is refused
+    // (here the commit 000...0, which nothing descends from).
+    assert!(page.contains("Not registered: this folder has no `registered.toml`"));
+    let rules = "# Registration\nthe rules\n";
+    std::fs::write(out.join("registration.md"), rules).unwrap();
+    std::fs::write(
+        out.join("registered.toml"),
+        format!(
+            "commit = \"{}\"\nsha256 = \"{}\"\n",
+            "0".repeat(40),
+            sim::record::sha256_hex(rules.as_bytes())
+        ),
+    )
+    .unwrap();
+    let registered = common::run(&["paper", "--quick", "--out", out_s, "--report-only"]);
+    let err = String::from_utf8_lossy(&registered.stderr);
+    assert!(
+        !registered.status.success() && err.contains("registration,"),
+        "{err}"
+    );
+    // And a registration whose rules changed afterwards is refused before anything runs.
+    std::fs::write(out.join("registration.md"), "# Registration\nother rules\n").unwrap();
+    let changed = common::run(&["paper", "--quick", "--out", out_s]);
+    let err = String::from_utf8_lossy(&changed.stderr);
+    assert!(
+        !changed.status.success() && err.contains("changed after registration"),
+        "{err}"
+    );
+    std::fs::remove_file(out.join("registered.toml")).unwrap();
     // A name that is not an experiment is refused with the list.
     let bad = common::run(&["paper", "--quick", "--out", out_s, "--only", "fig9"]);
     let err = String::from_utf8_lossy(&bad.stderr);

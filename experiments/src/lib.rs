@@ -12,6 +12,9 @@
 //! - [`loss_plot`]: a training run's loss curves (`mrdrive train`, `mrdrive policy losses`).
 //! - [`page`]: `README.md`, our numbers beside the paper's.
 //! - [`run`]: running the units and writing everything.
+//! - [`registration`]: the study's rules, registered before its runs
+//!   (`mrdrive paper --register`), and the check that every record's build
+//!   descends from the registering commit.
 //! - [`pipeline`]: the training pipeline as a plan ([`pipeline::TrainPlan`]:
 //!   datasets, the Original's phases, the retargeting lanes, the bar), run as
 //!   commands of this binary (`mrdrive train --all`).
@@ -31,6 +34,7 @@ pub mod options;
 pub mod page;
 pub mod pipeline;
 pub mod progress;
+pub mod registration;
 pub mod report;
 pub mod results;
 pub mod run;
@@ -88,6 +92,14 @@ pub enum PaperError {
         /// The output file.
         path: PathBuf,
         /// What failed.
+        problem: String,
+    },
+    /// The study's registration is missing what it needs, or a record breaks it.
+    #[error("registration, {path}: {problem}")]
+    Registration {
+        /// The file or folder.
+        path: PathBuf,
+        /// What is wrong and how to fix it.
         problem: String,
     },
     /// This build is not the one that made the runs already in the folder.

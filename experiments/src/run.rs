@@ -10,6 +10,7 @@ use sim::sweep::{self, RunSpec};
 use crate::config::PaperConfig;
 use crate::experiment::{Experiment, units_of};
 use crate::options::{RunOptions, WallLog};
+use crate::registration::Registration;
 use crate::results::Results;
 use crate::{PaperError, page};
 
@@ -43,9 +44,18 @@ pub fn run_paper(
     let mut outcome = Outcome::default();
     std::fs::create_dir_all(&opts.out).map_err(|e| PaperError::io("create", &opts.out, e))?;
     let units = units_of(&opts.experiments, cfg);
+    let registration = Registration::load(&opts.out)?;
+    if let Some(r) = &registration {
+        r.check_rules(&opts.out)?;
+    }
     if !opts.report_only {
         same_backend(cfg, opts, &units)?;
         let existing = Results::load(cfg, &opts.out, &units_of(&Experiment::ALL, cfg))?;
+        if let Some(r) = &registration {
+            let here = sim::output::provenance::build_id();
+            let builds = existing.provenance(|p| &p.build);
+            r.check_builds(&opts.out, builds.iter().chain([&here]))?;
+        }
         if !opts.mixed_builds {
             same_build(
                 &existing.provenance(|p| &p.build),
@@ -247,9 +257,16 @@ impl WallClock {
 
 /// Rewrites every experiment's tables, figures and page section from the
 /// runs that exist, so `--only` adds to the page without dropping the rest.
+/// A registered folder's page takes only records of builds that descend from
+/// the registering commit ([`Registration::check_builds`]).
 fn report(cfg: &PaperConfig, opts: &RunOptions) -> Result<Vec<PathBuf>, PaperError> {
     let results = Results::load(cfg, &opts.out, &units_of(&Experiment::ALL, cfg))?;
-    page::write_all(cfg, opts, &results)
+    let registration = Registration::load(&opts.out)?;
+    if let Some(r) = &registration {
+        r.check_rules(&opts.out)?;
+        r.check_builds(&opts.out, &results.provenance(|p| &p.build))?;
+    }
+    page::write_all(cfg, opts, &results, registration.as_ref())
 }
 
 #[cfg(test)]

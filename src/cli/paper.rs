@@ -40,6 +40,11 @@ pub struct PaperArgs {
     /// Run only the first N seeds this time (the rest stay planned; a later call goes on).
     #[arg(long)]
     pub seeds: Option<usize>,
+    /// Register the folder's `registration.md` (final, committed as it is) at the
+    /// checkout's HEAD: writes `registered.toml` to commit next; runs nothing.
+    /// From then on the page takes only records of builds descending from it.
+    #[arg(long, conflicts_with_all = ["quick", "report_only"])]
+    pub register: bool,
 }
 
 /// A progress bar over the runs still to do.
@@ -76,6 +81,17 @@ pub fn run(a: PaperArgs) -> anyhow::Result<()> {
     } else {
         a.only.as_str()
     };
+    if a.register {
+        let r = experiments::registration::register(&out)?;
+        println!(
+            "paper: registered {} at commit {} (SHA-256 {}); commit {} now",
+            out.join(experiments::registration::RULES_FILE).display(),
+            r.commit,
+            r.sha256,
+            out.join(experiments::registration::RECORD_FILE).display()
+        );
+        return Ok(());
+    }
     let experiments = Experiment::parse_list(only)?;
     let opts = RunOptions {
         out: out.clone(),

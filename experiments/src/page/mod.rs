@@ -39,6 +39,7 @@ pub fn write_all(
     cfg: &PaperConfig,
     opts: &RunOptions,
     results: &Results,
+    registration: Option<&crate::registration::Registration>,
 ) -> Result<Vec<PathBuf>, PaperError> {
     let mut w = Writer {
         docs: opts.out.clone(),
@@ -58,7 +59,18 @@ pub fn write_all(
     // The sections' paired tests form one family for Holm's correction; the
     // shapes' tests, which decide the verdicts, form their own (see `shapes`).
     let (sections, family) = resolve_holm(&sections.join("\n"));
-    let page = header(cfg, opts, results, family) + &shapes::shapes(cfg, results) + &sections;
+    let registered = registration.map_or_else(
+        || {
+            "Not registered: this folder has no `registered.toml`, so its verdicts are not a \
+             registered study's (`mrdrive paper --register`, issue 50).\n\n"
+                .to_string()
+        },
+        |r| r.line() + "\n\n",
+    );
+    let page = header(cfg, opts, results, family)
+        + &registered
+        + &shapes::shapes(cfg, results)
+        + &sections;
     w.text("README.md", &page)?;
     Ok(w.written)
 }
