@@ -35,6 +35,24 @@ fn heading_change_rad(l: &world::DriveLane) -> f32 {
     d0.perp_dot(d1).atan2(d0.dot(d1)).abs()
 }
 
+/// Our generated towns gen01-gen03 and CARLA's towns `carla_names`, by name
+/// (for a test that has found `../shared/carla/`).
+fn our_towns_and(test: &str, carla_names: &[&str]) -> Vec<(String, Arc<Town>)> {
+    let mut towns: Vec<(String, Arc<Town>)> = [
+        GridTownParams::gen01(),
+        GridTownParams::gen02(),
+        GridTownParams::gen03(),
+    ]
+    .into_iter()
+    .map(|p| (p.name.clone(), generated(p)))
+    .collect();
+    for name in carla_names {
+        let town = carla(test, name).expect("CARLA's towns are there");
+        towns.push((name.to_string(), town));
+    }
+    towns
+}
+
 /// Traffic of one NPC and no walkers (seed 1), to place where a test wants it.
 fn one_npc(town: &Arc<Town>) -> Traffic {
     let cfg = TrafficConfig {
@@ -389,21 +407,7 @@ fn a_car_waits_clear_of_a_turn_that_swings_over_its_usual_place() {
     let conflicts = world::rules::JunctionConflicts::new(&town03);
     let entry = entry_piece(&town03, "817", -1);
     assert!(conflicts.hold_back_m(entry) > 0.0);
-    let mut towns: Vec<(String, Arc<Town>)> = [
-        GridTownParams::gen01(),
-        GridTownParams::gen02(),
-        GridTownParams::gen03(),
-    ]
-    .into_iter()
-    .map(|p| (p.name.clone(), generated(p)))
-    .collect();
-    for name in ["Town01", "Town02"] {
-        towns.push((
-            name.into(),
-            carla(test, name).expect("CARLA's towns are there"),
-        ));
-    }
-    for (name, town) in towns {
+    for (name, town) in our_towns_and(test, &["Town01", "Town02"]) {
         let c = world::rules::JunctionConflicts::new(&town);
         let held: Vec<usize> = (0..town.lanes.len())
             .filter(|&i| c.hold_back_m(LaneIdx(i as u32)) > 0.0)
@@ -468,20 +472,7 @@ fn no_walker_stands_in_a_driving_lane() {
     let Some(town03) = carla(test, "Town03") else {
         return;
     };
-    let mut towns: Vec<(String, Arc<Town>)> = [
-        GridTownParams::gen01(),
-        GridTownParams::gen02(),
-        GridTownParams::gen03(),
-    ]
-    .into_iter()
-    .map(|p| (p.name.clone(), generated(p)))
-    .collect();
-    for name in ["Town01", "Town02", "Town04"] {
-        towns.push((
-            name.into(),
-            carla(test, name).expect("CARLA's towns are there"),
-        ));
-    }
+    let mut towns = our_towns_and(test, &["Town01", "Town02", "Town04"]);
     towns.push(("Town03".into(), town03));
     for (name, town) in towns {
         let g = world::agents::pedestrian::WalkGraph::new(&town, &Default::default());

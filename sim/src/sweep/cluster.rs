@@ -328,56 +328,52 @@ mod tests {
                 k += 1.0;
             }
         };
-        let margin = 0.25;
-        let sims = 5000;
-        let clusters: Vec<usize> = (0..36).map(|i| i / 9).collect();
-        let mut rejected = 0;
-        for _ in 0..sims {
-            let mut values = Vec::with_capacity(36);
-            for _ in 0..4 {
-                let base = 0.5 + 1.5 * rng.random::<f64>();
-                for _ in 0..9 {
-                    let a = poisson(base, &mut rng);
-                    let b = poisson(base + margin, &mut rng);
-                    values.push(b - a);
-                }
-            }
-            if cluster_t_equivalence_p(&values, &clusters, margin).unwrap() <= 0.05 {
-                rejected += 1;
-            }
-        }
-        let size = rejected as f64 / sims as f64;
-        eprintln!("size at the margin, Poisson counts, 4 routes x 9: {size:.4}");
-        // 5000 simulations: a binomial sd of 0.3 % at 5 %.
-        assert!(
-            size <= 0.05 + 0.006,
-            "rejects {size} of the time at the margin"
-        );
-        // Normal differences with a route effect half the run noise: the
-        // one-sided t test's size is exactly alpha, TOST's at most that.
-        let mut normal = || {
+        let normal = |rng: &mut ChaCha8Rng| {
+            // Box-Muller.
             let (u, v): (f64, f64) = (rng.random::<f64>().max(1e-300), rng.random());
             (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
         };
-        let mut rejected = 0;
-        for _ in 0..sims {
-            let mut values = Vec::with_capacity(36);
-            for _ in 0..4 {
-                let effect = 0.5 * normal();
-                for _ in 0..9 {
-                    values.push(margin + effect + normal());
-                }
-            }
-            if cluster_t_equivalence_p(&values, &clusters, margin).unwrap() <= 0.05 {
-                rejected += 1;
-            }
-        }
-        let size = rejected as f64 / sims as f64;
-        eprintln!("size at the margin, normal, 4 routes x 9: {size:.4}");
-        assert!(
-            size <= 0.05 + 0.006,
-            "rejects {size} of the time at the margin"
+        let margin = 0.25;
+        let counts = size_at_margin(margin, &mut rng, |rng| {
+            let base = 0.5 + 1.5 * rng.random::<f64>();
+            (0..9)
+                .map(|_| poisson(base + margin, rng) - poisson(base, rng))
+                .collect()
+        });
+        // Normal differences with a route effect half the run noise: the
+        // one-sided t test's size is exactly alpha, TOST's at most that.
+        let normals = size_at_margin(margin, &mut rng, |rng| {
+            let effect = 0.5 * normal(rng);
+            (0..9).map(|_| margin + effect + normal(rng)).collect()
+        });
+        eprintln!(
+            "size at the margin, 4 routes x 9: Poisson counts {counts:.4}, normal {normals:.4}"
         );
+        // 5000 simulations: a binomial sd of 0.3 % at 5 %.
+        for size in [counts, normals] {
+            assert!(
+                size <= 0.05 + 0.006,
+                "rejects {size} of the time at the margin"
+            );
+        }
+    }
+
+    /// The share of 5000 simulated pages of 4 routes (each route's 9 paired
+    /// differences drawn by `route`) on which "within ±`margin`" is shown at 5 %.
+    fn size_at_margin(
+        margin: f64,
+        rng: &mut ChaCha8Rng,
+        mut route: impl FnMut(&mut ChaCha8Rng) -> Vec<f64>,
+    ) -> f64 {
+        let sims = 5000;
+        let clusters: Vec<usize> = (0..36).map(|i| i / 9).collect();
+        let rejected = (0..sims)
+            .filter(|_| {
+                let values: Vec<f64> = (0..4).flat_map(|_| route(rng)).collect();
+                cluster_t_equivalence_p(&values, &clusters, margin).unwrap() <= 0.05
+            })
+            .count();
+        rejected as f64 / sims as f64
     }
 
     #[test]

@@ -875,6 +875,21 @@ fn a_car_between_junctions_closer_than_a_car_asks_for_the_next_while_it_leaves_t
     assert_eq!(tr.npcs()[0].leaving, None);
 }
 
+/// CARLA's town `name` from `../shared/carla/` with lights generated at its
+/// junctions (as `traffic soak` loads Town03, Town04 and Town06); `None`, with
+/// the skip message, where that folder is missing.
+fn carla_with_lights(test: &str, name: &str) -> Option<Arc<Town>> {
+    let dir = crate::testdata::carla_dir(test)?;
+    let (town, _) = crate::map::load_xodr_file(
+        dir.join(format!("{name}.xodr")),
+        &crate::map::LoadOptions {
+            unsignalled: crate::map::UnsignalledJunctions::GenerateLights,
+        },
+    )
+    .unwrap();
+    Some(Arc::new(town))
+}
+
 /// A road's lane `od` (OpenDRIVE ids) and the connecting lane on road `turn`
 /// it leads into.
 fn lane_into(town: &Town, road: &str, od: i32, turn: &str) -> (LaneIdx, LaneIdx) {
@@ -901,17 +916,9 @@ fn the_two_lanes_of_a_double_turn_go_together_but_not_half_a_turn_apart() {
     // standing at the two entries now go together; a car is still kept from entering
     // while the car beside is half-way through the turn.
     let test = "the_two_lanes_of_a_double_turn_go_together_but_not_half_a_turn_apart";
-    let Some(dir) = crate::testdata::carla_dir(test) else {
+    let Some(town) = carla_with_lights(test, "Town06") else {
         return;
     };
-    let (town, _) = crate::map::load_xodr_file(
-        dir.join("Town06.xodr"),
-        &crate::map::LoadOptions {
-            unsignalled: crate::map::UnsignalledJunctions::GenerateLights,
-        },
-    )
-    .unwrap();
-    let town = Arc::new(town);
     let (outer_in, outer) = lane_into(&town, "20", -5, "509");
     let (inner_in, inner) = lane_into(&town, "20", -6, "524");
     assert!(crate::rules::conflicts::side_by_side(&town, outer, inner));
@@ -1178,17 +1185,9 @@ fn a_car_waits_clear_of_a_turn_that_starts_at_an_angle_to_its_road() {
     // the hour's soaks, one contact each). That car now waits where the wider
     // drive misses it (`JunctionConflicts::hold_back_m`).
     let test = "a_car_waits_clear_of_a_turn_that_starts_at_an_angle_to_its_road";
-    let Some(dir) = crate::testdata::carla_dir(test) else {
+    let Some(town) = carla_with_lights(test, "Town04") else {
         return;
     };
-    let (town, _) = crate::map::load_xodr_file(
-        dir.join("Town04.xodr"),
-        &crate::map::LoadOptions {
-            unsignalled: crate::map::UnsignalledJunctions::GenerateLights,
-        },
-    )
-    .unwrap();
-    let town = Arc::new(town);
     let (turner_in, turn) = lane_into(&town, "9", 1, "691");
     let (waiter_in, wait) = lane_into(&town, "52", -1, "701");
     assert!(
