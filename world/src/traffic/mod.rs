@@ -123,8 +123,13 @@ impl EgoStart {
 pub struct Ego {
     /// Pose, speed, actuators.
     pub state: VehicleState,
-    /// Ground height (metres).
+    /// Ground height (metres): the road's under it, raised by the kerb its
+    /// wheels stand on.
     pub z: f32,
+    /// The height of the road under it (metres): its lane's (bridges and
+    /// ramps included), the last lane's while it is off the lanes. Its
+    /// physics body stands on it.
+    pub road_z: f32,
     /// The control in force.
     pub control: VehicleControl,
     /// The lane it is on (lane, arc length), if any.

@@ -205,6 +205,7 @@ impl Traffic {
         self.ego = Some(Ego {
             state: VehicleState::at_rest(start.position, start.yaw),
             z: start.z,
+            road_z: start.z,
             control: VehicleControl::BRAKE,
             lane: self
                 .rules

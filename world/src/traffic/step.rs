@@ -104,7 +104,6 @@ impl Traffic {
         }
         // Move: ego, NPCs, pedestrians. A vehicle's wheels climb the kerbs it meets.
         let sidewalks = &self.rules.sidewalks;
-        let road_z = self.town.ground_z();
         if let Some(e) = &mut self.ego {
             let mut s = e.state;
             let before = (s.position, s.yaw);
@@ -116,7 +115,13 @@ impl Traffic {
                 s.speed_mps *= out.fraction;
             }
             e.kerbs = kerb::cross_kerbs(&mut s, &vp, before, sidewalks);
-            e.z = road_z + kerb::ride_height_m(sidewalks, s.position);
+            // The road under it is its lane's, bridges included (Town03, Town04), as
+            // for the NPCs; flat towns (every lane at 0 m) are unchanged.
+            if let Some((lane, s_m)) = e.lane {
+                e.road_z = self.town.lane(lane).pose_at(s_m).2;
+                self.physics.set_ground_z(0, e.road_z);
+            }
+            e.z = e.road_z + kerb::ride_height_m(sidewalks, s.position);
             e.state = s;
         }
         for (n, d) in self.npcs.iter_mut().zip(&decisions) {

@@ -1131,6 +1131,61 @@ fn an_npc_stands_on_its_lanes_height_as_it_drives() {
     assert_eq!(tr.physics().ground_z(id), Some(lane_z));
 }
 
+#[test]
+fn the_ego_stands_on_its_lanes_height_as_it_drives() {
+    // The ego stood on the town's one ground height while the NPCs and walkers took
+    // their lanes' and sidewalks': on Town03's and Town04's raised roads its body
+    // and theirs stood metres apart in height, and passed through each other.
+    let test = "the_ego_stands_on_its_lanes_height_as_it_drives";
+    let Some(dir) = crate::testdata::carla_dir(test) else {
+        return;
+    };
+    let town = Arc::new(Town::from_xodr_file(dir.join("Town04.xodr")).unwrap());
+    // A ramp: a lane outside junctions that climbs more than 2 m (as the NPC's test).
+    let ramp = (0..town.lanes.len())
+        .map(|i| LaneIdx(i as u32))
+        .find(|&l| {
+            let x = town.lane(l);
+            x.junction.is_none()
+                && x.length_m() > 60.0
+                && x.centerline.last().unwrap().z - x.centerline[0].z > 2.0
+        })
+        .expect("Town04 has a ramp");
+    let (p, yaw, z) = town.lane(ramp).pose_at(1.0);
+    let start = EgoStart {
+        position: p,
+        z,
+        yaw,
+    };
+    let mut tr = Traffic::new(town.clone(), cfg(0, 0, 1), Some(start));
+    let vp = tr.config().vehicle;
+    // Steered along the lane as an NPC steers, at about 5 m/s.
+    let mut path = LanePath::new(ramp, 1.0);
+    for _ in 0..(40 * 12) {
+        let state = tr.ego().expect("an ego").state;
+        path.advance_to(&town, state.position);
+        let steer = crate::rules::pursuit::pursuit_steer(&town, &vp, &state, &path);
+        tr.set_ego_control(VehicleControl {
+            steer,
+            throttle: if state.speed_mps < 5.0 { 0.5 } else { 0.0 },
+            brake: 0.0,
+        });
+        tr.step(&[]);
+    }
+    let e = tr.ego().expect("an ego");
+    let (lane, s_m) = e.lane.expect("still on a lane");
+    assert_eq!(lane, ramp);
+    assert!(e.road_z - z > 0.3, "climbed {} m", e.road_z - z);
+    let (_, _, lane_z) = town.lane(lane).pose_at(s_m);
+    // Its height lags its lane's by the tick it moved since the lane was found.
+    assert!(
+        (e.road_z - lane_z).abs() < 0.1,
+        "{} against {lane_z}",
+        e.road_z
+    );
+    assert_eq!(tr.physics().ground_z(0), Some(e.road_z));
+}
+
 /// Town03's road 14, lane -5: 6.4 m between junctions 685 and 678.
 struct Road14 {
     town: Arc<Town>,
