@@ -18,7 +18,7 @@ use crate::results::{PairKey, Results, Run};
 use crate::units::{Driver, Unit};
 use sim::monitors::InfractionKind;
 use sim::scenario::SelectorKind;
-use sim::sweep::cluster::{cluster_t_equivalence_p, cluster_t_p};
+use sim::sweep::cluster::{cluster_t_equivalence_p, cluster_t_interval, cluster_t_p};
 use sim::sweep::exact::{Alternative, holm, sign_flip_p};
 use sim::sweep::paired_binary;
 use sim::sweep::stats::{Paired, RangeCheck};
@@ -181,10 +181,8 @@ impl Test {
             Ask::Within(m) => format!(", equivalence within ±{m:.2}"),
             Ask::NotBelow(m) | Ask::NotAbove(m) => format!(", no worse within {m:.2}"),
         };
-        let interval = self
-            .pair
-            .route_interval()
-            .map_or("[–]".to_string(), |(lo, hi)| {
+        let interval = cluster_t_interval(&self.pair.diffs, &self.pair.clusters, 0.95)
+            .map_or("[–]".to_string(), |(_, lo, hi)| {
                 format!("[{lo:+.2}, {hi:+.2}]")
             });
         let routes = self.pair.routes();

@@ -150,8 +150,8 @@ pub struct Paired {
     pub blocks: usize,
     /// The differences b - a, pair by pair.
     pub diffs: Vec<f64>,
-    /// The cluster (route) of each pair, for [`Paired::route_interval`] and the
-    /// tests over route means; the blocks until a caller names the routes.
+    /// The cluster (route) of each pair, for intervals and tests over route
+    /// means (`super::cluster`); the blocks until a caller names the routes.
     pub clusters: Vec<usize>,
 }
 
@@ -166,14 +166,6 @@ impl Paired {
     /// below 0.05, the two are shown alike within the margin.
     pub fn equivalence_p(&self, margin: f64) -> f64 {
         super::exact::equivalence_p(&self.diffs, margin)
-    }
-
-    /// The 95 % interval of the mean difference clustered at the route: a
-    /// Student t interval over the route means of the differences
-    /// ([`super::cluster::cluster_t_interval`]); `None` with fewer than two routes.
-    pub fn route_interval(&self) -> Option<(f64, f64)> {
-        super::cluster::cluster_t_interval(&self.diffs, &self.clusters, 0.95)
-            .map(|(_, lo, hi)| (lo, hi))
     }
 
     /// How many routes (clusters) the pairs were driven on.
