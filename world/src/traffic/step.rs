@@ -9,10 +9,12 @@
 
 use super::Traffic;
 use super::incidents::IncidentKind;
+use super::views::npc_view;
 use crate::agents::{kerb, npc};
 use crate::map::LightState;
 use crate::physics::ContactEvent;
 use crate::rules;
+use crate::rules::ActorView;
 
 /// An NPC stopped this long counts as a deadlock (seconds).
 const DEADLOCK_S: f32 = 60.0;
@@ -38,6 +40,24 @@ impl Traffic {
             }
             let v = n.state.speed_mps;
             let left = self.town.lane(c.from).length_m() - n.path.s_m - half;
+            // Room beside is looked for among the cars on the target lane and among
+            // those already changing into it, each counted where its path puts it
+            // on the lane (its body is not "on" the lane until half-way over: two
+            // cars changing into one middle lane from either side at one tick met
+            // there, Town06's road 39).
+            let changing_into: Vec<ActorView> = self
+                .npcs
+                .iter()
+                .filter(|o| o.path.lane() == c.to)
+                .map(|o| {
+                    let (position, yaw, _) = self.town.lane(c.to).pose_at(o.path.s_m);
+                    ActorView {
+                        position,
+                        yaw,
+                        ..npc_view(o, &self.cfg.vehicle)
+                    }
+                })
+                .collect();
             let n = &mut self.npcs[i];
             // A lane that leads nowhere has no way on to give the change up for.
             let optional = !npc::leads_nowhere(&self.town, c.from);
@@ -49,14 +69,9 @@ impl Traffic {
             }
             // Wholly on the lane (out of the junction behind), and room beside.
             if n.path.s_m < 2.0 * half
-                || !rules::lane_change_clear(
-                    &self.town,
-                    c.to,
-                    n.state.position,
-                    half,
-                    n.id,
-                    &self.views,
-                )
+                || ![&self.views, &changing_into].iter().all(|actors| {
+                    rules::lane_change_clear(&self.town, c.to, n.state.position, half, n.id, actors)
+                })
             {
                 continue;
             }

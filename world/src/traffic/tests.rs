@@ -739,6 +739,65 @@ fn lane_drop() -> Arc<Town> {
     })
 }
 
+/// Three lanes the same way along +x for 300 m (0 right, 1 middle, 2 left,
+/// centres 3.5 m apart), each leading on to a road of its own to 400 m (lanes
+/// 3, 4, 5).
+fn three_lane_road() -> Arc<Town> {
+    use crate::map::testtown::lane_through;
+    let line = |x0: f32, x1: f32, y: f32| lane_through(&[Vec2::new(x0, y), Vec2::new(x1, y)]);
+    let mut lanes: Vec<_> = [-5.25, -1.75, 1.75]
+        .iter()
+        .map(|&y| line(0.0, 300.0, y))
+        .collect();
+    for (k, &y) in [-5.25f32, -1.75, 1.75].iter().enumerate() {
+        let mut after = line(300.0, 400.0, y);
+        after.predecessors = vec![LaneIdx(k as u32)];
+        lanes[k].successors = vec![LaneIdx(k as u32 + 3)];
+        lanes.push(after);
+    }
+    lanes[0].left = Some(LaneIdx(1));
+    lanes[1].right = Some(LaneIdx(0));
+    lanes[1].left = Some(LaneIdx(2));
+    lanes[2].right = Some(LaneIdx(1));
+    Arc::new(Town {
+        lanes,
+        bounds: (Vec2::new(0.0, -12.0), Vec2::new(400.0, 12.0)),
+        ..Town::empty("fixture-three-lanes")
+    })
+}
+
+#[test]
+fn two_cars_do_not_change_into_one_lane_from_either_side_at_once() {
+    // Town06's road 39 (seed 6): cars on lanes -1 and -3 changed into lane -2 at
+    // the same tick; each decided from the start-of-tick views, where the other was
+    // still in its own lane, and they met side by side in the middle lane.
+    let t = three_lane_road();
+    let mut tr = Traffic::new(t.clone(), cfg(2, 0, 1), None);
+    tr.place_npc(0, LanePath::new(LaneIdx(0), 40.0));
+    tr.place_npc(1, LanePath::new(LaneIdx(2), 40.0));
+    for (k, from) in [(0, 0u32), (1, 2)] {
+        tr.npcs[k].state.speed_mps = 8.0;
+        tr.npcs[k].change = Some(crate::agents::npc::PlannedChange {
+            from: LaneIdx(from),
+            to: LaneIdx(1),
+            then: LaneIdx(4),
+        });
+    }
+    let mut both_in = false;
+    for _ in 0..(40 * 15) {
+        tr.step(&[]);
+        let ns = tr.npcs();
+        let beside = (ns[0].path.s_m - ns[1].path.s_m).abs() < 10.0;
+        both_in |= ns[0].path.lane() == LaneIdx(1) && ns[1].path.lane() == LaneIdx(1) && beside;
+    }
+    assert!(
+        !both_in,
+        "both changed into the middle lane beside each other"
+    );
+    assert_eq!(tr.stats().npc_npc_collisions, 0, "{:?}", tr.incidents());
+    assert!(tr.stats().lane_changes >= 1, "no change made at all");
+}
+
 /// The NPC has gone on past the lane drop into the road after it.
 fn assert_past_the_drop(tr: &Traffic) {
     let x = tr.npcs()[0].state.position.x;

@@ -5,7 +5,8 @@
 use glam::{Vec2, Vec3};
 
 use super::Traffic;
-use crate::agents::{ActorKind, ActorSnapshot};
+use crate::agents::npc::Npc;
+use crate::agents::{ActorKind, ActorSnapshot, VehicleParams};
 use crate::physics::{PEDESTRIAN_HEIGHT_M, PEDESTRIAN_RADIUS_M};
 use crate::rules::{ActorView, Ahead, nearest_ahead, walker_horizon_s};
 
@@ -51,15 +52,7 @@ impl Traffic {
             });
         }
         for n in &self.npcs {
-            self.views.push(ActorView {
-                id: n.id,
-                kind: ActorKind::Vehicle,
-                position: n.state.position,
-                yaw: n.state.yaw,
-                speed_mps: n.state.speed_mps,
-                half_length_m: hl,
-                half_width_m: hw,
-            });
+            self.views.push(npc_view(n, &self.cfg.vehicle));
         }
         for p in &self.pedestrians {
             self.views.push(ActorView {
@@ -115,5 +108,18 @@ impl Traffic {
                 color: (p.id % 8) as u8,
             });
         }
+    }
+}
+
+/// How the rules see NPC `n`, a car of `vp`: where it is, its heading and speed.
+pub(super) fn npc_view(n: &Npc, vp: &VehicleParams) -> ActorView {
+    ActorView {
+        id: n.id,
+        kind: ActorKind::Vehicle,
+        position: n.state.position,
+        yaw: n.state.yaw,
+        speed_mps: n.state.speed_mps,
+        half_length_m: vp.length_m * 0.5,
+        half_width_m: vp.width_m * 0.5,
     }
 }
