@@ -45,19 +45,23 @@ impl Traffic {
             // on the lane (its body is not "on" the lane until half-way over: two
             // cars changing into one middle lane from either side at one tick met
             // there, Town06's road 39).
-            let changing_into: Vec<ActorView> = self
-                .npcs
-                .iter()
-                .filter(|o| o.path.lane() == c.to)
-                .map(|o| {
-                    let (position, yaw, _) = self.town.lane(c.to).pose_at(o.path.s_m);
-                    ActorView {
-                        position,
-                        yaw,
-                        ..npc_view(o, &self.cfg.vehicle)
-                    }
-                })
-                .collect();
+            let target = self.town.lane(c.to);
+            let clear_of_changers = self.npcs.iter().filter(|o| o.path.lane() == c.to).all(|o| {
+                let (position, yaw, _) = target.pose_at(o.path.s_m);
+                let placed = ActorView {
+                    position,
+                    yaw,
+                    ..npc_view(o, &self.cfg.vehicle)
+                };
+                rules::lane_change_clear(
+                    &self.town,
+                    c.to,
+                    n.state.position,
+                    half,
+                    n.id,
+                    std::slice::from_ref(&placed),
+                )
+            });
             let n = &mut self.npcs[i];
             // A lane that leads nowhere has no way on to give the change up for.
             let optional = !npc::leads_nowhere(&self.town, c.from);
@@ -69,13 +73,18 @@ impl Traffic {
             }
             // Wholly on the lane (out of the junction behind), and room beside.
             if n.path.s_m < 2.0 * half
-                || ![&self.views, &changing_into].iter().all(|actors| {
-                    rules::lane_change_clear(&self.town, c.to, n.state.position, half, n.id, actors)
-                })
+                || !clear_of_changers
+                || !rules::lane_change_clear(
+                    &self.town,
+                    c.to,
+                    n.state.position,
+                    half,
+                    n.id,
+                    &self.views,
+                )
             {
                 continue;
             }
-            let target = self.town.lane(c.to);
             let s = target
                 .project_near(n.state.position, n.path.s_m, 5.0)
                 .unwrap_or(n.path.s_m)

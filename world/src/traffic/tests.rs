@@ -1155,6 +1155,20 @@ fn a_car_through_a_junction_chained_to_the_next_holds_the_next_before_its_entry(
     assert!(entered, "never went on into 678");
 }
 
+/// The first of Town04's ramps: a lane outside junctions, longer than 60 m,
+/// that climbs more than 2 m from end to end.
+fn town04_ramp(town: &Town) -> LaneIdx {
+    (0..town.lanes.len())
+        .map(|i| LaneIdx(i as u32))
+        .find(|&l| {
+            let x = town.lane(l);
+            x.junction.is_none()
+                && x.length_m() > 60.0
+                && x.centerline.last().unwrap().z - x.centerline[0].z > 2.0
+        })
+        .expect("Town04 has a ramp")
+}
+
 #[test]
 fn an_npc_stands_on_its_lanes_height_as_it_drives() {
     // Town04's roads climb to bridges (road 39 is 10.7 m up where it crosses road 47).
@@ -1165,16 +1179,7 @@ fn an_npc_stands_on_its_lanes_height_as_it_drives() {
         return;
     };
     let town = Arc::new(Town::from_xodr_file(dir.join("Town04.xodr")).unwrap());
-    // A ramp: a lane outside junctions that climbs more than 2 m.
-    let ramp = (0..town.lanes.len())
-        .find(|&i| {
-            let l = &town.lanes[i];
-            l.junction.is_none()
-                && l.length_m() > 60.0
-                && l.centerline.last().unwrap().z - l.centerline[0].z > 2.0
-        })
-        .map(|i| LaneIdx(i as u32))
-        .expect("Town04 has a ramp");
+    let ramp = town04_ramp(&town);
     let mut tr = Traffic::new(town.clone(), cfg(1, 0, 1), None);
     tr.place_npc(0, LanePath::new(ramp, 1.0));
     let id = tr.npcs()[0].id;
@@ -1200,16 +1205,7 @@ fn the_ego_stands_on_its_lanes_height_as_it_drives() {
         return;
     };
     let town = Arc::new(Town::from_xodr_file(dir.join("Town04.xodr")).unwrap());
-    // A ramp: a lane outside junctions that climbs more than 2 m (as the NPC's test).
-    let ramp = (0..town.lanes.len())
-        .map(|i| LaneIdx(i as u32))
-        .find(|&l| {
-            let x = town.lane(l);
-            x.junction.is_none()
-                && x.length_m() > 60.0
-                && x.centerline.last().unwrap().z - x.centerline[0].z > 2.0
-        })
-        .expect("Town04 has a ramp");
+    let ramp = town04_ramp(&town);
     let (p, yaw, z) = town.lane(ramp).pose_at(1.0);
     let start = EgoStart {
         position: p,
