@@ -1,28 +1,45 @@
 //! The statistics of a group of runs, and Tables I-III and the figures' data
 //! as Markdown and CSV.
 //!
-//! Rates (success, runs with a collision) carry Wilson 95 % intervals;
-//! per-run means (red lights, lane crossings) carry seeded percentile
-//! bootstrap 95 % intervals that resample whole blocks (a block is the runs of
-//! one route at one density: they share a route, so they are not independent);
-//! configurations that share routes, densities and seeds are compared pair by
-//! pair ([`Comparison`]) with an exact test, whose p-value the page adjusts
-//! for the other tests it shows ([`resolve_holm`]).
+//! Every interval is clustered at the route (issue 50): runs on one route share
+//! much of what happens on it, so the route, not the run, is the unit an
+//! interval treats as independent. A rate or a per-run mean carries a 95 %
+//! Student t interval over its routes' means with G - 1 degrees of freedom
+//! (`sim::sweep::cluster::cluster_t_interval`), clipped to the values the
+//! outcome can take; with one route there is none. Configurations that share
+//! routes, densities and seeds are compared pair by pair ([`Comparison`]) with
+//! an exact test, whose p-value the page adjusts for the other tests it shows
+//! ([`resolve_holm`]), and the same interval over the routes' mean differences.
 
 use std::path::Path;
 
 use sim::monitors::InfractionKind::{LaneCrossing, RedLight};
+use sim::sweep::cluster::cluster_t_interval;
 use sim::sweep::exact::holm;
-use sim::sweep::stats::{Paired, Z95, block_bootstrap_mean, block_ids, paired_in_blocks, wilson};
+use sim::sweep::stats::{Paired, block_ids};
 use sim::sweep::tables::mean_sd;
 
 use crate::PaperError;
 use crate::results::Run;
 
-/// Bootstrap resamples for every interval and paired comparison.
-pub const RESAMPLES: usize = 2000;
-/// The bootstrap's seed: tables are the same each time they are made.
-pub const BOOTSTRAP_SEED: u64 = 2024;
+/// A 95 % interval clustered at the route, (low, high); `None` with fewer than
+/// two routes.
+pub type Interval = Option<(f64, f64)>;
+
+/// The 95 % t interval over the route means of `values` (`routes[i]` the route
+/// of `values[i]`), clipped to `[floor, ceil]`. Its centre is the mean of the
+/// route means, which is the plain mean when every route has as many runs (as
+/// in the registered design).
+fn route_interval(values: &[f64], routes: &[usize], (floor, ceil): (f64, f64)) -> Interval {
+    cluster_t_interval(values, routes, 0.95).map(|(_, lo, hi)| (lo.max(floor), hi.min(ceil)))
+}
+
+/// "[0.17, 0.67]" with `digits` decimals, or "(1 route)" without an interval.
+fn interval_text(ci: Interval, digits: usize) -> String {
+    ci.map_or("(1 route)".into(), |(lo, hi)| {
+        format!("[{lo:.digits$}, {hi:.digits$}]")
+    })
+}
 
 /// What a group of runs did.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -35,14 +52,20 @@ pub struct Stats {
     pub collided: usize,
     /// Red-light infractions over all runs.
     pub red_total: u32,
+    /// The routes the runs were driven on.
+    pub routes: usize,
+    /// The success rate's interval (percent).
+    pub success_ci: Interval,
+    /// The interval of the rate of runs with a collision (percent).
+    pub collision_ci: Interval,
     /// Red lights per run: mean, sd.
     pub red: (f64, f64),
-    /// Its bootstrap 95 % interval (resampling route-and-density blocks).
-    pub red_ci: (f64, f64),
+    /// Its interval.
+    pub red_ci: Interval,
     /// Lane crossings per run: mean, sd.
     pub lane: (f64, f64),
-    /// Its bootstrap 95 % interval (resampling route-and-density blocks).
-    pub lane_ci: (f64, f64),
+    /// Its interval.
+    pub lane_ci: Interval,
     /// Route completion (percent): mean, sd.
     pub completion: (f64, f64),
     /// Mean share of control boundaries at the high scale (percent), for switchers.
@@ -70,7 +93,15 @@ impl Stats {
             .iter()
             .map(|r| r.record.result.completion_pct)
             .collect();
-        let blocks = block_ids(runs.iter().map(|r| r.block_key()));
+        let routes = block_ids(runs.iter().map(|r| r.route.clone()));
+        let pct_of = |f: &dyn Fn(&Run) -> bool| -> Vec<f64> {
+            runs.iter()
+                .map(|r| if f(r) { 100.0 } else { 0.0 })
+                .collect()
+        };
+        let success = pct_of(&|r| r.record.result.success);
+        let collided = pct_of(&|r| r.record.result.collisions() > 0);
+        let (rate, count) = ((0.0, 100.0), (0.0, f64::INFINITY));
         let high_key = crate::units::scale_label(high);
         let share: Vec<f64> = runs
             .iter()
@@ -93,10 +124,13 @@ impl Stats {
                 .filter(|r| r.record.result.collisions() > 0)
                 .count(),
             red_total: runs.iter().map(|r| r.record.result.count(RedLight)).sum(),
+            routes: routes.iter().max().map_or(0, |m| m + 1),
+            success_ci: route_interval(&success, &routes, rate),
+            collision_ci: route_interval(&collided, &routes, rate),
             red: mean_sd(&red),
-            red_ci: block_bootstrap_mean(&red, &blocks, RESAMPLES, BOOTSTRAP_SEED),
+            red_ci: route_interval(&red, &routes, count),
             lane: mean_sd(&lane),
-            lane_ci: block_bootstrap_mean(&lane, &blocks, RESAMPLES, BOOTSTRAP_SEED),
+            lane_ci: route_interval(&lane, &routes, count),
             completion: mean_sd(&completion),
             high_share_pct: 100.0 * mean_sd(&share).0,
             max_latency_ms: runs
@@ -111,19 +145,37 @@ impl Stats {
         pct(self.success, self.n)
     }
 
-    /// Its Wilson 95 % interval (percent).
-    pub fn success_ci(&self) -> (f64, f64) {
-        wilson_pct(self.success, self.n)
-    }
-
     /// Runs with a collision (percent).
     pub fn collision_pct(&self) -> f64 {
         pct(self.collided, self.n)
     }
 
-    /// Its Wilson 95 % interval (percent).
-    pub fn collision_ci(&self) -> (f64, f64) {
-        wilson_pct(self.collided, self.n)
+    /// "83 [44, 97]": the success rate (percent) with its interval, or "–"
+    /// without runs.
+    pub fn success_cell(&self) -> String {
+        self.rate_cell(self.success_pct(), self.success_ci)
+    }
+
+    /// "17 [0, 48]": the rate of runs with a collision (percent) with its
+    /// interval, or "–" without runs.
+    pub fn collided_cell(&self) -> String {
+        self.rate_cell(self.collision_pct(), self.collision_ci)
+    }
+
+    /// "0.42 [0.17, 0.67]": red lights per run with its interval, or "–"
+    /// without runs.
+    pub fn red_cell(&self) -> String {
+        if self.n == 0 {
+            return "–".into();
+        }
+        format!("{:.2} {}", self.red.0, interval_text(self.red_ci, 2))
+    }
+
+    fn rate_cell(&self, pct: f64, ci: Interval) -> String {
+        if self.n == 0 {
+            return "–".into();
+        }
+        format!("{pct:.0} {}", interval_text(ci, 0))
     }
 }
 
@@ -135,20 +187,6 @@ fn pct(k: usize, n: usize) -> f64 {
     }
 }
 
-fn wilson_pct(k: usize, n: usize) -> (f64, f64) {
-    let (lo, hi) = wilson(k, n, Z95);
-    (100.0 * lo, 100.0 * hi)
-}
-
-/// "83 [44, 97]": a rate with its interval, or "–" without runs.
-pub fn rate_cell(k: usize, n: usize) -> String {
-    if n == 0 {
-        return "–".into();
-    }
-    let (lo, hi) = wilson_pct(k, n);
-    format!("{:.0} [{lo:.0}, {hi:.0}]", pct(k, n))
-}
-
 /// "1.50 ± 0.80": a mean and sd.
 pub fn mean_sd_cell((m, sd): (f64, f64), n: usize) -> String {
     if n == 0 {
@@ -158,18 +196,9 @@ pub fn mean_sd_cell((m, sd): (f64, f64), n: usize) -> String {
     }
 }
 
-/// "0.42 [0.17, 0.67]": a per-run mean with its interval, or "–" without runs.
-pub fn mean_ci_cell((m, _): (f64, f64), (lo, hi): (f64, f64), n: usize) -> String {
-    if n == 0 {
-        "–".into()
-    } else {
-        format!("{m:.2} [{lo:.2}, {hi:.2}]")
-    }
-}
-
 /// Configuration `b` against `a` on the runs they share (route, density, seed),
-/// each difference with its exact p-value and an interval that resamples
-/// route-and-density blocks.
+/// each difference with its exact p-value and its interval over the routes'
+/// mean differences.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Comparison {
     /// Red lights per run, b - a.
@@ -199,21 +228,17 @@ impl Comparison {
                 pairs.iter().map(|(_, y)| f(y)).collect(),
             )
         };
-        let blocks = block_ids(pairs.iter().map(|(x, _)| x.block_key()));
-        let routes = block_ids(pairs.iter().map(|(x, _)| x.route.clone()));
+        let routes: Vec<&String> = pairs.iter().map(|(x, _)| &x.route).collect();
         let cmp = |f: &dyn Fn(&Run) -> f64| {
             let (xa, xb) = col(f);
-            Paired {
-                clusters: routes.clone(),
-                ..paired_in_blocks(&xa, &xb, &blocks, RESAMPLES, BOOTSTRAP_SEED)
-            }
+            Paired::by_route(&xa, &xb, &routes)
         };
         Comparison {
             red: cmp(&|r| f64::from(r.record.result.count(RedLight))),
             lane: cmp(&|r| f64::from(r.record.result.count(LaneCrossing))),
             collided: cmp(&|r| f64::from(u8::from(r.record.result.collisions() > 0))),
             success: cmp(&|r| f64::from(u8::from(r.record.result.success))),
-            routes: block_ids(pairs.iter().map(|(x, _)| x.route.clone()))
+            routes: block_ids(routes.iter())
                 .into_iter()
                 .max()
                 .map_or(0, |m| m + 1),
@@ -221,30 +246,26 @@ impl Comparison {
     }
 }
 
-/// "+0.42 [+0.17, +0.67] (12 pairs in 4 blocks; 5 up, 0 down; p = 0.062⟦…⟧)": a
-/// paired difference, its block-bootstrap interval and its exact p-value, with a
-/// mark that [`resolve_holm`] turns into the page-wide Holm-adjusted p (and a
-/// `*` where that is below 0.05) and CSV files drop.
+/// "+0.42 [+0.17, +0.67] (36 pairs on 4 routes; 5 up, 0 down; p = 0.062⟦…⟧)": a
+/// paired difference, its interval over the routes' mean differences and its
+/// exact p-value, with a mark that [`resolve_holm`] turns into the page-wide
+/// Holm-adjusted p (and a `*` where that is below 0.05) and CSV files drop.
 pub fn paired_cell(p: &Paired) -> String {
     if p.n == 0 {
         return "–".into();
     }
     let (up, down, _) = p.better_worse_same;
+    let interval =
+        p.ci.map_or(String::new(), |(lo, hi)| format!(" [{lo:+.2}, {hi:+.2}]"));
+    let routes = p.routes();
     format!(
-        "{:+.2} [{:+.2}, {:+.2}] ({} pairs in {}; {up} up, {down} down; p {}{HOLM_OPEN}{:e}{HOLM_CLOSE})",
+        "{:+.2}{interval} ({} pairs on {routes} route{}; {up} up, {down} down; p {}{HOLM_OPEN}{:e}{HOLM_CLOSE})",
         p.mean_diff,
-        p.ci.0,
-        p.ci.1,
         p.n,
-        blocks_text(p.blocks),
+        if routes == 1 { "" } else { "s" },
         p_text(p.p),
         p.p,
     )
-}
-
-/// "1 block", "12 blocks".
-pub fn blocks_text(n: usize) -> String {
-    format!("{n} block{}", if n == 1 { "" } else { "s" })
 }
 
 /// A p-value as the page writes it after "p", to two significant digits:
@@ -406,8 +427,8 @@ impl Cells {
     ) {
         let f = |v: f64| format!("{v:.4}");
         let opt = |v: Option<f64>| v.map_or(String::new(), |x| x.to_string());
-        let (slo, shi) = s.success_ci();
-        let (clo, chi) = s.collision_ci();
+        let lo = |ci: Interval| ci.map_or(String::new(), |(l, _)| f(l));
+        let hi = |ci: Interval| ci.map_or(String::new(), |(_, h)| f(h));
         self.table.push(vec![
             config.into(),
             town.into(),
@@ -416,21 +437,21 @@ impl Cells {
             s.n.to_string(),
             s.success.to_string(),
             f(s.success_pct()),
-            f(slo),
-            f(shi),
+            lo(s.success_ci),
+            hi(s.success_ci),
             s.collided.to_string(),
             f(s.collision_pct()),
-            f(clo),
-            f(chi),
+            lo(s.collision_ci),
+            hi(s.collision_ci),
             s.red_total.to_string(),
             f(s.red.0),
             f(s.red.1),
-            f(s.red_ci.0),
-            f(s.red_ci.1),
+            lo(s.red_ci),
+            hi(s.red_ci),
             f(s.lane.0),
             f(s.lane.1),
-            f(s.lane_ci.0),
-            f(s.lane_ci.1),
+            lo(s.lane_ci),
+            hi(s.lane_ci),
             f(s.completion.0),
             f(s.high_share_pct),
             f(s.max_latency_ms),
@@ -547,12 +568,19 @@ pub(crate) mod tests {
             "{}",
             s.high_share_pct
         );
-        // 2 of 3: Wilson's interval, [20.8, 93.9] %.
-        let (lo, hi) = s.success_ci();
-        assert!(
-            (lo - 20.77).abs() < 0.05 && (hi - 93.85).abs() < 0.05,
-            "{lo} {hi}"
-        );
+        // Two routes: route a succeeds in 1 of 2 runs (50 %), route b in 1 of 1
+        // (100 %): their mean 75 %, t with 1 degree of freedom, clipped to 0-100 %.
+        assert_eq!(s.routes, 2);
+        assert_eq!(s.success_ci, Some((0.0, 100.0)));
+        assert_eq!(s.success_cell(), "67 [0, 100]");
+        // Red lights: both routes average one a run, so the interval has no width.
+        assert_eq!(s.red_ci, Some((1.0, 1.0)));
+        assert_eq!(s.red_cell(), "1.00 [1.00, 1.00]");
+        // One route: no interval.
+        let one = Stats::of(&refs[..2], 1.0);
+        assert_eq!((one.routes, one.success_ci), (1, None));
+        assert_eq!(one.collided_cell(), "50 (1 route)");
+        assert_eq!(Stats::default().success_cell(), "–");
         assert_eq!(Stats::of(&[], 1.0).n, 0);
     }
 
@@ -578,7 +606,7 @@ pub(crate) mod tests {
         assert_eq!(c.routes, 1);
         assert_eq!(
             strip_holm(&paired_cell(&c.red)),
-            "+1.00 [+1.00, +1.00] (2 pairs in 1 block; 2 up, 0 down; p = 0.50)"
+            "+1.00 (2 pairs on 1 route; 2 up, 0 down; p = 0.50)"
         );
     }
 
@@ -587,7 +615,7 @@ pub(crate) mod tests {
         let up = |n: usize, of: usize| {
             let a = vec![0.0; of];
             let b: Vec<f64> = (0..of).map(|i| f64::from(u8::from(i < n))).collect();
-            paired_in_blocks(&a, &b, &(0..of).collect::<Vec<_>>(), 200, 1)
+            Paired::by_route(&a, &b, &(0..of).collect::<Vec<_>>())
         };
         // 12 of 12 up (p = 2^-11) and 3 of 3 up (p = 0.25): Holm multiplies the smaller by 2.
         let (strong, weak) = (up(12, 12), up(3, 3));
@@ -596,8 +624,8 @@ pub(crate) mod tests {
         assert_eq!(family, 2);
         assert_eq!(
             page,
-            "a +1.00 [+1.00, +1.00] (12 pairs in 12 blocks; 12 up, 0 down; p < 0.001, Holm p < 0.001 *)\n\
-             b +1.00 [+1.00, +1.00] (3 pairs in 3 blocks; 3 up, 0 down; p = 0.25, Holm p = 0.25)\n"
+            "a +1.00 [+1.00, +1.00] (12 pairs on 12 routes; 12 up, 0 down; p < 0.001, Holm p < 0.001 *)\n\
+             b +1.00 [+1.00, +1.00] (3 pairs on 3 routes; 3 up, 0 down; p = 0.25, Holm p = 0.25)\n"
         );
         let (page, _) = resolve_holm(&paired_cell(&up(7, 8)));
         // 7 of 8 up: p = 2 / 2^7 = 0.0156 alone.
@@ -614,7 +642,5 @@ pub(crate) mod tests {
         let p = dir.path().join("t.csv");
         t.write_csv(&p).unwrap();
         assert_eq!(std::fs::read_to_string(&p).unwrap(), "a,b\n1,\"x, y\"\n");
-        assert_eq!(rate_cell(6, 6), "100 [61, 100]");
-        assert_eq!(rate_cell(0, 0), "–");
     }
 }

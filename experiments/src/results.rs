@@ -33,12 +33,6 @@ impl Run {
         (self.route.clone(), self.spec.density, self.spec.seed)
     }
 
-    /// The block its statistics resample: its route and density (the seeds of one
-    /// route and density are the independent draws; routes are few).
-    pub fn block_key(&self) -> (String, Option<(u32, u32)>) {
-        (self.route.clone(), self.spec.density)
-    }
-
     /// Its fixed scale (`None` for a switcher or the expert).
     pub fn scale(&self) -> Option<f64> {
         self.spec.scale

@@ -4,7 +4,7 @@
 use super::configs::{model_at, point, x};
 use crate::config::PaperConfig;
 use crate::figures::{Panel, Point, Series};
-use crate::report::{Comparison, Stats, mean_ci_cell, mean_sd_cell, paired_cell, rate_cell};
+use crate::report::{Comparison, Stats, mean_sd_cell, paired_cell};
 use crate::results::Results;
 use sim::sweep::stats::Paired;
 
@@ -33,13 +33,13 @@ pub(super) fn safety_panels(lines: &[(String, Vec<(f64, Stats)>)], x_label: &str
         panel(
             "Success",
             "success %",
-            &|s| point(0.0, s.success_pct(), s.success_ci()),
+            &|s| point(0.0, s.success_pct(), s.success_ci),
             Some((0.0, 105.0)),
         ),
         panel(
             "Runs with a collision",
             "collided %",
-            &|s| point(0.0, s.collision_pct(), s.collision_ci()),
+            &|s| point(0.0, s.collision_pct(), s.collision_ci),
             Some((0.0, 105.0)),
         ),
         panel(
@@ -76,9 +76,9 @@ pub(super) fn ra_fixed_lines(
 /// lane crossings per run: the outcome columns of the extension tables.
 pub(super) fn outcome_cells(s: &Stats) -> [String; 4] {
     [
-        rate_cell(s.success, s.n),
-        rate_cell(s.collided, s.n),
-        mean_ci_cell(s.red, s.red_ci, s.n),
+        s.success_cell(),
+        s.collided_cell(),
+        s.red_cell(),
         mean_sd_cell(s.lane, s.n),
     ]
 }

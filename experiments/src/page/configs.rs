@@ -48,12 +48,8 @@ pub(super) fn model_at(cfg: &PaperConfig, ra: bool, scale: f64, delay_ms: f64) -
     }
 }
 
-/// A plot point at `xv` with value `y` and interval `ci`.
-pub(super) fn point(xv: f64, y: f64, ci: (f64, f64)) -> Point {
-    Point {
-        x: xv,
-        y,
-        lo: ci.0,
-        hi: ci.1,
-    }
+/// A plot point at `xv` with value `y` and interval `ci` (none: no error bar).
+pub(super) fn point(xv: f64, y: f64, ci: crate::report::Interval) -> Point {
+    let (lo, hi) = ci.unwrap_or((y, y));
+    Point { x: xv, y, lo, hi }
 }

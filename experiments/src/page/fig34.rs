@@ -31,7 +31,6 @@ pub(super) fn fig34(
         &format!("{} [95 % CI]", x(cfg.high)),
         "total low / high",
         &format!("paired {} - {}", x(cfg.low), x(cfg.high)),
-        "verdict",
     ]);
     for ra in [false, true] {
         for &d in &delays {
@@ -82,21 +81,14 @@ pub(super) fn fig34(
             // low - high: positive means more at the low scale.
             let c = Comparison::of(&hi_runs, &lo_runs);
             let pair = if red { &c.red } else { &c.lane };
-            let verdict = if pair.n == 0 {
-                "no runs yet".into()
-            } else if pair.significant() && pair.mean_diff > 0.0 {
-                format!("more at {}", x(cfg.low))
-            } else if pair.significant() {
-                format!("fewer at {}", x(cfg.low))
-            } else {
-                "no difference the seeds cannot explain".to_string()
-            };
             let cell = |s: &Stats| {
-                let ((m, _), (a, b)) = metric(s);
+                let ((m, _), ci) = metric(s);
                 if s.n == 0 {
                     "–".into()
                 } else {
-                    format!("{m:.2} [{a:.2}, {b:.2}] (n = {})", s.n)
+                    let interval =
+                        ci.map_or("(1 route)".into(), |(a, b)| format!("[{a:.2}, {b:.2}]"));
+                    format!("{m:.2} {interval} (n = {})", s.n)
                 }
             };
             t.push(vec![
@@ -106,7 +98,6 @@ pub(super) fn fig34(
                 cell(&sh),
                 format!("{:.0} / {:.0}", total(&sl, &lo_runs), total(&sh, &hi_runs)),
                 paired_cell(pair),
-                verdict,
             ]);
         }
     }

@@ -54,8 +54,8 @@ pub(super) fn fig5(
             let s = at(c, d).stats(cfg, results, None);
             cells.push(&c.label, "all", Some(d), c.scale, &s);
             if s.n > 0 {
-                sp.push(point(d, s.success_pct(), s.success_ci()));
-                cp.push(point(d, s.collision_pct(), s.collision_ci()));
+                sp.push(point(d, s.success_pct(), s.success_ci));
+                cp.push(point(d, s.collision_pct(), s.collision_ci));
                 rows[i].push(format!(
                     "{:.0} / {:.0} (n = {})",
                     s.success_pct(),
@@ -108,13 +108,13 @@ pub(super) fn fig5(
         &[
             panel(
                 "Success against delay",
-                "success % (Wilson 95 % CI)",
+                "success % (95 % CI over routes)",
                 success,
                 ranges(|r| r.0),
             ),
             panel(
                 "Runs with a collision against delay",
-                "collided % (Wilson 95 % CI)",
+                "collided % (95 % CI over routes)",
                 collision,
                 ranges(|r| r.1),
             ),

@@ -8,7 +8,7 @@ use super::writer::Writer;
 use crate::PaperError;
 use crate::config::PaperConfig;
 use crate::figures::Reference;
-use crate::report::{Cells, Table, mean_ci_cell, rate_cell};
+use crate::report::{Cells, Table};
 use crate::results::Results;
 use crate::units::{Unit, selector_name};
 
@@ -51,9 +51,9 @@ pub(super) fn frontier(
                 label.clone(),
                 l.to_string(),
                 s.n.to_string(),
-                rate_cell(s.success, s.n),
-                rate_cell(s.collided, s.n),
-                mean_ci_cell(s.red, s.red_ci, s.n),
+                s.success_cell(),
+                s.collided_cell(),
+                s.red_cell(),
             ]);
         }
     }

@@ -196,17 +196,19 @@ fn header(cfg: &PaperConfig, opts: &RunOptions, results: &Results, family: usize
         record_wall_s / 3600.0,
     );
     s += &format!(
-        "**Statistics**: rates carry Wilson 95 % intervals `[low, high]` (which treat runs as \
-         independent); per-run means carry seeded bootstrap 95 % intervals that resample whole \
-         blocks, a block being the runs of one route at one density (runs on one route are not \
-         independent draws); `paired` cells compare two configurations run by run on the same \
-         route, density and seed: the mean difference b - a, its block-bootstrap 95 % interval, \
-         how many pairs and blocks, how many pairs went up or down, the exact two-sided p-value \
-         (a sign-flip permutation test of the differences, which for 0/1 outcomes is the exact \
-         McNemar test) and that p adjusted by Holm's method across all {family} paired tests in \
-         the tables below, `*` where the adjusted p is below 0.05. The tables' own verdict \
-         columns read the raw p and are descriptive; the paper's claims are judged in the next \
-         section by the rules fixed there, with their own family of tests.\n\n"
+        "**Statistics**: every interval `[low, high]` is a 95 % interval clustered at the \
+         route (runs on one route are not independent draws; the route is the unit): a \
+         Student t interval over the routes' means with G - 1 degrees of freedom, clipped to \
+         the values the outcome can take, \"(1 route)\" where there is only one (with two \
+         routes, as in one town of Table II, 1 degree of freedom: wide, and honest). Rates are \
+         in percent; `paired` cells compare two configurations run by run on the same route, \
+         density and seed: the mean difference b - a, its interval over the routes' mean \
+         differences, how many pairs on how many routes, how many pairs went up or down, the \
+         exact two-sided p-value (a sign-flip permutation test of the differences, which for \
+         0/1 outcomes is the exact McNemar test) and that p adjusted by Holm's method across \
+         all {family} paired tests in the tables below, `*` where the adjusted p is below \
+         0.05. The tables give no verdicts of their own: the paper's claims are judged in \
+         the next section by the registered rules, with their own family of tests.\n\n"
     );
     let mut t = Table::new(&["experiment", "runs finished / planned"]);
     for e in Experiment::ALL {

@@ -6,7 +6,7 @@ use super::reference;
 use super::writer::Writer;
 use crate::PaperError;
 use crate::config::PaperConfig;
-use crate::report::{Cells, Comparison, Stats, Table, mean_sd_cell, paired_cell, rate_cell};
+use crate::report::{Cells, Comparison, Stats, Table, mean_sd_cell, paired_cell};
 use crate::results::Results;
 use crate::units::{Driver, Unit};
 
@@ -61,7 +61,7 @@ pub(super) fn table2(
             r.extend(stats.iter().map(f));
             r
         };
-        t.push(row("success % [95 % CI]", &|s| rate_cell(s.success, s.n)));
+        t.push(row("success % [95 % CI]", &|s| s.success_cell()));
         if let Some((_, v)) = paper_success {
             let mut r = vec![town.clone(), "success %, paper (6 runs)".into(), "–".into()];
             r.extend(v.iter().map(|x| format!("{x:.0}")));
@@ -71,7 +71,7 @@ pub(super) fn table2(
             if s.n == 0 {
                 "–".into()
             } else {
-                format!("{}/{} ({})", s.collided, s.n, rate_cell(s.collided, s.n))
+                format!("{}/{} ({})", s.collided, s.n, s.collided_cell())
             }
         }));
         if let Some((_, v)) = paper_coll {
@@ -112,27 +112,18 @@ pub(super) fn table2(
         "collided (0/1)",
         "red lights per run",
         "lane crossings per run",
-        "verdict",
     ]);
     for scale in [cfg.low, cfg.high] {
         let d = d0.unwrap_or(0.0);
         let nra = model_at(cfg, false, scale, d).runs(cfg, results, None);
         let ra = model_at(cfg, true, scale, d).runs(cfg, results, None);
         let c = Comparison::of(&nra, &ra);
-        let verdict = if c.success.n == 0 {
-            "no runs yet".to_string()
-        } else if c.success.significant() || c.collided.significant() {
-            "differ (an interval excludes 0)".into()
-        } else {
-            "alike: no success or collision difference the seeds cannot explain".into()
-        };
         p.push(vec![
             x(scale),
             paired_cell(&c.success),
             paired_cell(&c.collided),
             paired_cell(&c.red),
             paired_cell(&c.lane),
-            verdict,
         ]);
     }
     s += &p.markdown();

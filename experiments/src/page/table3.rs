@@ -6,7 +6,7 @@ use super::reference;
 use super::writer::Writer;
 use crate::PaperError;
 use crate::config::PaperConfig;
-use crate::report::{Cells, Comparison, Table, mean_sd_cell, paired_cell, rate_cell};
+use crate::report::{Cells, Comparison, Table, mean_sd_cell, paired_cell};
 use crate::results::Results;
 use crate::units::{Driver, Unit, selector_name};
 use sim::scenario::SelectorKind;
@@ -38,7 +38,6 @@ pub(super) fn table3(
         "success (0/1)",
         "lane crossings per run",
     ]);
-    let mut verdicts = Vec::new();
     for e in &cfg.envelopes {
         let fixed_low = Config {
             label: format!("fixed {} @ {} ms", x(cfg.low), e.low_ms),
@@ -81,7 +80,6 @@ pub(super) fn table3(
         }
         rows.push((&braking, None));
         rows.push((&fixed_high, theirs.map(|v| v[2])));
-        let mut stats = Vec::new();
         for (c, paper_row) in rows {
             let s = c.stats(cfg, results, None);
             cells.push(
@@ -95,8 +93,8 @@ pub(super) fn table3(
                 e.label(),
                 c.label.clone(),
                 s.n.to_string(),
-                rate_cell(s.success, s.n),
-                rate_cell(s.collided, s.n),
+                s.success_cell(),
+                s.collided_cell(),
                 mean_sd_cell(s.lane, s.n),
                 if s.n == 0 {
                     "–".into()
@@ -117,7 +115,6 @@ pub(super) fn table3(
                     format!("{su} / {co} / {l:.2} ± {lsd:.2} / {r}")
                 }),
             ]);
-            stats.push(s);
         }
         let runs = |c: &Config| c.runs(cfg, results, None);
         let mut pairs = vec![
@@ -140,32 +137,6 @@ pub(super) fn table3(
                 paired_cell(&c.lane),
             ]);
         }
-        let (lo, or, hi) = (&stats[0], &stats[1], &stats[stats.len() - 1]);
-        if lo.n > 0 && or.n > 0 && hi.n > 0 {
-            let beats_low = or.red_total < lo.red_total
-                && or.collided <= lo.collided
-                && or.success >= lo.success;
-            let beats_high = or.success >= hi.success && or.collided <= hi.collided;
-            verdicts.push(format!(
-                "{}: the oracle switcher {} fixed {} (red lights {} vs {}, collided {} vs {}, success {} vs {}) and {} fixed {} (success {} vs {}, collided {} vs {}), with its latency never above {} ms",
-                e.label(),
-                if beats_low { "beats" } else { "does not beat" },
-                x(cfg.low),
-                or.red_total,
-                lo.red_total,
-                or.collided,
-                lo.collided,
-                or.success,
-                lo.success,
-                if beats_high { "matches or beats" } else { "does not match" },
-                x(cfg.high),
-                or.success,
-                hi.success,
-                or.collided,
-                hi.collided,
-                or.max_latency_ms
-            ));
-        }
     }
     w.cells("table3.csv", &cells)?;
     Ok(format!(
@@ -175,17 +146,9 @@ pub(super) fn table3(
          and latency, before the light), the braking lookahead (up before the braking point as well: \
          the stopping distance at 3 m/s^2 is added, so the high scale decides the stop) and the learned trigger (a logistic head on the RA network's \
          pooled feature, fit to the frames where acting on the low-scale branch loses the most value by the labels, or where the two branches disagree most, as its card says; no map; `mrdrive policy trigger`). Fixed rows are the RA model at one scale with D = its latency.\n\n{}\n\
-         Paired over the same route, density and seed:\n\n{}\n{}\n\nFiles: `table3.csv`.\n",
+         Paired over the same route, density and seed:\n\n{}\nWhether the switcher beats both fixed \
+         scales is judged in the shapes section, by the registered rule.\n\nFiles: `table3.csv`.\n",
         t.markdown(),
         paired_t.markdown(),
-        if verdicts.is_empty() {
-            "No verdict yet: some rows have no runs.".to_string()
-        } else {
-            verdicts
-                .iter()
-                .map(|v| format!("- {v}."))
-                .collect::<Vec<_>>()
-                .join("\n")
-        }
     ))
 }

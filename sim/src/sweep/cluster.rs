@@ -235,6 +235,48 @@ mod tests {
         assert_eq!(cluster_t_interval(&[1.0, 2.0], &[0, 0], 0.95), None);
     }
 
+    /// A percentile bootstrap 95 % interval of the mean of `values` that resamples
+    /// whole blocks: `blocks[i]` names the block of `values[i]` (runs on one route and
+    /// density, say), and each resample draws as many blocks as there are, with
+    /// replacement, and takes the mean over every value they hold. Runs in one block
+    /// are not independent (one route decides much of what happens on it), so this
+    /// interval is wider than a plain bootstrap's when blocks differ. (mean, mean) for
+    /// fewer than two blocks. The page's intervals until issue 50, kept here to show
+    /// how far below 95 % it covers.
+    fn block_bootstrap_mean(
+        values: &[f64],
+        blocks: &[usize],
+        resamples: usize,
+        seed: u64,
+    ) -> (f64, f64) {
+        let n = values.len().min(blocks.len());
+        let mean = values[..n].iter().sum::<f64>() / n.max(1) as f64;
+        // (sum, count) per block, in the order blocks first appear.
+        let ids = super::super::stats::block_ids(blocks[..n].iter());
+        let mut sums: Vec<(f64, usize)> = vec![(0.0, 0); ids.iter().max().map_or(0, |m| m + 1)];
+        for (&v, &i) in values.iter().zip(&ids) {
+            sums[i].0 += v;
+            sums[i].1 += 1;
+        }
+        let k = sums.len();
+        if k < 2 || resamples == 0 {
+            return (mean, mean);
+        }
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut means: Vec<f64> = (0..resamples)
+            .map(|_| {
+                let (s, c) = (0..k).fold((0.0, 0), |(s, c), _| {
+                    let (bs, bc) = sums[rng.random_range(0..k)];
+                    (s + bs, c + bc)
+                });
+                s / c as f64
+            })
+            .collect();
+        means.sort_by(f64::total_cmp);
+        let at = |q: f64| means[((q * (resamples - 1) as f64).round() as usize).min(resamples - 1)];
+        (at(0.025), at(0.975))
+    }
+
     /// A simulated page: `routes` routes, each with an effect of sd `route_sd`,
     /// `runs` runs on each with noise of sd `run_sd`, the runs grouped in
     /// `densities` blocks per route; `sims` pages.
@@ -395,7 +437,7 @@ mod tests {
         let mut seed = 0;
         let blocks = coverage(&page, |v, _, b| {
             seed += 1;
-            super::super::stats::block_bootstrap_mean(v, b, 400, seed)
+            block_bootstrap_mean(v, b, 400, seed)
         });
         eprintln!(
             "coverage at a nominal 95 %: t over 4 route means {t:.3}, block bootstrap {blocks:.3}"
@@ -403,5 +445,43 @@ mod tests {
         // 5000 simulations: a binomial sd of 0.3 %.
         assert!((0.94..=0.96).contains(&t), "t interval covers {t}");
         assert!(blocks < 0.90, "the block bootstrap covers {blocks}");
+    }
+
+    #[test]
+    fn for_rare_yes_no_differences_the_t_interval_covers_less_than_it_says() {
+        // Paired yes/no outcomes on the page's design (4 routes x 9 pairs): b alone
+        // says yes in 5 % of pairs, a alone in 2 % (the old page's RA - NRA had 0-3
+        // discordant pairs of 36). Most routes then have a mean difference of 0 or
+        // 1/9, the route means are far from normal, and a page whose routes all
+        // came out tied has an interval of no width at 0, away from the true +0.03.
+        let mut rng = ChaCha8Rng::seed_from_u64(51);
+        let (up, down, truth) = (0.05, 0.02, 0.03);
+        let sims = 5000;
+        let routes: Vec<usize> = (0..36).map(|i| i / 9).collect();
+        let mut hits = 0;
+        for _ in 0..sims {
+            let d: Vec<f64> = (0..36)
+                .map(|_| {
+                    let u: f64 = rng.random();
+                    if u < up {
+                        1.0
+                    } else if u < up + down {
+                        -1.0
+                    } else {
+                        0.0
+                    }
+                })
+                .collect();
+            let (_, lo, hi) = cluster_t_interval(&d, &routes, 0.95).unwrap();
+            if lo <= truth && truth <= hi {
+                hits += 1;
+            }
+        }
+        let coverage = f64::from(hits) / f64::from(sims);
+        eprintln!(
+            "rare yes/no differences (5 % up, 2 % down): t over 4 route means covers {coverage:.3}"
+        );
+        // Measured: 0.887 (a binomial sd of 0.4 %); the registration says so.
+        assert!((0.87..=0.91).contains(&coverage), "covers {coverage}");
     }
 }
