@@ -18,6 +18,8 @@
 //! - [`pipeline`]: the training pipeline as a plan ([`pipeline::TrainPlan`]:
 //!   datasets, the Original's phases, the retargeting lanes, the bar), run as
 //!   commands of this binary (`mrdrive train --all`).
+//! - [`collector`]: the build that collects and labels the study's data, pinned
+//!   so that they stay the bytes their hashes list when the simulator changes.
 //! - [`progress`]: how far the pipeline is and how long the rest will take.
 //! - [`bench_page`]: every benchmark in one go, into `docs/bench.md`
 //!   (`mrdrive bench all`).
@@ -26,6 +28,7 @@
 
 pub mod bar;
 pub mod bench_page;
+pub mod collector;
 pub mod config;
 pub mod experiment;
 pub mod figures;

@@ -672,6 +672,8 @@ pub struct Step {
     pub may_fail: bool,
     /// What it does, for how long the rest of the plan will take.
     pub work: Work,
+    /// The binary that runs it; `None`: the plan's own (see [`data_by`]).
+    pub exe: Option<PathBuf>,
 }
 
 impl Step {
@@ -683,6 +685,7 @@ impl Step {
             one_thread: false,
             may_fail: false,
             work: Work::Small,
+            exe: None,
         }
     }
 
@@ -727,23 +730,42 @@ impl StepError {
 /// --hours`; BSD's `EX_TEMPFAIL`).
 pub const STOPPED_AT_TIME_LIMIT: i32 = 75;
 
+/// Every step of `groups`, lanes included.
+fn every_step(groups: &mut [Group]) -> impl Iterator<Item = &mut Step> {
+    groups.iter_mut().flat_map(|g| match g {
+        Group::One(s) => std::slice::from_mut(s).iter_mut().collect::<Vec<_>>(),
+        Group::Lanes(lanes) => lanes.iter_mut().flatten().collect(),
+    })
+}
+
 /// Adds `extra` arguments to every training step of `groups` (`mrdrive train`), lanes
 /// included: the job's time limit (`--until-unix S`), a snapshot to go on from
 /// (`--resume-state FILE`).
 pub fn add_to_training(groups: &mut [Group], extra: &[String]) {
-    let steps = groups.iter_mut().flat_map(|g| match g {
-        Group::One(s) => std::slice::from_mut(s).iter_mut().collect::<Vec<_>>(),
-        Group::Lanes(lanes) => lanes.iter_mut().flatten().collect(),
-    });
-    for step in steps {
+    for step in every_step(groups) {
         if step.args.first().map(String::as_str) == Some("train") {
             step.args.extend(extra.iter().cloned());
         }
     }
 }
 
-/// Runs one step with `exe` in `dir`.
+/// Makes `exe` run every step of `groups` that writes the study's data
+/// (`collect`, `label`): the data's own build (`crate::collector`), so that they
+/// stay the bytes their hashes list when the simulator changes after them.
+pub fn data_by(groups: &mut [Group], exe: &Path) {
+    for step in every_step(groups) {
+        if matches!(
+            step.args.first().map(String::as_str),
+            Some("collect" | "label")
+        ) {
+            step.exe = Some(exe.to_path_buf());
+        }
+    }
+}
+
+/// Runs one step with its own binary, or `exe`, in `dir`.
 fn run_step(exe: &Path, dir: &Path, step: &Step) -> Result<(), StepError> {
+    let exe = step.exe.as_deref().unwrap_or(exe);
     let fail = |what: String| StepError {
         step: step.name.clone(),
         command: format!("{} {}", exe.display(), step.args.join(" ")),
@@ -813,7 +835,11 @@ pub fn execute_until(
         if stop_at.is_some_and(|t| std::time::SystemTime::now() >= t) {
             return Err(StepError {
                 step: step.name.clone(),
-                command: format!("{} {}", exe.display(), step.args.join(" ")),
+                command: format!(
+                    "{} {}",
+                    step.exe.as_deref().unwrap_or(exe).display(),
+                    step.args.join(" ")
+                ),
                 what: "not started: the time limit has passed".into(),
                 time_limit: true,
             });
@@ -1162,6 +1188,36 @@ mod tests {
             second.contains("collect 5 episodes (at this job's rate)"),
             "{notes:?}"
         );
+    }
+
+    #[test]
+    fn the_data_steps_run_the_datas_own_build() {
+        // Every collect and label step, and no other, gets the data's binary.
+        let mut plan = TrainPlan::quick(Path::new("q"), Path::new("c"), true).steps(1);
+        data_by(&mut plan, Path::new("/c/bin/mrdrive-540f94d"));
+        let mut data = 0;
+        for step in every_step(&mut plan) {
+            let first = step.args[0].as_str();
+            let is_data = first == "collect" || first == "label";
+            data += usize::from(is_data);
+            assert_eq!(
+                step.exe.as_deref() == Some(Path::new("/c/bin/mrdrive-540f94d")),
+                is_data,
+                "{}",
+                step.args.join(" ")
+            );
+        }
+        assert!(data >= 4, "{data} data steps");
+        // A step with its own binary runs it, not the plan's.
+        let dir = tempfile::tempdir().unwrap();
+        let marker = dir.path().join("ran");
+        let touch = format!("touch {}", marker.display());
+        let groups = vec![Group::One(Step {
+            exe: Some(PathBuf::from("/bin/sh")),
+            ..Step::new("touch", strings(&["-c", &touch]))
+        })];
+        execute(Path::new("/bin/false"), dir.path(), &groups, &|_: &str| {}).unwrap();
+        assert!(marker.exists());
     }
 
     #[test]

@@ -94,13 +94,23 @@ pub fn run(c: DataCommand) -> anyhow::Result<()> {
                 cache.join("data").display(),
                 dataset::cache::ENV
             );
-            let groups: Vec<Group> = plan.data_steps().into_iter().map(Group::One).collect();
+            let mut groups: Vec<Group> = plan.data_steps().into_iter().map(Group::One).collect();
+            // The data's own build where one is pinned (`experiments::collector`).
+            let list = Path::new(DATA_HASHES);
+            if !a.quick
+                && let Some(dir) = list.parent()
+                && let Some(bin) =
+                    experiments::collector::data_build(dir, Path::new("."), &cache, &|s| {
+                        eprintln!("data study: {s}")
+                    })?
+            {
+                pipeline::data_by(&mut groups, &bin);
+            }
             let exe = std::env::current_exe().context("finding this program")?;
             pipeline::execute(&exe, Path::new("."), &groups, &|s| {
                 eprintln!("data study: {s}")
             })?;
             // Regenerated data must be the data the committed list was made from.
-            let list = Path::new(DATA_HASHES);
             if !a.quick && list.exists() {
                 let dirs = plan.datasets.iter().map(|d| d.dir.clone()).collect();
                 hashes(&HashesArgs {

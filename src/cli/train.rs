@@ -363,6 +363,16 @@ fn run_all(args: &TrainArgs) -> Result<()> {
         let file = file.display().to_string();
         pipeline::add_to_training(&mut groups, &["--resume-state".into(), file]);
     }
+    // The data's own build, where the snapshot's folder pins one: collect and label
+    // run it, so that they stay the bytes `data.sha256` lists after the simulator
+    // changed (`experiments::collector`).
+    if let Some(dir) = args.snapshot.as_deref().and_then(Path::parent)
+        && let Some(bin) = experiments::collector::data_build(dir, Path::new("."), &cache, &|s| {
+            eprintln!("train --all: {s}")
+        })?
+    {
+        pipeline::data_by(&mut groups, &bin);
+    }
     let exe = std::env::current_exe().context("finding this program")?;
     let started = std::time::Instant::now();
     let ran = pipeline::execute_until(&exe, Path::new("."), &groups, stop_at, &|s| {
