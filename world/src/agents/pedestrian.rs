@@ -514,7 +514,12 @@ impl Pedestrian {
         }
     }
 
-    /// Counts a blocked step; after `patience` blocked ticks in a row it turns back to the node it came from.
+    /// Counts a blocked step; after `patience` blocked ticks in a row it turns
+    /// back: it walks its leg the other way, to the node it came from, which
+    /// the leg's far end becomes. Blocked again on the way back (a car now
+    /// between it and that kerb), it turns again, so it never stands for good
+    /// between two cars that wait for it. At the node it came from, it drops
+    /// its route and draws a new one.
     pub fn note_blocked(&mut self, g: &WalkGraph, blocked: bool, patience: u32) {
         if !blocked {
             self.blocked_ticks = 0;
@@ -524,11 +529,13 @@ impl Pedestrian {
         if self.blocked_ticks > patience {
             self.blocked_ticks = 0;
             let back = g.nodes[self.from as usize].position;
-            self.route = if (back - self.position).length() > 1e-3 {
-                vec![self.from]
-            } else {
-                Vec::new()
-            };
+            match self.route.first() {
+                Some(&next) if (back - self.position).length() > 1e-3 => {
+                    self.route = vec![self.from];
+                    self.from = next;
+                }
+                _ => self.route = Vec::new(),
+            }
         }
     }
 }
@@ -647,6 +654,41 @@ mod tests {
             );
         }
         assert!(held, "the walker was never held by the car");
+    }
+
+    #[test]
+    fn a_walker_turned_back_on_a_crossing_walks_back_before_it_draws_a_new_way() {
+        // Blocked half-way over a crossing, it turns back to the kerb it came from;
+        // a new goal drawn then starts at that kerb, which it reaches first instead
+        // of cutting across the road to the new route's first node.
+        let t = grid(3, 3, 60.0);
+        let p = PedestrianParams {
+            regoal_p: 1.0,
+            ..PedestrianParams::default()
+        };
+        let g = WalkGraph::new(&t, &p);
+        let (a, b) = (0..g.nodes.len() as u32)
+            .find_map(|a| {
+                g.edges[a as usize]
+                    .iter()
+                    .find(|e| e.2 == EdgeKind::Crosswalk)
+                    .map(|e| (a, e.0))
+            })
+            .unwrap();
+        let (pa, pb) = (g.nodes[a as usize].position, g.nodes[b as usize].position);
+        let mut w = walker_at(&g, a, vec![b]);
+        w.position = pa + (pb - pa) * 0.5;
+        w.note_blocked(&g, true, 0);
+        assert_eq!((w.from, w.route.clone()), (b, vec![a]));
+        let (np, _) = w.decide(&g, &p, &[], 0.025);
+        assert_eq!(w.route.first(), Some(&a), "route {:?}", w.route);
+        // Its step heads for the kerb it came from.
+        let step = (np - w.position).normalize();
+        let back = (pa - w.position).normalize();
+        assert!(step.dot(back) > 0.999, "stepped {step} not back {back}");
+        // Blocked again on the way back, it turns again, toward the far kerb.
+        w.note_blocked(&g, true, 0);
+        assert_eq!((w.from, w.route.clone()), (a, vec![b]));
     }
 
     #[test]
