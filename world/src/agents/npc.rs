@@ -57,8 +57,6 @@ pub struct NpcParams {
     pub max_lateral_accel_mps2: f32,
     /// Fraction of the speed limit driven (1.0 = at the limit).
     pub speed_factor: f32,
-    /// Ticks stopped while wanting to move before a respawn (docs/protocol.md §2: 40).
-    pub stuck_ticks: u32,
     /// Extra half-width of the corridor in which actors count as ahead (metres).
     pub corridor_margin_m: f32,
 }
@@ -74,7 +72,6 @@ impl Default for NpcParams {
             pedestrian_gap_m: 4.0,
             max_lateral_accel_mps2: rules::pursuit::CURVE_LATERAL_ACCEL_MPS2,
             speed_factor: 1.0,
-            stuck_ticks: 40,
             corridor_margin_m: 0.4,
         }
     }
@@ -102,8 +99,9 @@ pub struct Npc {
     pub request: Option<(LaneIdx, u64)>,
     /// The lane change it has planned for its next turn, if any.
     pub change: Option<PlannedChange>,
-    /// Consecutive ticks stopped while its driver wants to move.
-    pub stuck_ticks: u32,
+    /// Consecutive ticks below the Traffic Manager's idle speed
+    /// (`traffic::removal::STOPPED_MPS`): how long it has stood, for its removal.
+    pub idle_ticks: u32,
     /// Consecutive ticks below 0.1 m/s for any reason.
     pub stopped_ticks: u32,
     /// The control decided this tick.

@@ -40,9 +40,10 @@ pub enum IncidentKind {
 /// Why an NPC was respawned.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum RespawnCause {
-    /// Stopped while its driver wanted to move, for longer than
-    /// `NpcParams::stuck_ticks` (held by something it does not see).
-    Stuck,
+    /// Stood (below 0.8 m/s) for 90 s, its light not red (`super::removal`).
+    Blocked,
+    /// Stood for 180 s, its light red (`super::removal`).
+    BlockedAtRed,
     /// More than [`super::OFF_PATH_M`] from the point of its lane it follows.
     OffPath,
 }
@@ -51,7 +52,8 @@ impl RespawnCause {
     /// A few words for the incident list.
     pub fn name(self) -> &'static str {
         match self {
-            RespawnCause::Stuck => "stuck wanting to move",
+            RespawnCause::Blocked => "stopped 90 s",
+            RespawnCause::BlockedAtRed => "stopped 180 s at a red light",
             RespawnCause::OffPath => "off its path",
         }
     }

@@ -32,6 +32,7 @@
 pub mod crossings;
 pub mod incidents;
 pub mod light_controller;
+pub mod removal;
 pub mod reservations;
 pub mod soak;
 mod spawn;
@@ -157,6 +158,8 @@ pub struct Traffic {
     spawn_lanes: Vec<LaneIdx>,
     crossing_edges: Vec<(u32, u32)>,
     crossing_rng: rand_chacha::ChaCha8Rng,
+    /// The tick of the last removal by the Traffic Manager's rule (`removal`; 0 before any).
+    last_removal_tick: u64,
 }
 
 impl Traffic {

@@ -91,7 +91,11 @@ pub type LaneOccupant = (LaneIdx, f32);
 
 impl Traffic {
     /// Whether an NPC must stop for the light ahead: (must stop, distance from its front to the stop line).
-    fn light_stop(&self, n: &Npc, lights: &[LightState]) -> Option<(bool, f32, LightIdx)> {
+    pub(super) fn light_stop(
+        &self,
+        n: &Npc,
+        lights: &[LightState],
+    ) -> Option<(bool, f32, LightIdx)> {
         let v = n.state.speed_mps;
         npc::next_stop_line(&self.town, &self.rules, n, &self.cfg.vehicle, 80.0).map(
             |(d, light)| {

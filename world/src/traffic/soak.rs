@@ -76,9 +76,10 @@ impl SoakReport {
             (
                 "NPC respawns",
                 format!(
-                    "{} ({} stuck wanting to move, {} off their path)",
+                    "{} ({} stopped 90 s, {} stopped 180 s at a red light, {} off their path)",
                     s.respawns(),
-                    s.respawns_stuck,
+                    s.respawns_blocked,
+                    s.respawns_blocked_at_red,
                     s.respawns_off_path
                 ),
             ),

@@ -11,17 +11,21 @@ use glam::{Vec2, Vec3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+use std::cmp::Reverse;
+
 use super::incidents::{IncidentKind, RespawnCause};
+use super::removal;
 use super::reservations::Reservations;
 use super::{Ego, EgoStart, OFF_PATH_M, Traffic, TrafficConfig, TrafficStats};
 use crate::agents::npc::{self, Npc, Scratch};
 use crate::agents::pedestrian::{Pedestrian, WalkGraph};
 use crate::agents::{ActorKind, VehicleControl, VehicleState};
+use crate::map::LightState;
 use crate::map::props::place_props;
 use crate::map::{LaneIdx, Town};
 use crate::physics::Physics;
 use crate::road::LanePath;
-use crate::rules::RuleBook;
+use crate::rules::{self, RuleBook};
 
 fn actor_rng(seed: u64, id: u32) -> ChaCha8Rng {
     let mut r = ChaCha8Rng::seed_from_u64(seed ^ 0x7261_6666_6963_0000);
@@ -66,6 +70,7 @@ impl Traffic {
             spawn_lanes,
             crossing_edges,
             crossing_rng,
+            last_removal_tick: 0,
         };
         if let Some(e) = ego {
             t.teleport_ego(e);
@@ -133,7 +138,7 @@ impl Traffic {
                 leaving: None,
                 request: None,
                 change,
-                stuck_ticks: 0,
+                idle_ticks: 0,
                 stopped_ticks: 0,
                 control: VehicleControl::BRAKE,
                 color: (k % 8) as u8,
@@ -189,7 +194,7 @@ impl Traffic {
         n.path = path;
         n.request = None;
         n.change = None;
-        n.stuck_ticks = 0;
+        n.idle_ticks = 0;
         n.stopped_ticks = 0;
         npc::extend_path_planning(&self.town, &mut n.path, &mut n.rng, 80.0, &mut n.change);
         self.physics.teleport(id, p, yaw);
@@ -217,19 +222,33 @@ impl Traffic {
         self.refresh_views();
     }
 
-    /// Respawns the NPCs stuck too long or pushed off their path.
-    pub(super) fn respawn_stuck(&mut self) {
+    /// Respawns an NPC as CARLA's Traffic Manager removes one (`removal`): the
+    /// NPC that has stood longest, once it has stood 90 s (180 s while the light
+    /// of its next stop line is red), at most one every 10 s; and any NPC pushed
+    /// off its path.
+    pub(super) fn respawn_stuck(&mut self, lights: &[LightState]) {
+        let dt = self.cfg.tick_s;
+        let since_last = self.stats.ticks.saturating_sub(self.last_removal_tick) as f32 * dt;
+        let most_idle = (0..self.npcs.len()).max_by_key(|&i| (self.npcs[i].idle_ticks, Reverse(i)));
+        if let Some(i) = most_idle
+            && since_last > removal::BETWEEN_REMOVALS_S
+        {
+            let n = &self.npcs[i];
+            let at_red = self
+                .light_stop(n, lights)
+                .is_some_and(|(_, _, l)| rules::light_state(lights, l) == LightState::Red);
+            let idle_s = n.idle_ticks as f32 * dt;
+            if let Some(cause) = removal::cause(idle_s, at_red) {
+                self.last_removal_tick = self.stats.ticks;
+                self.respawn(i, cause);
+            }
+        }
         for i in 0..self.npcs.len() {
             let n = &self.npcs[i];
             let (lp, _, _) = self.town.lane(n.path.lane()).pose_at(n.path.s_m);
-            let cause = if n.stuck_ticks > self.cfg.npc.stuck_ticks {
-                RespawnCause::Stuck
-            } else if (lp - n.state.position).length() > OFF_PATH_M {
-                RespawnCause::OffPath
-            } else {
-                continue;
-            };
-            self.respawn(i, cause);
+            if (lp - n.state.position).length() > OFF_PATH_M {
+                self.respawn(i, RespawnCause::OffPath);
+            }
         }
     }
 
@@ -243,7 +262,8 @@ impl Traffic {
             self.note_npc(IncidentKind::Respawn(cause), id);
             self.place_npc(i, LanePath::new(lane, s));
             match cause {
-                RespawnCause::Stuck => self.stats.respawns_stuck += 1,
+                RespawnCause::Blocked => self.stats.respawns_blocked += 1,
+                RespawnCause::BlockedAtRed => self.stats.respawns_blocked_at_red += 1,
                 RespawnCause::OffPath => self.stats.respawns_off_path += 1,
             }
         }

@@ -8,8 +8,10 @@ use crate::physics::{ContactEvent, Party};
 pub struct TrafficStats {
     /// Ticks stepped.
     pub ticks: u64,
-    /// NPC respawns because stuck for more than `stuck_ticks` while wanting to move.
-    pub respawns_stuck: u64,
+    /// NPC respawns because stopped for 90 s (`super::removal`).
+    pub respawns_blocked: u64,
+    /// NPC respawns because stopped for 180 s at a red light (`super::removal`).
+    pub respawns_blocked_at_red: u64,
     /// NPC respawns because more than [`super::OFF_PATH_M`] off their path.
     pub respawns_off_path: u64,
     /// Stop lines crossed by an NPC's front bumper while the light was red.
@@ -38,7 +40,7 @@ pub struct TrafficStats {
 impl TrafficStats {
     /// NPC respawns, whatever the cause.
     pub fn respawns(&self) -> u64 {
-        self.respawns_stuck + self.respawns_off_path
+        self.respawns_blocked + self.respawns_blocked_at_red + self.respawns_off_path
     }
 
     /// Counts a contact that started this tick, by the kinds of its two

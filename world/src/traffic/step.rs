@@ -9,6 +9,7 @@
 
 use super::Traffic;
 use super::incidents::IncidentKind;
+use super::removal;
 use super::views::npc_view;
 use crate::agents::{kerb, npc};
 use crate::map::LightState;
@@ -183,14 +184,13 @@ impl Traffic {
                     self.stats.deadlocks += 1;
                     deadlocked.push(n.id);
                 }
-                if d.accel_mps2 > 0.3 {
-                    n.stuck_ticks += 1;
-                } else {
-                    n.stuck_ticks = 0;
-                }
             } else {
                 n.stopped_ticks = 0;
-                n.stuck_ticks = 0;
+            }
+            if s.speed_mps < removal::STOPPED_MPS {
+                n.idle_ticks += 1;
+            } else {
+                n.idle_ticks = 0;
             }
         }
         for (p, (target, z)) in self.pedestrians.iter_mut().zip(ped_targets) {
@@ -211,7 +211,7 @@ impl Traffic {
         for id in ran_red {
             self.note_npc(IncidentKind::RedRun, id);
         }
-        self.respawn_stuck();
+        self.respawn_stuck(lights);
         if let Some(e) = &mut self.ego {
             e.lane = self
                 .rules

@@ -347,7 +347,7 @@ fn ego_drives_from_controls_and_its_contacts_name_both_actors() {
 }
 
 #[test]
-fn a_stuck_npc_is_respawned_after_40_ticks() {
+fn a_blocked_npc_is_respawned_after_90_s_as_the_traffic_manager_removes_it() {
     // A block it cannot see (a building, not an actor) across lane 0 at x = 30.
     let mut town = grid(3, 3, 60.0);
     town.buildings.push(Building {
@@ -367,7 +367,7 @@ fn a_stuck_npc_is_respawned_after_40_ticks() {
     let green = vec![LightState::Green; t.lights.len()];
     let mut hit_tick = None;
     let mut respawn_tick = None;
-    for tick in 0..400u32 {
+    for tick in 0..4000u32 {
         let ev = tr.step(&green).to_vec();
         if hit_tick.is_none()
             && ev
@@ -385,18 +385,24 @@ fn a_stuck_npc_is_respawned_after_40_ticks() {
         hit_tick.expect("hit the box"),
         respawn_tick.expect("respawned"),
     );
-    // Respawned once stuck for more than 40 ticks (it needs a few ticks to come to a stop).
-    assert!(r > h + 40 && r < h + 60, "hit at {h}, respawned at {r}");
+    // Respawned once it has stood (below 0.8 m/s) for 90 s: 3600 ticks after it
+    // fell below that speed, a few ticks after the hit.
+    assert!(
+        r >= h + 3600 && r < h + 3600 + 40,
+        "hit at {h}, respawned at {r}"
+    );
     assert!((tr.npcs()[0].state.position - Vec2::new(27.0, -1.75)).length() > 3.0);
     assert_eq!(tr.stats().npc_static_collisions, 1);
-    // Both are listed: the contact at its tick on lane 0, then the respawn.
+    // All are listed: the contact at its tick on lane 0, the stop of 60 s, then
+    // the respawn.
     let kinds: Vec<IncidentKind> = tr.incidents().iter().map(|i| i.kind).collect();
     assert!(
         matches!(
             kinds[..],
             [
                 IncidentKind::NpcStatic(_),
-                IncidentKind::Respawn(RespawnCause::Stuck)
+                IncidentKind::Deadlock,
+                IncidentKind::Respawn(RespawnCause::Blocked)
             ]
         ),
         "{kinds:?}"
@@ -413,7 +419,37 @@ fn a_stuck_npc_is_respawned_after_40_ticks() {
     }
     let listed = |k: IncidentKind| tr.incidents().iter().filter(|i| i.kind == k).count();
     assert_eq!(listed(IncidentKind::Deadlock), INCIDENTS_PER_KIND);
-    assert_eq!(listed(IncidentKind::Respawn(RespawnCause::Stuck)), 1);
+    assert_eq!(listed(IncidentKind::Respawn(RespawnCause::Blocked)), 1);
+}
+
+#[test]
+fn an_npc_at_a_red_light_is_respawned_after_180_s_and_one_at_a_time() {
+    // Every light red for ever: the cars queue at stop lines. None goes before
+    // it has stood 180 s, and no two within 10 s of each other.
+    let t = town();
+    let red = vec![LightState::Red; t.lights.len()];
+    let mut tr = Traffic::new(t, cfg(6, 0, 3), None);
+    let mut removals = Vec::new();
+    for tick in 0..(40 * 240u64) {
+        let before = tr.stats().respawns();
+        let idle: Vec<u32> = tr.npcs().iter().map(|n| n.idle_ticks).collect();
+        tr.step(&red);
+        if tr.stats().respawns() > before {
+            removals.push((tick, *idle.iter().max().unwrap()));
+        }
+    }
+    assert!(!removals.is_empty(), "nobody was removed in 240 s");
+    for &(tick, idle) in &removals {
+        assert!(
+            idle + 1 >= 180 * 40,
+            "removed at tick {tick} after {idle} idle ticks"
+        );
+    }
+    for w in removals.windows(2) {
+        assert!(w[1].0 - w[0].0 > 400, "{removals:?}");
+    }
+    let s = tr.stats();
+    assert_eq!(s.respawns_blocked_at_red, removals.len() as u64, "{s:?}");
 }
 
 #[test]
