@@ -603,15 +603,17 @@ mod tests {
         }
     }
 
-    #[test]
-    fn walker_waits_while_a_car_stands_on_its_crossing_and_never_walks_into_one() {
+    /// The walk graph of a 3 x 3 grid town whose walkers draw a new goal with
+    /// probability `regoal_p` a tick, its parameters, and the two ends of its
+    /// first crosswalk.
+    fn grid_crosswalk(regoal_p: f32) -> (WalkGraph, PedestrianParams, (u32, u32)) {
         let t = grid(3, 3, 60.0);
         let p = PedestrianParams {
-            regoal_p: 0.0,
+            regoal_p,
             ..PedestrianParams::default()
         };
         let g = WalkGraph::new(&t, &p);
-        let (a, b) = (0..g.nodes.len() as u32)
+        let ends = (0..g.nodes.len() as u32)
             .find_map(|a| {
                 g.edges[a as usize]
                     .iter()
@@ -619,6 +621,12 @@ mod tests {
                     .map(|e| (a, e.0))
             })
             .unwrap();
+        (g, p, ends)
+    }
+
+    #[test]
+    fn walker_waits_while_a_car_stands_on_its_crossing_and_never_walks_into_one() {
+        let (g, p, (a, b)) = grid_crosswalk(0.0);
         let (pa, pb) = (g.nodes[a as usize].position, g.nodes[b as usize].position);
         let along = (pb - pa).normalize();
         // A car stands across the middle of the crossing (its long side blocks the walk).
@@ -661,20 +669,7 @@ mod tests {
         // Blocked half-way over a crossing, it turns back to the kerb it came from;
         // a new goal drawn then starts at that kerb, which it reaches first instead
         // of cutting across the road to the new route's first node.
-        let t = grid(3, 3, 60.0);
-        let p = PedestrianParams {
-            regoal_p: 1.0,
-            ..PedestrianParams::default()
-        };
-        let g = WalkGraph::new(&t, &p);
-        let (a, b) = (0..g.nodes.len() as u32)
-            .find_map(|a| {
-                g.edges[a as usize]
-                    .iter()
-                    .find(|e| e.2 == EdgeKind::Crosswalk)
-                    .map(|e| (a, e.0))
-            })
-            .unwrap();
+        let (g, p, (a, b)) = grid_crosswalk(1.0);
         let (pa, pb) = (g.nodes[a as usize].position, g.nodes[b as usize].position);
         let mut w = walker_at(&g, a, vec![b]);
         w.position = pa + (pb - pa) * 0.5;
