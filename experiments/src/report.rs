@@ -14,9 +14,9 @@
 use std::path::Path;
 
 use sim::monitors::InfractionKind::{LaneCrossing, RedLight};
-use sim::sweep::cluster::cluster_t_interval;
+use sim::sweep::cluster::{cluster_ids, cluster_t_interval};
 use sim::sweep::exact::holm;
-use sim::sweep::stats::{Paired, block_ids};
+use sim::sweep::stats::Paired;
 use sim::sweep::tables::mean_sd;
 
 use crate::PaperError;
@@ -93,7 +93,7 @@ impl Stats {
             .iter()
             .map(|r| r.record.result.completion_pct)
             .collect();
-        let routes = block_ids(runs.iter().map(|r| r.route.clone()));
+        let routes = cluster_ids(runs.iter().map(|r| r.route.clone()));
         let pct_of = |f: &dyn Fn(&Run) -> bool| -> Vec<f64> {
             runs.iter()
                 .map(|r| if f(r) { 100.0 } else { 0.0 })
@@ -238,7 +238,7 @@ impl Comparison {
             lane: cmp(&|r| f64::from(r.record.result.count(LaneCrossing))),
             collided: cmp(&|r| f64::from(u8::from(r.record.result.collisions() > 0))),
             success: cmp(&|r| f64::from(u8::from(r.record.result.success))),
-            routes: block_ids(routes.iter())
+            routes: cluster_ids(routes.iter())
                 .into_iter()
                 .max()
                 .map_or(0, |m| m + 1),

@@ -119,12 +119,25 @@ pub fn student_t_quantile(q: f64, df: f64) -> f64 {
     0.5 * (lo + hi)
 }
 
+/// Numbers clusters 0, 1, 2, ... by their keys (routes, say), in the order
+/// the keys first appear.
+pub fn cluster_ids<K: PartialEq>(keys: impl Iterator<Item = K>) -> Vec<usize> {
+    let mut seen: Vec<K> = Vec::new();
+    keys.map(|k| {
+        seen.iter().position(|s| *s == k).unwrap_or_else(|| {
+            seen.push(k);
+            seen.len() - 1
+        })
+    })
+    .collect()
+}
+
 /// The mean of the cluster means of `values` (`clusters[i]` names the
 /// cluster, the route, of `values[i]`; every cluster weighs the same), its
 /// standard error and degrees of freedom (G - 1); `None` with fewer than two
 /// clusters or lengths that differ.
 fn over_cluster_means(values: &[f64], clusters: &[usize]) -> Option<(f64, f64, f64)> {
-    let ids = super::stats::block_ids(clusters.iter());
+    let ids = cluster_ids(clusters.iter());
     let g = ids.iter().max().map_or(0, |m| m + 1);
     if g < 2 || values.len() != clusters.len() {
         return None;
@@ -252,7 +265,7 @@ mod tests {
         let n = values.len().min(blocks.len());
         let mean = values[..n].iter().sum::<f64>() / n.max(1) as f64;
         // (sum, count) per block, in the order blocks first appear.
-        let ids = super::super::stats::block_ids(blocks[..n].iter());
+        let ids = cluster_ids(blocks[..n].iter());
         let mut sums: Vec<(f64, usize)> = vec![(0.0, 0); ids.iter().max().map_or(0, |m| m + 1)];
         for (&v, &i) in values.iter().zip(&ids) {
             sums[i].0 += v;

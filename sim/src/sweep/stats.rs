@@ -56,18 +56,6 @@ impl RangeCheck {
     }
 }
 
-/// Numbers blocks 0, 1, 2, ... by their keys, in the order the keys first appear.
-pub fn block_ids<K: PartialEq>(keys: impl Iterator<Item = K>) -> Vec<usize> {
-    let mut seen: Vec<K> = Vec::new();
-    keys.map(|k| {
-        seen.iter().position(|s| *s == k).unwrap_or_else(|| {
-            seen.push(k);
-            seen.len() - 1
-        })
-    })
-    .collect()
-}
-
 /// Two configurations compared on the same seeds (run i of `a` and of `b` share
 /// their seed, route and traffic).
 #[derive(Debug, Clone, PartialEq)]
@@ -101,7 +89,7 @@ impl Paired {
         let d: Vec<f64> = a.iter().zip(b).map(|(x, y)| y - x).collect();
         let n = d.len().min(routes.len());
         let d = d[..n].to_vec();
-        let clusters = block_ids(routes[..n].iter());
+        let clusters = super::cluster::cluster_ids(routes[..n].iter());
         let count = |f: &dyn Fn(f64) -> bool| d.iter().filter(|&&x| f(x)).count();
         Paired {
             n,
