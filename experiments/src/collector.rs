@@ -80,7 +80,11 @@ pub fn binary(commit: &str, this_commit: Option<&str>, cache: &Path) -> Option<P
     if same {
         None
     } else {
-        Some(cache.join("bin").join(format!("mrdrive-{}", &commit[..7])))
+        Some(
+            cache
+                .join("bin")
+                .join(format!("mrdrive-{}", commit.get(..7).unwrap_or(commit))),
+        )
     }
 }
 

@@ -35,7 +35,7 @@ fn route_interval(values: &[f64], routes: &[usize], (floor, ceil): (f64, f64)) -
 }
 
 /// "[0.17, 0.67]" with `digits` decimals, or "(1 route)" without an interval.
-fn interval_text(ci: Interval, digits: usize) -> String {
+pub fn interval_text(ci: Interval, digits: usize) -> String {
     ci.map_or("(1 route)".into(), |(lo, hi)| {
         format!("[{lo:.digits$}, {hi:.digits$}]")
     })

@@ -86,8 +86,7 @@ pub(super) fn fig34(
                 if s.n == 0 {
                     "–".into()
                 } else {
-                    let interval =
-                        ci.map_or("(1 route)".into(), |(a, b)| format!("[{a:.2}, {b:.2}]"));
+                    let interval = crate::report::interval_text(ci, 2);
                     format!("{m:.2} {interval} (n = {})", s.n)
                 }
             };

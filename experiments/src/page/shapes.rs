@@ -428,7 +428,7 @@ fn range_checks(
         // Without an interval (one route) only the estimate can reach the range.
         let seen = RangeCheck::of(pct, ci.unwrap_or((pct, pct)), (a, b));
         let holds = s.n > 0 && seen == RangeCheck::Inside;
-        let interval = ci.map_or("(1 route)".into(), |(lo, hi)| format!("[{lo:.0}, {hi:.0}]"));
+        let interval = crate::report::interval_text(ci, 0);
         (
             format!(
                 "{label} D = {d} ms {what} {pct:.0} % {interval} (paper {a}-{b} %: {}){}",

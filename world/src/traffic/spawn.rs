@@ -229,9 +229,9 @@ impl Traffic {
     pub(super) fn respawn_stuck(&mut self, lights: &[LightState]) {
         let dt = self.cfg.tick_s;
         let since_last = self.stats.ticks.saturating_sub(self.last_removal_tick) as f32 * dt;
-        let most_idle = (0..self.npcs.len()).max_by_key(|&i| (self.npcs[i].idle_ticks, Reverse(i)));
-        if let Some(i) = most_idle
-            && since_last > removal::BETWEEN_REMOVALS_S
+        if since_last > removal::BETWEEN_REMOVALS_S
+            && let Some(i) =
+                (0..self.npcs.len()).max_by_key(|&i| (self.npcs[i].idle_ticks, Reverse(i)))
         {
             let n = &self.npcs[i];
             let at_red = self
