@@ -11,9 +11,10 @@
 //!   otherwise, never above the lane's limit (docs/protocol.md §5's target speeds).
 //! - **Stops**: for a light it must stop for ([`rules::must_stop`]: red, or
 //!   yellow when it can still stop at `stop_decel_mps2`), at a stop line of
-//!   the route ([`rules::RouteStops`], given in the privileged view) that its
-//!   crossing point has not passed ([`rules::crossing`]), it brakes to stand
-//!   1 m before the line; for the nearest
+//!   the route within 40 m ([`rules::RouteStops`], given in the privileged
+//!   view; every one in that range, not only the nearest) that its crossing
+//!   point has not passed ([`rules::crossing`]), it brakes to stand 1 m
+//!   before the line; for the nearest
 //!   vehicle or pedestrian ahead on its route (the same "ahead" query the
 //!   NPCs use: a corridor around the route) it keeps a gap of 4 m: it stops
 //!   behind a standing one and follows a moving one with a braking profile
@@ -131,17 +132,23 @@ impl Expert {
         let mut stop_at: Option<f32> = None;
         let half_length = p.ego.extent.x / 2.0;
         let front_s = ego_s + half_length;
-        // Lights: the first stop line the car has not yet passed: its
-        // crossing point (the red-light monitor's) is not over the line, so a
+        // Lights: the stop lines within 40 m the car has not yet passed (its
+        // crossing point, the red-light monitor's, is not over the line, so a
         // car whose nose overshot a stop line on red waits there instead of
-        // driving on.
+        // driving on), nearest first: the first it must stop for holds it.
+        // Two lit junctions closer than that (Town03's road 77) are judged
+        // both, as the NPCs do.
         let tail_s = ego_s - rules::crossing_offset_m(p.ego.extent.x);
-        if let Some(stop) = p.stops.next_after(tail_s) {
+        for stop in p.stops.after(tail_s) {
             let to_line = stop.route_s - front_s;
-            let state = rules::light_state(p.lights, stop.light);
             let d = to_line - prm.stop_margin_m;
-            if rules::must_stop(state, to_line, v, prm.stop_decel_mps2) && d < 40.0 {
+            if d >= 40.0 {
+                break;
+            }
+            let state = rules::light_state(p.lights, stop.light);
+            if rules::must_stop(state, to_line, v, prm.stop_decel_mps2) {
                 stop_at = Some(d);
+                break;
             }
         }
         // A junction without lights whose conflicting lanes another vehicle
@@ -405,6 +412,44 @@ mod tests {
         scene.lights.fill(LightState::Green);
         let ticks = scene.drive(20.0, |_, _| {});
         assert!(ticks.iter().any(|t| t.state.position.x > 80.0));
+    }
+
+    #[test]
+    fn it_stops_for_a_red_line_just_past_a_green_one() {
+        // Two lights' lines 6 m apart on the route (two lit junctions that
+        // close): the nearer green, the farther red. It stops before the red
+        // one; looking at the nearer line alone, it would see the red one only
+        // once past the green one, 3 m before it at cruise speed.
+        let mut scene = Scene::new(&EAST, LightState::Red);
+        let line_x = 46.0;
+        let (red, line) = scene
+            .town
+            .lights
+            .iter()
+            .enumerate()
+            .find_map(|(i, l)| {
+                let sl = l
+                    .stop_lines
+                    .iter()
+                    .find(|sl| (sl.ends[0].x - line_x).abs() < 0.5)?;
+                Some((i, sl.clone()))
+            })
+            .expect("the west stop line at x = 46");
+        let green = (red + 1) % scene.town.lights.len();
+        let shift = Vec3::new(-6.0, 0.0, 0.0);
+        scene.town.lights[green].stop_lines.push(world::StopLine {
+            lane: line.lane,
+            s: line.s - 6.0,
+            ends: [line.ends[0] + shift, line.ends[1] + shift],
+        });
+        scene.stops = StopLines::new(&scene.town).on_route(&scene.route);
+        assert_eq!(scene.stops.all().len(), 2);
+        scene.lights.fill(LightState::Green);
+        scene.lights[red] = LightState::Red;
+        let ticks = scene.drive(20.0, |_, _| {});
+        let max_front = ticks.iter().map(front_x).fold(f32::MIN, f32::max);
+        assert!(max_front < line_x, "front reached x = {max_front}");
+        assert!(ticks.last().unwrap().state.speed_mps < 0.05);
     }
 
     #[test]

@@ -369,21 +369,36 @@ pub fn next_stop_line(
     params: &VehicleParams,
     max_m: f32,
 ) -> Option<(f32, LightIdx)> {
+    stop_lines_ahead(town, rules, npc, params, max_m).next()
+}
+
+/// Every stop line ahead of the front bumper within `max_m` along its path, nearest
+/// first: (path distance from the front bumper, light). A driver sees the light of
+/// the junction after next too: the second of two close junctions may turn yellow
+/// while the car is still before the first (Town03's road 77).
+pub fn stop_lines_ahead<'a>(
+    town: &'a Town,
+    rules: &'a RuleBook,
+    npc: &'a Npc,
+    params: &VehicleParams,
+    max_m: f32,
+) -> impl Iterator<Item = (f32, LightIdx)> + 'a {
     let half = params.length_m * 0.5;
-    let mut off = -npc.path.s_m;
-    for &l in &npc.path.lanes {
-        for line in rules.stop_lines.on_lane(l) {
-            let d = off + line.s - half;
-            if d > -0.3 && d < max_m {
-                return Some((d, line.light));
-            }
-        }
-        off += town.lane(l).length_m();
-        if off > max_m + half {
-            break;
-        }
-    }
-    None
+    npc.path
+        .lanes
+        .iter()
+        .scan(-npc.path.s_m, move |off, &l| {
+            let start = *off;
+            *off += town.lane(l).length_m();
+            (start <= max_m + half).then_some((start, l))
+        })
+        .flat_map(move |(start, l)| {
+            rules
+                .stop_lines
+                .on_lane(l)
+                .map(move |line| (start + line.s - half, line.light))
+        })
+        .filter(move |&(d, _)| d > -0.3 && d < max_m)
 }
 
 fn idm_term(p: &NpcParams, v: f32, gap: f32, v_lead: f32, s0: f32) -> f32 {
@@ -456,8 +471,8 @@ pub fn decide(
         };
         accel = accel.min(free + idm_term(p, v, gap, a.speed_along_mps.max(0.0), s0));
     }
-    // Lights.
-    if let Some((d, light)) = next_stop_line(town, rules, npc, vp, look) {
+    // Lights: every stop line within the look-ahead, each by the one rule.
+    for (d, light) in stop_lines_ahead(town, rules, npc, vp, look) {
         let stop = rules::must_stop(
             rules::light_state(lights, light),
             d,

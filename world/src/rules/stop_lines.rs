@@ -227,7 +227,13 @@ impl RouteStops {
 
     /// The first stop farther along the route than `route_s` (metres).
     pub fn next_after(&self, route_s: f32) -> Option<&RouteStop> {
-        self.stops.iter().find(|s| s.route_s > route_s)
+        self.after(route_s).next()
+    }
+
+    /// Every stop farther along the route than `route_s` (metres), nearest
+    /// first.
+    pub fn after(&self, route_s: f32) -> impl Iterator<Item = &RouteStop> {
+        self.stops.iter().skip_while(move |s| s.route_s <= route_s)
     }
 
     /// The light ahead: the first stop farther along the route than

@@ -6,7 +6,7 @@ use glam::Vec2;
 
 use super::incidents::INCIDENTS_PER_KIND;
 use super::*;
-use crate::agents::{ActorKind, VehicleControl, VehicleParams, VehicleState};
+use crate::agents::{ActorKind, VehicleControl, VehicleParams, VehicleState, npc};
 use crate::map::testtown::{FixtureLights, grid};
 use crate::map::{Building, JunctionIdx, LaneIdx, LightState, Town};
 use crate::physics::{DT_S, Party};
@@ -1394,4 +1394,54 @@ fn a_car_waits_clear_of_a_turn_that_starts_at_an_angle_to_its_road() {
     assert_eq!(tr.stats().npc_npc_collisions, 0, "{:?}", tr.incidents());
     assert!(turned, "the turner never went through");
     assert!(through, "the waiting car never entered");
+}
+
+#[test]
+fn an_npc_sees_the_light_of_the_junction_after_next() {
+    // One NPC at 10 m/s, 8 m before a green light whose junction is followed 40 m
+    // later by a second lit one (Town03's road 77: two lit junctions 34 m apart).
+    // With the second light yellow it brakes already: it sees every stop line
+    // within its look-ahead, each judged by `rules::must_stop` (before
+    // 2026-12-06 it saw the first line only and met the second one late, in the
+    // middle of its yellow, too fast to stop).
+    let t = Arc::new(grid(3, 3, 40.0));
+    let mut tr = Traffic::new(t.clone(), cfg(1, 0, 3), None);
+    let (vp, np) = (tr.config().vehicle, tr.config().npc);
+    // A car whose planned path goes straight through two lit junctions, its
+    // front bumper moved to 8 m before the first line.
+    let mut car = None;
+    for l in (0..t.lanes.len() as u32).map(LaneIdx) {
+        if t.lane(l).junction.is_some() {
+            continue;
+        }
+        tr.place_npc(0, LanePath::new(l, 0.0));
+        let lines: Vec<_> =
+            npc::stop_lines_ahead(&t, tr.rules(), &tr.npcs()[0], &vp, 200.0).collect();
+        if lines.len() >= 2 && lines[1].0 - lines[0].0 < 45.0 {
+            let mut c = tr.npcs()[0].clone();
+            c.path.s_m = lines[0].0 - 8.0;
+            car = Some(c);
+            break;
+        }
+    }
+    let mut car = car.expect("no lane passes two lights 45 m apart");
+    car.state.speed_mps = 10.0;
+    let lines: Vec<_> = npc::stop_lines_ahead(&t, tr.rules(), &car, &vp, 200.0).collect();
+    assert!((lines[0].0 - 8.0).abs() < 1e-3, "{lines:?}");
+    assert!(lines[0].1 != lines[1].1, "{lines:?}");
+    assert_eq!(
+        npc::next_stop_line(&t, tr.rules(), &car, &vp, 200.0),
+        Some(lines[0])
+    );
+    let accel = |second: LightState| {
+        let mut states = vec![LightState::Green; t.lights.len()];
+        states[lines[1].1.0 as usize] = second;
+        let mut scratch = npc::Scratch { pts: Vec::new() };
+        npc::decide(&t, tr.rules(), &np, &vp, &car, &[], &states, &mut scratch).accel_mps2
+    };
+    let (free, yellow) = (accel(LightState::Green), accel(LightState::Yellow));
+    assert!(
+        yellow < 0.0 && yellow < free,
+        "{yellow} m/s2 against {free} m/s2"
+    );
 }
