@@ -47,8 +47,8 @@ pub use route::{nearest_route_point, route_ahead, route_point_at, route_s_at};
 pub use sidewalks::{OnSidewalk, SidewalkGrid};
 pub use stop_lines::{RouteStop, RouteStops, StopLineEntry, StopLines, tail_segment};
 pub use yielding::{
-    GIVE_WAY_HORIZON_S, GIVE_WAY_MIN_M, YIELD_RANGE_M, approaching, junction_signalled,
-    junction_yield, must_give_way,
+    GIVE_WAY_HORIZON_S, GIVE_WAY_MIN_M, YIELD_RANGE_M, approaching, entry_signalled,
+    junction_signalled, junction_yield, must_give_way,
 };
 
 use crate::map::town::Town;

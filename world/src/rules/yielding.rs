@@ -9,8 +9,9 @@
 //! while a vehicle holds a lane that conflicts with the ego's next connecting
 //! lane ([`JunctionConflicts`]), it stops before the junction. Once its front
 //! is inside, it drives on: it is then the one already in the junction, and
-//! the NPCs treat its lane as held. At a junction with lights the lights
-//! decide, as before.
+//! the NPCs treat its lane as held. Where a light stands at the way in, the
+//! lights decide; a way in without one (a road inside one box with the
+//! junction before it, [`entry_signalled`]) is yielded at as above.
 //!
 //! Where the map gives one road priority over another (an OpenDRIVE junction
 //! `<priority>`, such as a roundabout's ring over its entries), a car about
@@ -60,13 +61,28 @@ pub fn junction_signalled(town: &Town, j: JunctionIdx) -> bool {
     town.lights.iter().any(|l| l.junction == Some(j))
 }
 
-/// Where the ego must wait before a junction without lights: the route arc
+/// Whether the way into connecting lane `lane` is signalled: a light of its
+/// junction has its stop line on a lane leading into it. Every approach of a
+/// lit junction is, but for a road inside one box with the junction before it
+/// ([`crate::map::opendrive::BOX_LINK_M`]: generated lights leave it unlit), where the
+/// car yields as at a junction without lights.
+pub fn entry_signalled(town: &Town, lane: LaneIdx) -> bool {
+    let l = town.lane(lane);
+    town.lights
+        .iter()
+        .filter(|light| light.junction.is_some() && light.junction == l.junction)
+        .flat_map(|light| &light.stop_lines)
+        .any(|sl| l.predecessors.contains(&sl.lane))
+}
+
+/// Where the ego must wait before a junction without lights (or a way into
+/// one that has none, [`entry_signalled`]): the route arc
 /// length (metres) at which `route` enters the next junction within `range_m`
 /// ahead of `front_s` (the route arc length of the ego's front bumper), when
 /// `held(lane)` says another vehicle holds a lane that conflicts with the
 /// route's connecting lane there. `None` once the front has passed into a
-/// junction (it has entered: it goes on), when the next junction within range
-/// has lights, or when nothing conflicting is held.
+/// junction (it has entered: it goes on), when the way into the next junction
+/// within range has a light, or when nothing conflicting is held.
 pub fn junction_yield(
     town: &Town,
     route: &DenseRoute,
@@ -83,8 +99,7 @@ pub fn junction_yield(
         .iter()
         .take_while(|p| p.route_s - front_s <= range_m)
         .find(|p| town.lane(p.lane).junction.is_some())?;
-    let j = town.lane(entry.lane).junction?;
-    (!junction_signalled(town, j) && held(entry.lane)).then_some(entry.route_s)
+    (!entry_signalled(town, entry.lane) && held(entry.lane)).then_some(entry.route_s)
 }
 
 #[cfg(test)]
@@ -158,9 +173,29 @@ mod tests {
             .unwrap();
         let j = lit.lane(entry.lane).junction.unwrap();
         assert!(junction_signalled(&lit, j));
+        assert!(entry_signalled(&lit, entry.lane));
         assert_eq!(
             junction_yield(&lit, &route, entry.route_s - 20.0, YIELD_RANGE_M, |_| true),
             None
+        );
+        // The same junction with the light of the route's way in taken off (a
+        // road inside one box, which generated lights leave unlit): it yields there.
+        let mut one_unlit = lit.clone();
+        let before = lit.lane(entry.lane).predecessors.clone();
+        for light in &mut one_unlit.lights {
+            light.stop_lines.retain(|sl| !before.contains(&sl.lane));
+        }
+        assert!(junction_signalled(&one_unlit, j));
+        assert!(!entry_signalled(&one_unlit, entry.lane));
+        assert_eq!(
+            junction_yield(
+                &one_unlit,
+                &route,
+                entry.route_s - 20.0,
+                YIELD_RANGE_M,
+                |_| true
+            ),
+            Some(entry.route_s)
         );
     }
 }

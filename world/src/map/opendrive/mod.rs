@@ -30,7 +30,7 @@ mod validate;
 
 pub use crosswalks::{CROSSWALK_DEPTH_M, CROSSWALK_SETBACK_M};
 pub use lanes::{CENTERLINE_SPACING_M, DEFAULT_SPEED_LIMIT_MPS};
-pub use lights::{DEFAULT_LIGHT_HEAD_HEIGHT_M, MAX_POLE_SETBACK_M};
+pub use lights::{BOX_LINK_M, DEFAULT_LIGHT_HEAD_HEIGHT_M, MAX_POLE_SETBACK_M};
 pub use load::{LoadOptions, LoadReport, UnsignalledJunctions, load_xodr_file, load_xodr_str};
 pub use sidewalks::DEFAULT_SIDEWALK_HEIGHT_M;
 pub use validate::MAX_COORD_M;

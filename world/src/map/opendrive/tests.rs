@@ -356,6 +356,62 @@ fn unsignalled_junctions_get_one_light_per_approach_only_when_asked() {
 }
 
 #[test]
+fn generated_lights_leave_a_road_inside_one_box_unlit() {
+    // Town04's road 2 runs 5.3 m from junction 317 into junction 386 (and back): a
+    // car waiting at a light at its end stood in the first junction. Generated
+    // lights leave both its ends unlit and light every road that is longer.
+    let Some(dir) =
+        crate::testdata::carla_dir("generated_lights_leave_a_road_inside_one_box_unlit")
+    else {
+        return;
+    };
+    let opts = LoadOptions {
+        unsignalled: UnsignalledJunctions::GenerateLights,
+    };
+    let (town, _) = load_xodr_file(dir.join("Town04.xodr"), &opts).unwrap();
+    let lit_roads: Vec<&str> = town
+        .lights
+        .iter()
+        .flat_map(|l| &l.stop_lines)
+        .map(|sl| town.lanes[sl.lane.0 as usize].road_id.as_str())
+        .collect();
+    assert!(!lit_roads.contains(&"2"), "{lit_roads:?}");
+    assert!(lit_roads.contains(&"1"), "{lit_roads:?}");
+    let road2: Vec<&crate::map::DriveLane> =
+        town.lanes.iter().filter(|l| l.road_id == "2").collect();
+    assert_eq!(road2.len(), 2);
+    for l in road2 {
+        assert!(l.length_m() < BOX_LINK_M, "{}", l.length_m());
+        let into = l
+            .successors
+            .iter()
+            .find_map(|s| town.lanes[s.0 as usize].junction);
+        let from = l
+            .predecessors
+            .iter()
+            .find_map(|p| town.lanes[p.0 as usize].junction);
+        assert!(into.is_some() && from.is_some() && into != from);
+        // The junction it leads into keeps its lights on its other roads.
+        assert!(town.lights.iter().any(|x| x.junction == into), "{into:?}");
+    }
+    // Every lit road is at least `BOX_LINK_M` long or comes from no junction.
+    for light in &town.lights {
+        for sl in &light.stop_lines {
+            let lane = &town.lanes[sl.lane.0 as usize];
+            let from_junction = lane
+                .predecessors
+                .iter()
+                .any(|p| town.lanes[p.0 as usize].junction.is_some());
+            assert!(
+                !from_junction || lane.length_m() >= BOX_LINK_M,
+                "road {}",
+                lane.road_id
+            );
+        }
+    }
+}
+
+#[test]
 fn buildings_and_the_maps_crosswalk_come_from_its_objects() {
     let (town, _) = road();
     assert_eq!(town.buildings.len(), 1);
