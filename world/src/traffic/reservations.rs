@@ -156,6 +156,64 @@ impl Traffic {
             || self.must_give_way(lane, 0)
     }
 
+    /// The connecting lanes NPCs treat as the ego's while they grant theirs:
+    /// the one it is on, or, while it moves (at least `removal::STOPPED_MPS`)
+    /// toward a junction as near as an NPC that asks for its lane (within its
+    /// comfortable stopping distance and 10 m, along its lane and the lanes
+    /// that lane runs on into: a road in several sections) and no light
+    /// stops it, every connecting lane its road leads into, since it may take
+    /// any of them. CARLA's Traffic Manager sees the hero vehicle coming the
+    /// same way, by its motion; before 2026-12-06 an NPC was let into a
+    /// roundabout's entry while the ego came round the ring 4 m off, too close
+    /// to stop (Town03, route 4).
+    pub(super) fn ego_held_lanes(&self, lights: &[LightState]) -> Vec<LaneIdx> {
+        let Some((e, (lane, s))) = self.ego.as_ref().and_then(|e| Some((e, e.lane?))) else {
+            return Vec::new();
+        };
+        if self.town.lane(lane).junction.is_some() {
+            return vec![lane];
+        }
+        let v = e.state.speed_mps;
+        let comfort = self.cfg.npc.comfort_decel_mps2;
+        let near_m = v * v / (2.0 * comfort) + 10.0;
+        if v < super::removal::STOPPED_MPS {
+            return Vec::new();
+        }
+        // Along its road to the junction: the lane whose end it is, and the
+        // distance from the front bumper to that end (metres).
+        let mut at = lane;
+        let mut end = self.town.lane(lane).length_m() - s - self.cfg.vehicle.length_m * 0.5;
+        let into = loop {
+            let l = self.town.lane(at);
+            if end - l.length_m() > near_m {
+                return Vec::new();
+            }
+            // A light it must stop for holds it, not the junction.
+            let stops = self.rules.stop_lines.on_lane(at).any(|line| {
+                let d = end - l.length_m() + line.s;
+                d > -0.3 && rules::must_stop(rules::light_state(lights, line.light), d, v, comfort)
+            });
+            if stops {
+                return Vec::new();
+            }
+            let into: Vec<LaneIdx> = l
+                .successors
+                .iter()
+                .copied()
+                .filter(|s| self.town.lane(*s).junction.is_some())
+                .collect();
+            match l.successors[..] {
+                _ if !into.is_empty() => break into,
+                [next] => {
+                    at = next;
+                    end += self.town.lane(next).length_m();
+                }
+                _ => return Vec::new(),
+            }
+        };
+        if end < near_m { into } else { Vec::new() }
+    }
+
     /// Where each vehicle's rear is on the lane graph (for the box check).
     fn occupants(&self) -> Vec<LaneOccupant> {
         let half = self.cfg.vehicle.length_m * 0.5;
@@ -247,14 +305,10 @@ impl Traffic {
         // Requests refused while another NPC holds a conflicting lane: (NPC, that NPC).
         let mut held_by: Vec<(usize, usize)> = Vec::new();
         let mut waiting: Vec<LaneIdx> = Vec::new();
-        // The ego reserves nothing, but while it is on a connecting lane NPCs treat that lane as held.
-        let ego_junction_lane = self
-            .ego
-            .as_ref()
-            .and_then(|e| e.lane)
-            .map(|(l, _)| l)
-            .filter(|l| self.town.lanes[l.0 as usize].junction.is_some());
-        if let Some(l) = ego_junction_lane {
+        // The ego reserves nothing, but NPCs treat as held the connecting lane
+        // it is on and those it is about to enter (`ego_held_lanes`).
+        let ego_lanes = self.ego_held_lanes(lights);
+        for &l in &ego_lanes {
             self.reservations.grant(l, 0);
         }
         for (_, id, i, lane) in requests {
@@ -325,7 +379,7 @@ impl Traffic {
             self.npcs[i].take_grant(lane);
         }
         self.break_gridlocks(&occ, &room_waits, &held_by);
-        if let Some(l) = ego_junction_lane {
+        for &l in &ego_lanes {
             self.reservations.release(l, 0);
         }
     }

@@ -556,6 +556,93 @@ fn npcs_do_not_enter_a_junction_across_the_ego() {
 }
 
 #[test]
+fn npcs_do_not_enter_a_junction_the_moving_ego_is_about_to_enter() {
+    // The ego drives north toward the centre junction, 10 m from its entry; an NPC
+    // standing 5 m before the junction on the west side wants to go straight east,
+    // across the ego's way. While the ego comes on, the NPC is not let in (its
+    // conflict is one of the lanes the ego is about to enter); once the ego has
+    // gone, it is. Before 2026-12-06 only the connecting lane the ego was on
+    // counted, and an NPC was let in front of an ego too close to stop (Town03,
+    // route 4, the roundabout).
+    let t = town();
+    let dir_of = |l: usize| {
+        let c = &t.lanes[l].centerline;
+        (c[c.len() - 1] - c[0]).truncate().normalize()
+    };
+    let in_j4 = |l: usize| t.lanes[l].junction == Some(JunctionIdx(4));
+    let approach_towards = |x: f32, y: f32| {
+        (0..t.lanes.len())
+            .find(|&l| {
+                t.lanes[l].junction.is_none()
+                    && dir_of(l).dot(Vec2::new(x, y)) > 0.99
+                    && t.lanes[l].successors.iter().any(|s| in_j4(s.0 as usize))
+            })
+            .unwrap()
+    };
+    let (north, east) = (approach_towards(0.0, 1.0), approach_towards(1.0, 0.0));
+    let l = &t.lanes[north];
+    let half = 4.9 * 0.5;
+    let (p, yaw, _) = l.pose_at(l.length_m() - 10.0 - half);
+    let mut tr = Traffic::new(
+        t.clone(),
+        cfg(1, 0, 4),
+        Some(EgoStart {
+            position: p,
+            z: 0.0,
+            yaw,
+        }),
+    );
+    let green = vec![LightState::Green; t.lights.len()];
+    // The NPC far off while the ego starts: it asks for nothing yet.
+    tr.place_npc(0, LanePath::new(LaneIdx(east as u32), 1.0));
+    assert!(tr.ego_held_lanes(&green).is_empty(), "the ego stands");
+    tr.set_ego_control(VehicleControl {
+        steer: 0.0,
+        throttle: 0.3,
+        brake: 0.0,
+    });
+    for _ in 0..40 {
+        tr.step(&green);
+    }
+    let ego_next: Vec<LaneIdx> = t.lanes[north].successors.clone();
+    let v = tr.ego().unwrap().state.speed_mps;
+    assert_eq!(tr.ego_held_lanes(&green), ego_next, "at {v} m/s");
+    // Now the NPC stands 5 m before its entry, and asks.
+    let straight = *t.lanes[east]
+        .successors
+        .iter()
+        .find(|s| dir_of(s.0 as usize).x > 0.99)
+        .unwrap();
+    let rules = RuleBook::new(&t);
+    assert!(ego_next.iter().any(|l| rules.conflicts.of(*l).contains(&straight)));
+    let mut path = LanePath::new(LaneIdx(east as u32), t.lanes[east].length_m() - 5.0 - half);
+    path.lanes.push_back(straight);
+    tr.place_npc(0, path);
+    let mut entered = false;
+    for _ in 0..(40 * 10) {
+        tr.step(&green);
+        let ego_lane = tr.ego().and_then(|e| e.lane).map(|(l, _)| l);
+        entered |= ego_lane.is_some_and(|l| t.lanes[l.0 as usize].junction.is_some());
+        if !entered {
+            assert_ne!(tr.npcs()[0].reservation, Some(straight), "let in before the ego");
+        }
+    }
+    assert!(entered, "the ego never reached the junction");
+    tr.teleport_ego(EgoStart {
+        position: Vec2::new(-100.0, -100.0),
+        z: 0.0,
+        yaw: 0.0,
+    });
+    for _ in 0..(40 * 10) {
+        tr.step(&green);
+    }
+    assert!(
+        tr.npcs()[0].path.lanes.iter().all(|l| *l != LaneIdx(east as u32)),
+        "the NPC did not go after the ego left"
+    );
+}
+
+#[test]
 fn an_npc_stopping_for_a_red_at_the_line_gives_its_reservation_back() {
     let t = town();
     let mut tr = Traffic::new(t.clone(), cfg(1, 0, 6), None);
