@@ -174,11 +174,11 @@ impl Traffic {
             return vec![lane];
         }
         let v = e.state.speed_mps;
-        let comfort = self.cfg.npc.comfort_decel_mps2;
-        let near_m = v * v / (2.0 * comfort) + 10.0;
         if v < super::removal::STOPPED_MPS {
             return Vec::new();
         }
+        let comfort = self.cfg.npc.comfort_decel_mps2;
+        let near_m = v * v / (2.0 * comfort) + 10.0;
         // Along its road to the junction: the lane whose end it is, and the
         // distance from the front bumper to that end (metres).
         let mut at = lane;

@@ -614,7 +614,11 @@ fn npcs_do_not_enter_a_junction_the_moving_ego_is_about_to_enter() {
         .find(|s| dir_of(s.0 as usize).x > 0.99)
         .unwrap();
     let rules = RuleBook::new(&t);
-    assert!(ego_next.iter().any(|l| rules.conflicts.of(*l).contains(&straight)));
+    assert!(
+        ego_next
+            .iter()
+            .any(|l| rules.conflicts.of(*l).contains(&straight))
+    );
     let mut path = LanePath::new(LaneIdx(east as u32), t.lanes[east].length_m() - 5.0 - half);
     path.lanes.push_back(straight);
     tr.place_npc(0, path);
@@ -624,7 +628,11 @@ fn npcs_do_not_enter_a_junction_the_moving_ego_is_about_to_enter() {
         let ego_lane = tr.ego().and_then(|e| e.lane).map(|(l, _)| l);
         entered |= ego_lane.is_some_and(|l| t.lanes[l.0 as usize].junction.is_some());
         if !entered {
-            assert_ne!(tr.npcs()[0].reservation, Some(straight), "let in before the ego");
+            assert_ne!(
+                tr.npcs()[0].reservation,
+                Some(straight),
+                "let in before the ego"
+            );
         }
     }
     assert!(entered, "the ego never reached the junction");
@@ -637,7 +645,11 @@ fn npcs_do_not_enter_a_junction_the_moving_ego_is_about_to_enter() {
         tr.step(&green);
     }
     assert!(
-        tr.npcs()[0].path.lanes.iter().all(|l| *l != LaneIdx(east as u32)),
+        tr.npcs()[0]
+            .path
+            .lanes
+            .iter()
+            .all(|l| *l != LaneIdx(east as u32)),
         "the NPC did not go after the ego left"
     );
 }
