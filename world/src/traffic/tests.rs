@@ -481,6 +481,32 @@ fn the_cross_factor_decides_who_crosses_between_crosswalks() {
     assert!(jw1 > 5, "{jw1} jaywalk legs");
 }
 
+/// Traffic of one NPC (seed 4) and the ego at rest `s` metres along lane `lane`.
+fn one_npc_and_ego_at(t: &Arc<Town>, lane: usize, s: f32) -> Traffic {
+    let (position, yaw, _) = t.lanes[lane].pose_at(s);
+    Traffic::new(
+        t.clone(),
+        cfg(1, 0, 4),
+        Some(EgoStart {
+            position,
+            z: 0.0,
+            yaw,
+        }),
+    )
+}
+
+/// Moves the ego far off the roads, then steps the traffic `seconds` under `lights`.
+fn ego_leaves(tr: &mut Traffic, lights: &[LightState], seconds: u32) {
+    tr.teleport_ego(EgoStart {
+        position: Vec2::new(-100.0, -100.0),
+        z: 0.0,
+        yaw: 0.0,
+    });
+    for _ in 0..(40 * seconds) {
+        tr.step(lights);
+    }
+}
+
 #[test]
 fn npcs_do_not_enter_a_junction_across_the_ego() {
     let t = town();
@@ -494,17 +520,7 @@ fn npcs_do_not_enter_a_junction_across_the_ego() {
     let ego_lane = (0..t.lanes.len())
         .find(|&l| in_j4(l) && dir_of(l).y > 0.99)
         .unwrap();
-    let l = &t.lanes[ego_lane];
-    let (p, yaw, _) = l.pose_at(l.length_m() * 0.5);
-    let mut tr = Traffic::new(
-        t.clone(),
-        cfg(1, 0, 4),
-        Some(EgoStart {
-            position: p,
-            z: 0.0,
-            yaw,
-        }),
-    );
+    let mut tr = one_npc_and_ego_at(&t, ego_lane, t.lanes[ego_lane].length_m() * 0.5);
     // One NPC approaches from the west and wants to go straight east, across the ego.
     let approach = (0..t.lanes.len())
         .find(|&l| {
@@ -541,14 +557,7 @@ fn npcs_do_not_enter_a_junction_across_the_ego() {
     }
     // It waits at the entry, and goes once the ego has left.
     assert!(tr.npcs()[0].state.position.x + half > entry_x - 2.0);
-    tr.teleport_ego(EgoStart {
-        position: Vec2::new(-100.0, -100.0),
-        z: 0.0,
-        yaw: 0.0,
-    });
-    for _ in 0..(40 * 10) {
-        tr.step(&green);
-    }
+    ego_leaves(&mut tr, &green, 10);
     assert!(
         tr.npcs()[0].state.position.x > entry_x + 10.0,
         "NPC did not go after the ego left"
@@ -580,18 +589,8 @@ fn npcs_do_not_enter_a_junction_the_moving_ego_is_about_to_enter() {
             .unwrap()
     };
     let (north, east) = (approach_towards(0.0, 1.0), approach_towards(1.0, 0.0));
-    let l = &t.lanes[north];
-    let half = 4.9 * 0.5;
-    let (p, yaw, _) = l.pose_at(l.length_m() - 10.0 - half);
-    let mut tr = Traffic::new(
-        t.clone(),
-        cfg(1, 0, 4),
-        Some(EgoStart {
-            position: p,
-            z: 0.0,
-            yaw,
-        }),
-    );
+    let half = VehicleParams::default().length_m * 0.5;
+    let mut tr = one_npc_and_ego_at(&t, north, t.lanes[north].length_m() - 10.0 - half);
     let green = vec![LightState::Green; t.lights.len()];
     // The NPC far off while the ego starts: it asks for nothing yet.
     tr.place_npc(0, LanePath::new(LaneIdx(east as u32), 1.0));
@@ -636,14 +635,7 @@ fn npcs_do_not_enter_a_junction_the_moving_ego_is_about_to_enter() {
         }
     }
     assert!(entered, "the ego never reached the junction");
-    tr.teleport_ego(EgoStart {
-        position: Vec2::new(-100.0, -100.0),
-        z: 0.0,
-        yaw: 0.0,
-    });
-    for _ in 0..(40 * 10) {
-        tr.step(&green);
-    }
+    ego_leaves(&mut tr, &green, 10);
     assert!(
         tr.npcs()[0]
             .path
