@@ -43,10 +43,10 @@ pub const MAX_POLE_SETBACK_M: f32 = 8.0;
 pub const BOX_LINK_M: f32 = 10.0;
 
 impl Builder<'_> {
-    /// How far back along its lane (and the lanes before it, while there is
-    /// one) the road that `lane` ends comes out of a junction: the metres from
-    /// that junction's exit to `lane`'s end, when less than `max_m`.
-    fn out_of_junction_m(&self, lane: LaneIdx, max_m: f32) -> Option<f32> {
+    /// Whether the road that `lane` ends comes out of a junction less than
+    /// `max_m` metres before `lane`'s end (walking back along its lane and the
+    /// lanes before it, while there is one).
+    fn out_of_junction_within(&self, lane: LaneIdx, max_m: f32) -> bool {
         let lanes = &self.town.lanes;
         let mut l = lane;
         let mut len = 0.0;
@@ -54,18 +54,18 @@ impl Builder<'_> {
             let dl = &lanes[l.0 as usize];
             len += dl.length_m();
             if len >= max_m {
-                return None;
+                return false;
             }
             if dl
                 .predecessors
                 .iter()
                 .any(|p| lanes[p.0 as usize].junction.is_some())
             {
-                return Some(len);
+                return true;
             }
             match dl.predecessors[..] {
                 [p] => l = p,
-                _ => return None,
+                _ => return false,
             }
         }
     }
@@ -282,7 +282,7 @@ impl Builder<'_> {
                 .filter(|(_, lanes)| {
                     !lanes
                         .iter()
-                        .all(|l| self.out_of_junction_m(*l, BOX_LINK_M).is_some())
+                        .all(|l| self.out_of_junction_within(*l, BOX_LINK_M))
                 })
                 .collect();
             for (g, (road, lanes)) in lit.into_iter().enumerate() {
