@@ -5,9 +5,9 @@
 //! light poles (capsules), and the trees and street lamps beside the road
 //! ([`Physics::add_props`]). Kerbs are not walls: a car's wheels climb them
 //! (`crate::agents::kerb`), as in CARLA. Vehicles and pedestrians are kinematic, position-based
-//! bodies: their behaviour (the bicycle model, the walker) proposes a new pose
-//! each 40 Hz tick and [`Physics::move_actor`] realises as much of it as the
-//! world allows:
+//! bodies (parry shapes kept here, not in the rapier world): their behaviour
+//! (the bicycle model, the walker) proposes a new pose each 40 Hz tick and
+//! [`Physics::move_actor`] realises as much of it as the world allows:
 //!
 //! 1. the new heading is taken if the turned shape at the old position
 //!    touches nothing;
@@ -23,9 +23,12 @@
 //! Separating motion is never blocked, so a car that hit something can drive
 //! away by steering. Every blocked sweep is a contact; [`Physics::end_tick`]
 //! turns the tick's contacts into [`ContactEvent`]s that name both parties.
-//! After the moves the kinematic bodies get their new poses and the rapier
-//! pipeline steps (by the step given to [`Physics::new`]), so rapier's broad phase and query pipeline
-//! ([`Physics::world`]) always reflect the current scene for ray and shape casts.
+//! The rapier world ([`Physics::world`]) holds the static town only, stepped
+//! once when colliders are added so its query pipeline sees them: every
+//! query here asks it for fixed colliders, and the actors are tested against
+//! each other directly. (Until stop 60 the actors were kinematic bodies in it
+//! too, and rapier stepped every tick for queries nobody made: 16 % of a
+//! 20-car soak's time on CARLA's Town06, by `perf`.)
 //!
 //! Pedestrians do not collide with pedestrians or the static world (they
 //! walk on sidewalks and step off them at crossings); they do collide with
@@ -163,7 +166,6 @@ struct Body {
     position: Vec2,
     yaw: f32,
     radius: f32,
-    handle: RigidBodyHandle,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -187,7 +189,7 @@ fn pose(p: Vec2, z: f32, yaw: f32) -> Pose {
 
 /// The rapier world plus the swept kinematic actors (see the module docs).
 pub struct Physics {
-    /// The rapier world: fixed colliders of the town and one kinematic body per actor.
+    /// The rapier world: the town's fixed colliders (the actors are not in it).
     pub world: PhysicsWorld,
     bodies: Vec<Option<Body>>,
     contacts: BTreeMap<(u32, (u8, u32)), Touch>,
@@ -196,12 +198,9 @@ pub struct Physics {
 }
 
 impl Physics {
-    /// A world with the town's static colliders (buildings, light poles) and no
-    /// actors, stepping `dt_s` seconds a tick.
-    pub fn new(town: &Town, dt_s: f32) -> Physics {
+    /// A world with the town's static colliders (buildings, light poles) and no actors.
+    pub fn new(town: &Town) -> Physics {
         let mut world = PhysicsWorld::new();
-        world.gravity = Vec3::new(0.0, 0.0, -9.81);
-        world.integration_parameters.dt = dt_s;
         let ground_z = town.ground_z();
         let fixed = |kind: StaticKind| kind.code();
         for b in &town.buildings {
@@ -277,24 +276,7 @@ impl Physics {
         if self.bodies.len() <= i {
             self.bodies.resize(i + 1, None);
         }
-        if let Some(old) = self.bodies[i].take() {
-            self.world.remove_body_with_colliders(old.handle, true);
-        }
         self.bodies[i] = Some(body);
-    }
-
-    fn insert_rapier(
-        &mut self,
-        p: Vec2,
-        z: f32,
-        yaw: f32,
-        collider: ColliderBuilder,
-    ) -> RigidBodyHandle {
-        // Actors take no part in rapier's own contact solving (they are
-        // moved by sweeps); they are in the world so its queries see them.
-        let groups = InteractionGroups::new(Group::GROUP_2, Group::NONE, InteractionTestMode::And);
-        let rb = RigidBodyBuilder::kinematic_position_based().pose(pose(p, z, yaw));
-        self.world.insert(rb, collider.collision_groups(groups)).0
     }
 
     /// Adds (or replaces) a vehicle body: a box of `size` (length, width, height, metres) standing on `ground_z`.
@@ -309,12 +291,6 @@ impl Physics {
     ) {
         let half = size * 0.5;
         let centre_z = ground_z + VEHICLE_CLEARANCE_M + half.z;
-        let handle = self.insert_rapier(
-            position,
-            centre_z,
-            yaw,
-            ColliderBuilder::cuboid(half.x, half.y, half.z),
-        );
         self.new_body(
             id,
             Body {
@@ -325,7 +301,6 @@ impl Physics {
                 position,
                 yaw,
                 radius: half.truncate().length(),
-                handle,
             },
         );
     }
@@ -334,12 +309,6 @@ impl Physics {
     pub fn add_pedestrian(&mut self, id: u32, position: Vec2, ground_z: f32) {
         let half_h = PEDESTRIAN_HEIGHT_M * 0.5 - PEDESTRIAN_RADIUS_M;
         let centre_z = ground_z + PEDESTRIAN_HEIGHT_M * 0.5;
-        let handle = self.insert_rapier(
-            position,
-            centre_z,
-            0.0,
-            ColliderBuilder::capsule_z(half_h, PEDESTRIAN_RADIUS_M),
-        );
         self.new_body(
             id,
             Body {
@@ -350,15 +319,14 @@ impl Physics {
                 position,
                 yaw: 0.0,
                 radius: PEDESTRIAN_RADIUS_M,
-                handle,
             },
         );
     }
 
     /// Removes an actor's body.
     pub fn remove(&mut self, id: u32) {
-        if let Some(b) = self.bodies.get_mut(id as usize).and_then(Option::take) {
-            self.world.remove_body_with_colliders(b.handle, true);
+        if let Some(slot) = self.bodies.get_mut(id as usize) {
+            *slot = None;
         }
     }
 
@@ -673,14 +641,8 @@ impl Physics {
         self.body(id).map(|b| b.ground_z)
     }
 
-    /// Ends a tick: hands the actors' poses to rapier, steps it, and returns the tick's contact events.
+    /// Ends a tick: returns the tick's contact events.
     pub fn end_tick(&mut self) -> &[ContactEvent] {
-        for b in self.bodies.iter().flatten() {
-            if let Some(rb) = self.world.bodies.get_mut(b.handle) {
-                rb.set_next_kinematic_position(pose(b.position, b.centre_z, b.yaw));
-            }
-        }
-        self.world.step();
         self.events.clear();
         for (&(id, key), t) in &self.contacts {
             let kind = self.body(id).map_or(ActorKind::Vehicle, |b| b.kind);
@@ -774,7 +736,7 @@ mod tests {
 
     #[test]
     fn a_tree_beside_the_road_is_solid_and_named() {
-        let mut ph = Physics::new(&Town::empty("props"), DT_S);
+        let mut ph = Physics::new(&Town::empty("props"));
         let tree = Prop {
             position: Vec2::new(10.0, 0.0),
             outward: Vec2::Y,
@@ -803,7 +765,7 @@ mod tests {
 
     #[test]
     fn car_driven_into_a_wall_stops_without_penetrating() {
-        let mut ph = Physics::new(&walled_town(), DT_S);
+        let mut ph = Physics::new(&walled_town());
         ph.add_vehicle(0, ActorKind::Ego, car(), Vec2::new(0.0, 0.0), 0.0, 0.0);
         let mut hit_at = None;
         for t in 0..200 {
@@ -838,7 +800,7 @@ mod tests {
 
     #[test]
     fn car_hitting_a_wall_at_an_angle_slides_and_can_steer_away() {
-        let mut ph = Physics::new(&walled_town(), DT_S);
+        let mut ph = Physics::new(&walled_town());
         let yaw0 = 0.5f32;
         ph.add_vehicle(0, ActorKind::Ego, car(), Vec2::new(14.0, 0.0), 0.0, yaw0);
         let mut hit = false;
@@ -868,7 +830,7 @@ mod tests {
     fn a_car_on_a_bridge_passes_over_a_car_on_the_road_below() {
         // Town04's road 39 crosses road 47 10.7 m up; cars on the two met.
         let crossing = |bridge_z: f32| {
-            let mut ph = Physics::new(&Town::empty("bridge"), DT_S);
+            let mut ph = Physics::new(&Town::empty("bridge"));
             ph.add_vehicle(
                 1,
                 ActorKind::Vehicle,
@@ -904,7 +866,7 @@ mod tests {
 
     #[test]
     fn car_driven_into_another_car_stops_and_names_both() {
-        let mut ph = Physics::new(&walled_town(), DT_S);
+        let mut ph = Physics::new(&walled_town());
         ph.add_vehicle(0, ActorKind::Ego, car(), Vec2::new(-20.0, 0.0), 0.0, 0.0);
         ph.add_vehicle(3, ActorKind::Vehicle, car(), Vec2::new(-8.0, 0.5), 0.0, 0.2);
         let mut events = Vec::new();
@@ -933,20 +895,17 @@ mod tests {
         assert_eq!(events.iter().filter(|e| e.started).count(), 1);
         // The other car did not move.
         assert_eq!(ph.pose_of(3).unwrap(), (Vec2::new(-8.0, 0.5), 0.2));
-        // Rapier's query pipeline sees the moved ego.
-        let (p, _) = ph.pose_of(0).unwrap();
-        let ray = Ray::new(Vec3::new(p.x, 10.0, 0.7), Vec3::new(0.0, -1.0, 0.0));
-        assert!(
-            ph.world
-                .query_pipeline()
-                .cast_ray(&ray, 20.0, true)
-                .is_some()
+        // The rapier world holds the town's walls, not the actors.
+        assert_eq!(ph.world.bodies.len(), 0);
+        assert_eq!(
+            ph.world.colliders.len(),
+            Physics::new(&walled_town()).world.colliders.len()
         );
     }
 
     #[test]
     fn pedestrians_pass_each_other_but_not_cars() {
-        let mut ph = Physics::new(&walled_town(), DT_S);
+        let mut ph = Physics::new(&walled_town());
         ph.add_pedestrian(5, Vec2::new(0.0, 0.0), 0.0);
         ph.add_pedestrian(6, Vec2::new(0.3, 0.0), 0.0);
         let out = ph.move_actor(5, Vec2::new(1.0, 0.0), 0.0);

@@ -275,7 +275,7 @@ fn a_walker_walking_into_the_standing_ego_counts_under_both_rules() {
     // side of the ego, which stands braked on its lane.
     let town = long_road(100);
     let vp = VehicleParams::default();
-    let mut physics = Physics::new(&town, DT_S);
+    let mut physics = Physics::new(&town);
     let at = Vec2::new(30.0, 0.0);
     physics.add_vehicle(
         0,

@@ -60,6 +60,13 @@ impl LanePath {
         town.lane(l).pose_at(s)
     }
 
+    /// Ground point at `ahead_m` metres ahead of the position: [`LanePath::point_ahead`]'s
+    /// point without the heading (the pure pursuit's target, asked every tick).
+    pub fn ground_point_ahead(&self, town: &Town, ahead_m: f32) -> Vec2 {
+        let (l, s) = self.locate(town, ahead_m);
+        town.lane(l).point_at(s).truncate()
+    }
+
     /// Moves the position to the projection of `p` (searching near the current position), dropping lanes left behind; returns the distance advanced (metres).
     pub fn advance_to(&mut self, town: &Town, p: Vec2) -> f32 {
         let mut travelled = 0.0;

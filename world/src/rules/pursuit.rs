@@ -48,7 +48,7 @@ pub fn pursuit_steer(
     let forward = Vec2::from_angle(state.yaw);
     let rear = state.position - forward * vp.rear_wb_m;
     let ld = pursuit_lookahead_m(state.speed_mps);
-    let (target, _, _) = path.point_ahead(town, ld - vp.rear_wb_m);
+    let target = path.ground_point_ahead(town, ld - vp.rear_wb_m);
     let rel = target - rear;
     let (dx, dy) = (rel.dot(forward), forward.perp_dot(rel));
     let d2 = (dx * dx + dy * dy).max(1e-3);

@@ -36,7 +36,7 @@ fn actor_rng(seed: u64, id: u32) -> ChaCha8Rng {
 impl Traffic {
     /// Builds the world and spawns the ego (if given), then the NPCs and pedestrians from the seed.
     pub fn new(town: Arc<Town>, cfg: TrafficConfig, ego: Option<EgoStart>) -> Traffic {
-        let mut physics = Physics::new(&town, cfg.tick_s);
+        let mut physics = Physics::new(&town);
         physics.add_props(&place_props(&town, cfg.seed), town.ground_z());
         let rules = Arc::new(RuleBook::new(&town));
         let reservations = Reservations::new(town.lanes.len());
