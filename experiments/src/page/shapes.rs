@@ -2,7 +2,8 @@
 //! the data it judges ([`rules`]): paired tests valid for their outcomes (exact
 //! for yes/no outcomes and for differences, t tests over route means for the
 //! margins of counts), one family of them corrected by Holm's method, intervals
-//! over route means, thresholds from the paper's own figures, and each verdict
+//! over route means for counts and the exact test's own for yes/no outcomes,
+//! thresholds from the paper's own figures, and each verdict
 //! given with and without the units that every policy fails.
 //!
 //! The rules were written on 2026-12-05 for the study's rerun (issue 38),
@@ -57,9 +58,13 @@ pub fn rules() -> String {
          over the route means of the differences with G - 1 degrees of freedom (two one-sided \
          tests for equivalence). All the tests below form one family: each is shown with its \
          raw p and its p adjusted by Holm's method across the family, and passes when the \
-         adjusted p is below {ALPHA}. Each interval is a Student t 95 % interval over the route \
-         means of the differences (\"[–]\" on one route): with the paper's four routes a claim is \
-         about those routes. A range check passes only when our point estimate lies inside the \
+         adjusted p is below {ALPHA}. The interval of a count's difference is a Student t 95 % \
+         interval over the route means of the differences (\"[–]\" on one route): with the \
+         paper's four routes a claim is about those routes. The interval of a yes/no difference \
+         inverts the exact unconditional test (the differences neither one-sided test rejects at \
+         2.5 %, on a grid of 0.01 widened by a step each way; at least 95 % coverage for pairs \
+         drawn alike, computed exactly): rare discordant pairs leave the t interval over route \
+         means covering 89 % where it says 95 %. A range check passes only when our point estimate lies inside the \
          paper's range (\"compatible\": only its 95 % interval over the route means reaches it). A shape \
          agrees when every test and check of its row passes. Each verdict is also given without \
          the units (route, density, seed) that every policy configuration fails, which cannot \
@@ -124,6 +129,7 @@ enum Outcome {
 struct Test {
     what: String,
     pair: Paired,
+    outcome: Outcome,
     ask: Ask,
     /// Its raw p-value.
     p: f64,
@@ -166,6 +172,7 @@ impl Test {
         Test {
             what,
             pair,
+            outcome,
             ask,
             p,
             direction,
@@ -181,10 +188,17 @@ impl Test {
             Ask::Within(m) => format!(", equivalence within ±{m:.2}"),
             Ask::NotBelow(m) | Ask::NotAbove(m) => format!(", no worse within {m:.2}"),
         };
-        let interval = cluster_t_interval(&self.pair.diffs, &self.pair.clusters, 0.95)
-            .map_or("[–]".to_string(), |(_, lo, hi)| {
-                format!("[{lo:+.2}, {hi:+.2}]")
-            });
+        let interval = match self.outcome {
+            Outcome::YesNo => {
+                let (plus, minus, _) = self.pair.better_worse_same;
+                paired_binary::difference_interval(plus, minus, self.pair.n, 0.95)
+            }
+            Outcome::Count => cluster_t_interval(&self.pair.diffs, &self.pair.clusters, 0.95)
+                .map(|(_, lo, hi)| (lo, hi)),
+        }
+        .map_or("[–]".to_string(), |(lo, hi)| {
+            format!("[{lo:+.2}, {hi:+.2}]")
+        });
         let routes = self.pair.routes();
         format!(
             "{}: {:+.2} {interval} ({} pairs on {routes} route{}{kind}; p {}, Holm p {}{})",
@@ -499,7 +513,7 @@ pub(super) fn shapes(cfg: &PaperConfig, results: &Results) -> String {
     );
     let mut t = Table::new(&[
         "the paper's shape",
-        "ours (b - a, t 95 % interval over route means; ✗ marks what fails its rule)",
+        "ours (b - a, 95 % interval: t over route means for counts, the exact test's for yes/no; ✗ marks what fails its rule)",
         "routes",
         "verdict",
         &without_header,
@@ -732,6 +746,15 @@ mod tests {
             "{} {shifted_sign_flip}",
             yes_no.p
         );
+        // Its interval inverts the same exact test; the count's is t over route means.
+        let (lo, hi) = paired_binary::difference_interval(2, 1, 36, 0.95).unwrap();
+        assert!(
+            yes_no
+                .evidence(yes_no.p)
+                .starts_with(&format!("x: +0.03 [{lo:+.2}, {hi:+.2}]")),
+            "{}",
+            yes_no.evidence(yes_no.p)
+        );
         let worse = Test::new("x".into(), pair.clone(), Outcome::YesNo, Ask::NotAbove(m));
         assert_eq!(worse.p, paired_binary::noninferiority_lower_p(2, 1, 36, m));
         let better = Test::new("x".into(), pair.clone(), Outcome::YesNo, Ask::NotBelow(m));
@@ -742,6 +765,18 @@ mod tests {
             Some(counts.p),
             cluster_t_equivalence_p(&pair.diffs, &routes, 0.25)
         );
+        let (_, lo, hi) = cluster_t_interval(&pair.diffs, &routes, 0.95).unwrap();
+        assert!(
+            counts
+                .evidence(counts.p)
+                .starts_with(&format!("x: +0.03 [{lo:+.2}, {hi:+.2}]")),
+            "{}",
+            counts.evidence(counts.p)
+        );
+        assert_ne!(format!("{lo:+.2}"), {
+            let (l, _) = paired_binary::difference_interval(2, 1, 36, 0.95).unwrap();
+            format!("{l:+.2}")
+        });
         let more = Test::new(
             "x".into(),
             pair.clone(),

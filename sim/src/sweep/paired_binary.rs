@@ -19,6 +19,14 @@
 //! [`BOUNDARY_POINTS`] points of its boundary delta = -margin and a grid of
 //! its interior ([`INTERIOR_STEPS`] a side); the tests below show the size at
 //! the margin is at most the nominal level on grids the test does not use.
+//!
+//! The interval beside such a verdict inverts the same test
+//! ([`DifferenceIntervals`]): the differences on a grid of
+//! [`INTERVAL_STEP`] that neither one-sided test rejects at half the
+//! level, widened by a step each way. Its coverage is at least the level
+//! for pairs drawn alike (computed exactly in the tests below, not
+//! simulated), and the tests show it on the page's design of four routes
+//! of nine pairs.
 
 /// Points of the null's boundary (delta = -margin) the p-values are maximised over.
 pub const BOUNDARY_POINTS: usize = 4001;
@@ -37,25 +45,94 @@ fn ln_factorials(n: usize) -> Vec<f64> {
     out
 }
 
-/// The probability of `k_up` pairs at +1 and `k_down` at -1 of n, the cells'
-/// probabilities `up` and `down` (the rest ties).
-fn trinomial(n: usize, k_up: usize, k_down: usize, up: f64, down: f64, lnf: &[f64]) -> f64 {
-    let k_tie = n - k_up - k_down;
-    let tie = (1.0 - up - down).max(0.0);
-    let term = |p: f64, k: usize| {
-        if k == 0 {
-            Some(0.0)
-        } else if p <= 0.0 {
-            None
-        } else {
-            Some(k as f64 * p.ln())
+/// (n - a - b) / (b + 1) at `a * (n + 1) + b`: [`Cells::fill`]'s step from
+/// outcome (a, b) to (a, b + 1), less the cells' ratio.
+struct Steps(Vec<f64>);
+
+impl Steps {
+    fn new(n: usize) -> Steps {
+        let mut v = vec![0.0; (n + 1) * (n + 1)];
+        for a in 0..=n {
+            for b in 0..n - a {
+                v[a * (n + 1) + b] = (n - a - b) as f64 / (b + 1) as f64;
+            }
         }
-    };
-    match (term(up, k_up), term(down, k_down), term(tie, k_tie)) {
-        (Some(a), Some(b), Some(c)) => {
-            (lnf[n] - lnf[k_up] - lnf[k_down] - lnf[k_tie] + a + b + c).exp()
+        Steps(v)
+    }
+}
+
+/// One point's cell probabilities with their logarithms, taken once for all
+/// the outcomes weighed there.
+struct Cells {
+    ln_up: f64,
+    ln_down: f64,
+    ln_tie: f64,
+    up: f64,
+    down: f64,
+    tie: f64,
+}
+
+impl Cells {
+    fn new(up: f64, down: f64) -> Cells {
+        let tie = (1.0 - up - down).max(0.0);
+        Cells {
+            ln_up: up.ln(),
+            ln_down: down.ln(),
+            ln_tie: tie.ln(),
+            up,
+            down,
+            tie,
         }
-        _ => 0.0,
+    }
+
+    /// The probability of `k_up` pairs at +1 and `k_down` at -1 of n (the rest
+    /// ties), `coef` the log-multinomial coefficient ln(n!) - ln(k_up!) -
+    /// ln(k_down!) - ln(k_tie!).
+    fn probability(&self, n: usize, k_up: usize, k_down: usize, coef: f64) -> f64 {
+        let term = |p: f64, ln_p: f64, k: usize| {
+            if k == 0 {
+                Some(0.0)
+            } else if p <= 0.0 {
+                None
+            } else {
+                Some(k as f64 * ln_p)
+            }
+        };
+        let k_tie = n - k_up - k_down;
+        match (
+            term(self.up, self.ln_up, k_up),
+            term(self.down, self.ln_down, k_down),
+            term(self.tie, self.ln_tie, k_tie),
+        ) {
+            (Some(a), Some(b), Some(c)) => (coef + a + b + c).exp(),
+            _ => 0.0,
+        }
+    }
+
+    /// Every outcome's probability of n pairs, outcome (a, b) at `a * (n + 1) + b`:
+    /// a row's first from its logarithm ([`Cells::probability`]), each next by
+    /// the ratio of neighbours, `P(a, b + 1) = P(a, b) (n - a - b) / (b + 1) p- / p0`,
+    /// a multiplication where the logarithm takes an exponential (the tables of
+    /// the intervals weigh some 2 x 10^9 outcomes). A value too small for the
+    /// ratio to carry (below 1e-200), or a cell of probability 0, is taken from
+    /// its logarithm again.
+    fn fill(&self, n: usize, lnf: &[f64], steps: &Steps, out: &mut [f64]) {
+        let w = n + 1;
+        let coef = |a: usize, b: usize| lnf[n] - lnf[a] - lnf[b] - lnf[n - a - b];
+        let exact = self.down <= 0.0 || self.tie <= 0.0;
+        let ratio = self.down / self.tie;
+        for a in 0..=n {
+            let mut pr = self.probability(n, a, 0, coef(a, 0));
+            out[a * w] = pr;
+            for b in 0..n - a {
+                pr = if exact || pr < 1e-200 {
+                    self.probability(n, a, b + 1, coef(a, b + 1))
+                } else {
+                    pr * steps.0[a * w + b] * ratio
+                };
+                out[a * w + b + 1] = pr;
+            }
+        }
     }
 }
 
@@ -79,15 +156,19 @@ fn statistic(plus: usize, minus: usize, n: usize, margin: f64) -> f64 {
     (d + margin) / (v / nf).sqrt()
 }
 
-/// The points (p+, p-) of the null "delta <= -margin" the p-values are maximised over.
+/// The points (p+, p-) of the null "delta <= -margin" the p-values are
+/// maximised over: its boundary p- = p+ + margin, and the grid of its interior.
+/// A negative margin (the null "delta <= |margin|") starts the boundary at p+ = |margin|.
 fn null_points(margin: f64) -> Vec<(f64, f64)> {
+    let lo = (-margin).max(0.0);
     let hi = (1.0 - margin) / 2.0;
     let mut pts: Vec<(f64, f64)> = (0..BOUNDARY_POINTS)
-        .map(|i| hi * i as f64 / (BOUNDARY_POINTS - 1) as f64)
+        .map(|i| lo + (hi - lo) * i as f64 / (BOUNDARY_POINTS - 1) as f64)
         .map(|x| (x, x + margin))
         .collect();
+    let down_lo = margin.max(0.0);
     for i in 0..=INTERIOR_STEPS {
-        let down = margin + (1.0 - margin) * i as f64 / INTERIOR_STEPS as f64;
+        let down = down_lo + (1.0 - down_lo) * i as f64 / INTERIOR_STEPS as f64;
         let top = (down - margin).min(1.0 - down);
         for j in 0..INTERIOR_STEPS {
             pts.push((top * j as f64 / INTERIOR_STEPS as f64, down));
@@ -107,9 +188,11 @@ pub struct NonInferiority {
 }
 
 impl NonInferiority {
-    /// The table for `n` pairs at `margin` (in (0, 1)).
+    /// The table for `n` pairs at `margin` (in (-1, 1): the page's margins are
+    /// positive; the intervals invert the test at every difference, negative
+    /// margins too).
     pub fn new(n: usize, margin: f64) -> Self {
-        assert!(margin > 0.0 && margin < 1.0, "margin {margin}");
+        assert!(margin > -1.0 && margin < 1.0, "margin {margin}");
         let lnf = ln_factorials(n);
         // Outcomes from the strongest evidence down, grouped where the statistic ties.
         let mut outcomes: Vec<(usize, usize, f64)> = (0..=n)
@@ -129,10 +212,18 @@ impl NonInferiority {
         // For each group, the largest probability over the null of reaching it.
         let mut worst = vec![0.0f64; groups];
         let mut cum = vec![0.0f64; groups];
+        let mut prob = vec![0.0f64; (n + 1) * (n + 1)];
+        let steps = Steps::new(n);
+        let at: Vec<(usize, usize)> = outcomes
+            .iter()
+            .enumerate()
+            .map(|(k, &(a, b, _))| (a * (n + 1) + b, group[k]))
+            .collect();
         for (up, down) in null_points(margin) {
             cum.iter_mut().for_each(|c| *c = 0.0);
-            for (k, &(a, b, _)) in outcomes.iter().enumerate() {
-                cum[group[k]] += trinomial(n, a, b, up, down, &lnf);
+            Cells::new(up, down).fill(n, &lnf, &steps, &mut prob);
+            for &(i, g) in &at {
+                cum[g] += prob[i];
             }
             let mut running = 0.0;
             for (c, w) in cum.iter().zip(worst.iter_mut()) {
@@ -183,9 +274,123 @@ pub fn equivalence_p(plus: usize, minus: usize, n: usize, margin: f64) -> f64 {
     noninferiority_p(plus, minus, n, margin).max(noninferiority_lower_p(plus, minus, n, margin))
 }
 
+/// Grid step of [`DifferenceIntervals`]' ends (a difference of shares).
+pub const INTERVAL_STEP: f64 = 0.01;
+
+/// Confidence intervals for the mean difference delta = p+ - p- of `n` pairs,
+/// each the inversion of the exact test ([`NonInferiority`]): for an outcome,
+/// the differences d on the grid -0.99, -0.98, ..., 0.99 ([`INTERVAL_STEP`])
+/// where neither "delta <= d" nor "delta >= d" is rejected at (1 - level) / 2;
+/// the interval runs from a step below the lowest such d to a step above the
+/// highest, clipped to [-1, 1], so that a true difference between two grid
+/// points is not left out for the grid's sake. It treats the pairs as drawn
+/// alike, as the test does.
+#[derive(Debug, Clone)]
+pub struct DifferenceIntervals {
+    n: usize,
+    /// (low, high) of outcome (plus, minus) at `plus * (n + 1) + minus`.
+    ends: Vec<(f64, f64)>,
+}
+
+impl DifferenceIntervals {
+    /// The intervals of every outcome of `n` pairs at `level` (in (0, 1)):
+    /// 199 tables of the test, a few seconds for 36 pairs on two cores.
+    pub fn new(n: usize, level: f64) -> Self {
+        use rayon::prelude::*;
+        assert!(level > 0.0 && level < 1.0, "level {level}");
+        let half = (1.0 - level) / 2.0;
+        let k_max = (1.0 / INTERVAL_STEP).round() as i64 - 1;
+        let width = (n + 1) * (n + 1);
+        // Table k tests "delta <= -k step" with p(plus, minus) and, mirrored,
+        // "delta >= k step" with p(minus, plus).
+        let tables: Vec<(i64, NonInferiority)> = (-k_max..=k_max)
+            .into_par_iter()
+            .map(|k| (k, NonInferiority::new(n, k as f64 * INTERVAL_STEP)))
+            .collect();
+        let grid = (2 * k_max + 1) as usize;
+        let index = |d: i64| (d + k_max) as usize;
+        let mut kept = vec![vec![true; grid]; width];
+        for (k, table) in &tables {
+            for plus in 0..=n {
+                for minus in 0..=n - plus {
+                    let row = &mut kept[plus * (n + 1) + minus];
+                    if table.p(plus, minus) <= half {
+                        row[index(-k)] = false;
+                    }
+                    if table.p(minus, plus) <= half {
+                        row[index(*k)] = false;
+                    }
+                }
+            }
+        }
+        let ends = kept
+            .iter()
+            .map(|row| {
+                let first = row.iter().position(|&k| k);
+                let last = row.iter().rposition(|&k| k);
+                match (first, last) {
+                    (Some(a), Some(b)) => {
+                        let d = |j: usize| (j as i64 - k_max) as f64 * INTERVAL_STEP;
+                        (
+                            (d(a) - INTERVAL_STEP).max(-1.0),
+                            (d(b) + INTERVAL_STEP).min(1.0),
+                        )
+                    }
+                    _ => (-1.0, 1.0),
+                }
+            })
+            .collect();
+        DifferenceIntervals { n, ends }
+    }
+
+    /// The interval of `plus` pairs where only b said yes and `minus` where only a did.
+    pub fn interval(&self, plus: usize, minus: usize) -> (f64, f64) {
+        assert!(
+            plus + minus <= self.n,
+            "{plus} + {minus} discordant pairs of {}",
+            self.n
+        );
+        self.ends[plus * (self.n + 1) + minus]
+    }
+}
+
+impl DifferenceIntervals {
+    /// The intervals of `n` pairs at `level`, made once a process (a caller
+    /// that asks while they are being made waits for them).
+    pub fn shared(n: usize, level: f64) -> std::sync::Arc<DifferenceIntervals> {
+        use std::collections::HashMap;
+        use std::sync::{Arc, Mutex, OnceLock};
+        type Cache = Mutex<HashMap<(usize, u64), Arc<DifferenceIntervals>>>;
+        static CACHE: OnceLock<Cache> = OnceLock::new();
+        let cache = CACHE.get_or_init(|| Mutex::new(HashMap::new()));
+        let mut map = cache
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        map.entry((n, level.to_bits()))
+            .or_insert_with(|| Arc::new(DifferenceIntervals::new(n, level)))
+            .clone()
+    }
+}
+
+/// The exact test's interval ([`DifferenceIntervals`]) for the mean
+/// difference b - a of `n` paired yes/no outcomes at `level`, from `plus`
+/// pairs where only b said yes and `minus` where only a did. `None` without pairs.
+pub fn difference_interval(plus: usize, minus: usize, n: usize, level: f64) -> Option<(f64, f64)> {
+    (n > 0).then(|| DifferenceIntervals::shared(n, level).interval(plus, minus))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    /// The probability of `k_up` pairs at +1 and `k_down` at -1 of n, the cells'
+    /// probabilities `up` and `down` (the rest ties).
+    fn trinomial(n: usize, k_up: usize, k_down: usize, up: f64, down: f64, lnf: &[f64]) -> f64 {
+        let coef = lnf[n] - lnf[k_up] - lnf[k_down] - lnf[n - k_up - k_down];
+        Cells::new(up, down).probability(n, k_up, k_down, coef)
+    }
 
     /// The probability, at cell probabilities (up, down), that the test whose
     /// p-values are `table` rejects at `alpha`.
@@ -306,6 +511,158 @@ mod tests {
                 best <= p + 1e-6 && p - best < 1e-3,
                 "({a}, {b}): {p} {best}"
             );
+        }
+    }
+
+    /// The exact coverage of `intervals` where each pair is +1 with probability
+    /// `up` and -1 with `down`: the probability of the outcomes whose interval
+    /// holds the true difference.
+    fn coverage(intervals: &DifferenceIntervals, n: usize, up: f64, down: f64) -> f64 {
+        let lnf = ln_factorials(n);
+        let truth = up - down;
+        (0..=n)
+            .flat_map(|a| (0..=n - a).map(move |b| (a, b)))
+            .filter(|&(a, b)| {
+                let (lo, hi) = intervals.interval(a, b);
+                lo <= truth && truth <= hi
+            })
+            .map(|(a, b)| trinomial(n, a, b, up, down, &lnf))
+            .sum()
+    }
+
+    #[test]
+    fn the_exact_interval_covers_its_level_wherever_the_pairs_are_drawn_alike() {
+        // Computed, not simulated: every outcome of n pairs weighed at cell
+        // probabilities the grids of the test and of the interval do not use,
+        // rare discordance (the old page's 0-3 discordant pairs of 36) included.
+        for n in [12, 36] {
+            let intervals = DifferenceIntervals::shared(n, 0.95);
+            let mut worst = (1.0f64, 0.0, 0.0);
+            for up in [0.0, 0.013, 0.05, 0.137, 0.31, 0.487] {
+                for down in [0.0, 0.021, 0.05, 0.093, 0.26, 0.503] {
+                    if up + down > 1.0 {
+                        continue;
+                    }
+                    let c = coverage(&intervals, n, up, down);
+                    if c < worst.0 {
+                        worst = (c, up, down);
+                    }
+                }
+            }
+            eprintln!(
+                "{n} pairs: the exact interval's lowest coverage {:.4} (up {}, down {})",
+                worst.0, worst.1, worst.2
+            );
+            assert!(worst.0 >= 0.95, "{n} pairs: {worst:?}");
+        }
+    }
+
+    #[test]
+    fn the_exact_interval_covers_where_the_t_interval_over_routes_does_not() {
+        // The page's design (4 routes x 9 pairs) and the registration's case of
+        // rare discordance, b alone 5 % and a alone 2 %: the t interval over route
+        // means covers 0.887 (`sweep::cluster`'s test of it). The exact interval,
+        // here also with the cells differing by route (the claim is about the
+        // routes driven: the truth is their mean difference).
+        let intervals = DifferenceIntervals::shared(36, 0.95);
+        let mut rng = ChaCha8Rng::seed_from_u64(51);
+        for cells in [
+            [(0.05, 0.02); 4],
+            [(0.02, 0.03), (0.04, 0.01), (0.06, 0.02), (0.08, 0.02)],
+            [(0.0, 0.0), (0.0, 0.0), (0.1, 0.0), (0.2, 0.1)],
+        ] {
+            let truth = cells.iter().map(|(u, d)| u - d).sum::<f64>() / 4.0;
+            let sims = 5000;
+            let mut hits = 0;
+            for _ in 0..sims {
+                let (mut plus, mut minus) = (0, 0);
+                for &(up, down) in &cells {
+                    for _ in 0..9 {
+                        let u: f64 = rng.random();
+                        if u < up {
+                            plus += 1;
+                        } else if u < up + down {
+                            minus += 1;
+                        }
+                    }
+                }
+                let (lo, hi) = intervals.interval(plus, minus);
+                if lo <= truth + 1e-12 && truth - 1e-12 <= hi {
+                    hits += 1;
+                }
+            }
+            let covered = f64::from(hits) / f64::from(sims);
+            eprintln!(
+                "4 routes x 9 pairs, cells {cells:?}: the exact interval covers {covered:.3}"
+            );
+            assert!(covered >= 0.95, "{cells:?}: {covered}");
+        }
+    }
+
+    #[test]
+    fn the_exact_interval_holds_the_estimate_and_narrows_with_pairs() {
+        let small = DifferenceIntervals::shared(12, 0.95);
+        let large = DifferenceIntervals::shared(36, 0.95);
+        for (a, b, n, t) in [
+            (0, 0, 12, &*small),
+            (3, 1, 12, &*small),
+            (0, 0, 36, &*large),
+            (9, 3, 36, &*large),
+            (0, 36, 36, &*large),
+        ] {
+            let (lo, hi) = t.interval(a, b);
+            let d = (a as f64 - b as f64) / n as f64;
+            assert!(
+                lo < d && d < hi || (d == -1.0 && lo == -1.0),
+                "({a}, {b}) of {n}: [{lo}, {hi}]"
+            );
+            assert!((-1.0..=1.0).contains(&lo) && (-1.0..=1.0).contains(&hi));
+        }
+        // All alike: symmetric about 0, and narrower with three times the pairs.
+        let (lo12, hi12) = small.interval(0, 0);
+        let (lo36, hi36) = large.interval(0, 0);
+        assert!((lo12 + hi12).abs() < 1e-9 && (lo36 + hi36).abs() < 1e-9);
+        assert!(hi36 < hi12, "{hi36} against {hi12}");
+        // The lookup that caches the tables gives the same.
+        assert_eq!(
+            difference_interval(9, 3, 36, 0.95),
+            Some(large.interval(9, 3))
+        );
+        assert_eq!(difference_interval(0, 0, 0, 0.95), None);
+    }
+
+    #[test]
+    fn the_neighbour_ratios_give_each_outcomes_probability() {
+        // Against the logarithm, outcome by outcome, at cells with a zero, a
+        // near-zero tie, and tiny cells whose rows underflow.
+        let n = 36;
+        let lnf = ln_factorials(n);
+        let steps = Steps::new(n);
+        let mut out = vec![0.0; (n + 1) * (n + 1)];
+        for (up, down) in [
+            (0.2, 0.3),
+            (0.0, 0.5),
+            (0.4, 0.0),
+            (0.5, 0.5),
+            (0.49, 0.5),
+            (0.5 - 1e-13, 0.5),
+            (1e-9, 0.7),
+            (0.3, 1e-12),
+        ] {
+            Cells::new(up, down).fill(n, &lnf, &steps, &mut out);
+            let mut total = 0.0;
+            for a in 0..=n {
+                for b in 0..=n - a {
+                    let want = trinomial(n, a, b, up, down, &lnf);
+                    let got = out[a * (n + 1) + b];
+                    assert!(
+                        (got - want).abs() <= 1e-12 * want.max(1e-300) + 1e-300,
+                        "({a}, {b}) at ({up}, {down}): {got} against {want}"
+                    );
+                    total += got;
+                }
+            }
+            assert!((total - 1.0).abs() < 1e-9, "({up}, {down}): {total}");
         }
     }
 
