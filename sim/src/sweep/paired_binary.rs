@@ -401,10 +401,16 @@ mod tests {
         up: f64,
         down: f64,
     ) -> f64 {
+        probability_of(n, up, down, |a, b| table.p(a, b) <= alpha)
+    }
+
+    /// The probability, at cell probabilities (up, down), of the outcomes (plus,
+    /// minus) of n pairs for which `holds` says yes.
+    fn probability_of(n: usize, up: f64, down: f64, holds: impl Fn(usize, usize) -> bool) -> f64 {
         let lnf = ln_factorials(n);
         (0..=n)
             .flat_map(|a| (0..=n - a).map(move |b| (a, b)))
-            .filter(|&(a, b)| table.p(a, b) <= alpha)
+            .filter(|&(a, b)| holds(a, b))
             .map(|(a, b)| trinomial(n, a, b, up, down, &lnf))
             .sum()
     }
@@ -518,16 +524,11 @@ mod tests {
     /// `up` and -1 with `down`: the probability of the outcomes whose interval
     /// holds the true difference.
     fn coverage(intervals: &DifferenceIntervals, n: usize, up: f64, down: f64) -> f64 {
-        let lnf = ln_factorials(n);
         let truth = up - down;
-        (0..=n)
-            .flat_map(|a| (0..=n - a).map(move |b| (a, b)))
-            .filter(|&(a, b)| {
-                let (lo, hi) = intervals.interval(a, b);
-                lo <= truth && truth <= hi
-            })
-            .map(|(a, b)| trinomial(n, a, b, up, down, &lnf))
-            .sum()
+        probability_of(n, up, down, |a, b| {
+            let (lo, hi) = intervals.interval(a, b);
+            lo <= truth && truth <= hi
+        })
     }
 
     #[test]
