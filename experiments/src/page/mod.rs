@@ -11,6 +11,7 @@
 
 mod beyond;
 mod configs;
+mod coverage;
 mod fig34;
 mod fig5;
 mod frontier;

@@ -535,6 +535,26 @@ pub(super) fn shapes(cfg: &PaperConfig, results: &Results) -> String {
         t.markdown()
     );
     s += &uninformative(&failing);
+    // Each test named with its shape's table or figure, "(Fig. 3)".
+    let named: Vec<(String, &Test)> = all
+        .iter()
+        .flat_map(|c| {
+            let tag = c.shape.rsplit_once(" (").map_or("", |(_, t)| t);
+            let tag = tag.trim_end_matches(')').to_string();
+            c.tests
+                .iter()
+                .map(move |t| (format!("{tag}: {}", t.what), t))
+        })
+        .collect();
+    let intervals: Vec<super::coverage::Interval> = named
+        .iter()
+        .map(|(what, t)| super::coverage::Interval {
+            what,
+            pair: &t.pair,
+            yes_no: t.outcome == Outcome::YesNo,
+        })
+        .collect();
+    s += &super::coverage::section(&intervals);
     s
 }
 

@@ -10,8 +10,9 @@
 //! 95 %); the tests below simulate both on the page's design (4 routes x 3
 //! densities x 3 seeds) with a route effect of half the run noise's standard
 //! deviation, and count their coverage (5000 pages: the t interval 94.8 %, the
-//! block bootstrap 76.4 %). The page's own components are for the
-//! registration to estimate and simulate the same way.
+//! block bootstrap 76.4 %). A page's own components ([`components`]) and the
+//! coverage at them ([`t_interval_coverage`], a two-stage bootstrap in the
+//! page's own shape) are printed on the page for each of its tests.
 
 /// The regularised incomplete beta function I_x(a, b), by the continued
 /// fraction of Numerical Recipes (`betacf`, modified Lentz), to about 1e-14.
@@ -209,6 +210,130 @@ pub fn cluster_t_equivalence_p(values: &[f64], clusters: &[usize], margin: f64) 
     let above = cluster_t_p(values, clusters, -margin, Alternative::Greater)?;
     let below = cluster_t_p(values, clusters, margin, Alternative::Less)?;
     Some(above.max(below))
+}
+
+/// The variance components of values grouped in clusters (routes): the
+/// one-way random-effects model value = mean + cluster effect + noise,
+/// estimated by the analysis of variance (the method of moments, for groups
+/// of any sizes: Searle, Casella and McCulloch, *Variance Components*, 3.5).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Components {
+    /// Clusters (G).
+    pub clusters: usize,
+    /// Values (N).
+    pub values: usize,
+    /// The standard deviation of the clusters' effects, in the values' unit:
+    /// sqrt(max(0, (MSB - MSW) / n0)), n0 = (N - sum n_g^2 / N) / (G - 1).
+    pub between_sd: f64,
+    /// The standard deviation of a value about its cluster's mean: sqrt(MSW),
+    /// MSW = the within-cluster sum of squares / (N - G).
+    pub within_sd: f64,
+}
+
+/// The values of each cluster (numbered by [`cluster_ids`]); `None` where the
+/// lengths differ.
+fn by_cluster(values: &[f64], clusters: &[usize]) -> Option<Vec<Vec<f64>>> {
+    if values.len() != clusters.len() {
+        return None;
+    }
+    let ids = cluster_ids(clusters.iter());
+    let mut groups = vec![Vec::new(); ids.iter().max().map_or(0, |m| m + 1)];
+    for (&v, &i) in values.iter().zip(&ids) {
+        groups[i].push(v);
+    }
+    Some(groups)
+}
+
+/// The [`Components`] of `values` (`clusters[i]` names the cluster of
+/// `values[i]`); `None` with fewer than two clusters, or without a cluster
+/// holding two values (no noise to estimate).
+pub fn components(values: &[f64], clusters: &[usize]) -> Option<Components> {
+    let groups = by_cluster(values, clusters)?;
+    let (g, n) = (groups.len(), values.len());
+    if g < 2 || n <= g {
+        return None;
+    }
+    let mean = values.iter().sum::<f64>() / n as f64;
+    let (mut ssb, mut ssw, mut sum_sq_sizes) = (0.0, 0.0, 0.0);
+    for group in &groups {
+        let size = group.len() as f64;
+        let m = group.iter().sum::<f64>() / size;
+        ssb += size * (m - mean).powi(2);
+        ssw += group.iter().map(|v| (v - m).powi(2)).sum::<f64>();
+        sum_sq_sizes += size * size;
+    }
+    let (gf, nf) = (g as f64, n as f64);
+    let (msb, msw) = (ssb / (gf - 1.0), ssw / (nf - gf));
+    let n0 = (nf - sum_sq_sizes / nf) / (gf - 1.0);
+    Some(Components {
+        clusters: g,
+        values: n,
+        between_sd: ((msb - msw) / n0).max(0.0).sqrt(),
+        within_sd: msw.sqrt(),
+    })
+}
+
+/// The share of `sims` simulated pages whose [`cluster_t_interval`] at
+/// `level` holds the true mean, the pages drawn at the [`Components`] of
+/// `values` and in their shape, by a two-stage bootstrap (Davison and
+/// Hinkley, *Bootstrap Methods*, 3.8, with their variance adjustments): each
+/// cluster keeps its number of values and draws an effect with replacement
+/// from the clusters' centred means, scaled to the estimated `between_sd`;
+/// each value adds a deviation drawn with replacement from the values' own
+/// deviations about their cluster's mean, scaled to the estimated
+/// `within_sd`. So a route that alone holds the page's few red lights, or a
+/// skewed count, keeps that shape. The true mean is 0. The same inputs and
+/// `seed` give the same share. `None` where [`components`] is.
+pub fn t_interval_coverage(
+    values: &[f64],
+    clusters: &[usize],
+    level: f64,
+    sims: usize,
+    seed: u64,
+) -> Option<f64> {
+    use rand::{RngExt, SeedableRng};
+    let c = components(values, clusters)?;
+    let groups = by_cluster(values, clusters)?;
+    let means: Vec<f64> = groups
+        .iter()
+        .map(|g| g.iter().sum::<f64>() / g.len() as f64)
+        .collect();
+    let mut deviations: Vec<f64> = Vec::with_capacity(values.len());
+    for (group, m) in groups.iter().zip(&means) {
+        deviations.extend(group.iter().map(|v| v - m));
+    }
+    let grand = means.iter().sum::<f64>() / means.len() as f64;
+    let effects: Vec<f64> = means.iter().map(|m| m - grand).collect();
+    // Each pool scaled so that a draw from it has the estimated sd.
+    let scaled_to = |pool: &[f64], sd: f64| {
+        let raw = (pool.iter().map(|d| d * d).sum::<f64>() / pool.len() as f64).sqrt();
+        if raw > 0.0 { sd / raw } else { 0.0 }
+    };
+    let (between, within) = (
+        scaled_to(&effects, c.between_sd),
+        scaled_to(&deviations, c.within_sd),
+    );
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut page = Vec::with_capacity(values.len());
+    let mut ids = Vec::with_capacity(values.len());
+    let mut hits = 0;
+    for _ in 0..sims {
+        page.clear();
+        ids.clear();
+        for (i, group) in groups.iter().enumerate() {
+            let effect = between * effects[rng.random_range(0..effects.len())];
+            for _ in 0..group.len() {
+                let d = deviations[rng.random_range(0..deviations.len())];
+                page.push(effect + within * d);
+                ids.push(i);
+            }
+        }
+        let (_, lo, hi) = cluster_t_interval(&page, &ids, level)?;
+        if lo <= 0.0 && 0.0 <= hi {
+            hits += 1;
+        }
+    }
+    Some(hits as f64 / sims as f64)
 }
 
 #[cfg(test)]
@@ -458,6 +583,77 @@ mod tests {
         // 5000 simulations: a binomial sd of 0.3 %.
         assert!((0.94..=0.96).contains(&t), "t interval covers {t}");
         assert!(blocks < 0.90, "the block bootstrap covers {blocks}");
+    }
+
+    #[test]
+    fn the_components_are_the_analysis_of_variance_estimates() {
+        // Balanced, 2 routes of 3: MSB 13.5, MSW 1, n0 3: between (13.5 - 1) / 3.
+        let c = components(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0], &[7, 7, 7, 9, 9, 9]).unwrap();
+        assert_eq!((c.clusters, c.values), (2, 6));
+        assert!(
+            (c.between_sd - (12.5f64 / 3.0).sqrt()).abs() < 1e-12,
+            "{c:?}"
+        );
+        assert!((c.within_sd - 1.0).abs() < 1e-12, "{c:?}");
+        // Unbalanced, routes of 2, 3 and 1 values (NumPy by hand: MSB 5.4167,
+        // MSW 2.6667, n0 1.8333).
+        let c = components(&[0.0, 2.0, 1.0, 1.0, 4.0, 5.0], &[0, 0, 1, 1, 1, 2]).unwrap();
+        assert!(
+            (c.between_sd - 1.224_744_871_391_589).abs() < 1e-12,
+            "{c:?}"
+        );
+        assert!((c.within_sd - 1.632_993_161_855_452).abs() < 1e-12, "{c:?}");
+        // Routes that differ less than their runs: no between-route spread.
+        let c = components(&[0.0, 2.0, 1.0, 1.0], &[0, 0, 1, 1]).unwrap();
+        assert_eq!(c.between_sd, 0.0);
+        // One route, or no route with two values: nothing to estimate.
+        assert_eq!(components(&[1.0, 2.0], &[0, 0]), None);
+        assert_eq!(components(&[1.0, 2.0], &[0, 1]), None);
+        assert_eq!(components(&[1.0, 2.0], &[0]), None);
+    }
+
+    #[test]
+    fn the_coverage_at_a_pages_own_components_is_simulated_from_them() {
+        // A page drawn as the page's design (4 routes x 9, route effects half
+        // the run noise, normal): the t interval over route means is exact
+        // there, so the simulation at the page's own components covers 95 %.
+        let mut rng = ChaCha8Rng::seed_from_u64(52);
+        let mut normal = move || {
+            let (u, v): (f64, f64) = (rng.random::<f64>().max(1e-300), rng.random());
+            (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
+        };
+        let routes: Vec<usize> = (0..36).map(|i| i / 9).collect();
+        let mut values = Vec::new();
+        for _ in 0..4 {
+            let effect = 0.5 * normal();
+            values.extend((0..9).map(|_| effect + normal()));
+        }
+        let normal_page = t_interval_coverage(&values, &routes, 0.95, 5000, 1).unwrap();
+        // Counts that are 0 in 34 of 36 runs and 3 in two, both on one route:
+        // the route means are far from normal and the interval says more than
+        // it holds.
+        let mut rare = vec![0.0; 36];
+        rare[0] = 3.0;
+        rare[1] = 3.0;
+        let rare_page = t_interval_coverage(&rare, &routes, 0.95, 5000, 1).unwrap();
+        eprintln!("simulated coverage: a normal page {normal_page:.3}, rare counts {rare_page:.3}");
+        // 5000 pages: a binomial sd of 0.3 % at 95 %.
+        assert!((0.94..=0.96).contains(&normal_page), "{normal_page}");
+        assert!(rare_page < 0.93, "{rare_page}");
+        // Routes that differ while their runs do not (route a at 1, the rest at
+        // 0): only the route stage draws anything. A page drawing no route like
+        // a (3/4 to the 4th: 32 %) has four equal means below the truth and an
+        // interval of no width.
+        let by_route: Vec<f64> = routes.iter().map(|&r| f64::from(r == 0)).collect();
+        let route_only = t_interval_coverage(&by_route, &routes, 0.95, 5000, 1).unwrap();
+        eprintln!("routes apart, runs alike: {route_only:.3}");
+        assert!(route_only < 0.69, "{route_only}");
+        // Seeded: the same figure again.
+        assert_eq!(
+            t_interval_coverage(&rare, &routes, 0.95, 5000, 1),
+            Some(rare_page)
+        );
+        assert_eq!(t_interval_coverage(&rare, &[0; 36], 0.95, 10, 1), None);
     }
 
     #[test]

@@ -379,10 +379,88 @@ pub fn difference_interval(plus: usize, minus: usize, n: usize, level: f64) -> O
     (n > 0).then(|| DifferenceIntervals::shared(n, level).interval(plus, minus))
 }
 
+/// The share of `sims` simulated pages whose exact interval at `level`
+/// ([`difference_interval`]) holds the true mean difference, the pages drawn
+/// route by route at the page's own cells: each route (`clusters[i]` names the
+/// route of the pair whose difference b - a is `diffs[i]`, each -1, 0 or +1)
+/// keeps its number of pairs, each pair +1 and -1 with that route's observed
+/// shares of them (plug-in). The truth is the pairs' mean of those shares'
+/// differences, the observed mean difference: the claim is about the routes
+/// driven. Where routes differ the pairs are not drawn alike, as the
+/// interval assumes, and this shows what that costs. The same inputs and
+/// `seed` give the same share. `None` without pairs or with lengths that differ.
+pub fn interval_coverage_by_route(
+    diffs: &[f64],
+    clusters: &[usize],
+    level: f64,
+    sims: usize,
+    seed: u64,
+) -> Option<f64> {
+    use rand::SeedableRng;
+    if diffs.is_empty() || diffs.len() != clusters.len() {
+        return None;
+    }
+    let ids = super::cluster::cluster_ids(clusters.iter());
+    // (pairs, +1 share, -1 share) of each route.
+    let mut routes = vec![(0usize, 0.0, 0.0); ids.iter().max().map_or(0, |m| m + 1)];
+    for (&d, &i) in diffs.iter().zip(&ids) {
+        routes[i].0 += 1;
+        if d > 0.5 {
+            routes[i].1 += 1.0;
+        } else if d < -0.5 {
+            routes[i].2 += 1.0;
+        }
+    }
+    for r in &mut routes {
+        r.1 /= r.0 as f64;
+        r.2 /= r.0 as f64;
+    }
+    let n = diffs.len();
+    let truth = routes
+        .iter()
+        .map(|&(k, up, down)| k as f64 * (up - down))
+        .sum::<f64>()
+        / n as f64;
+    let intervals = DifferenceIntervals::shared(n, level);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    Some(covered_share(&routes, truth, &intervals, sims, &mut rng))
+}
+
+/// The share of `sims` pages drawn from `rng` whose interval from `intervals`
+/// holds `truth`, each route's `k` pairs +1 with probability `up` and -1 with
+/// probability `down`: (k, up, down) for each route.
+fn covered_share(
+    routes: &[(usize, f64, f64)],
+    truth: f64,
+    intervals: &DifferenceIntervals,
+    sims: usize,
+    rng: &mut impl rand::RngExt,
+) -> f64 {
+    let mut hits = 0;
+    for _ in 0..sims {
+        let (mut plus, mut minus) = (0, 0);
+        for &(k, up, down) in routes {
+            for _ in 0..k {
+                let u: f64 = rng.random();
+                if u < up {
+                    plus += 1;
+                } else if u < up + down {
+                    minus += 1;
+                }
+            }
+        }
+        let (lo, hi) = intervals.interval(plus, minus);
+        if lo <= truth + 1e-12 && truth - 1e-12 <= hi {
+            hits += 1;
+        }
+    }
+    hits as f64 / sims as f64
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::{RngExt, SeedableRng};
+    use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
 
     /// The probability of `k_up` pairs at +1 and `k_down` at -1 of n, the cells'
@@ -573,31 +651,64 @@ mod tests {
             [(0.0, 0.0), (0.0, 0.0), (0.1, 0.0), (0.2, 0.1)],
         ] {
             let truth = cells.iter().map(|(u, d)| u - d).sum::<f64>() / 4.0;
-            let sims = 5000;
-            let mut hits = 0;
-            for _ in 0..sims {
-                let (mut plus, mut minus) = (0, 0);
-                for &(up, down) in &cells {
-                    for _ in 0..9 {
-                        let u: f64 = rng.random();
-                        if u < up {
-                            plus += 1;
-                        } else if u < up + down {
-                            minus += 1;
-                        }
-                    }
-                }
-                let (lo, hi) = intervals.interval(plus, minus);
-                if lo <= truth + 1e-12 && truth - 1e-12 <= hi {
-                    hits += 1;
-                }
-            }
-            let covered = f64::from(hits) / f64::from(sims);
+            let routes = cells.map(|(up, down)| (9, up, down));
+            let covered = covered_share(&routes, truth, &intervals, 5000, &mut rng);
             eprintln!(
                 "4 routes x 9 pairs, cells {cells:?}: the exact interval covers {covered:.3}"
             );
             assert!(covered >= 0.95, "{cells:?}: {covered}");
         }
+    }
+
+    #[test]
+    fn the_coverage_by_route_draws_each_route_at_its_own_cells() {
+        // 4 routes x 9 pairs. All tied: every page is all tied, its interval
+        // holds the true 0.
+        let routes: Vec<usize> = (0..36).map(|i| i / 9).collect();
+        let tied = vec![0.0; 36];
+        assert_eq!(
+            interval_coverage_by_route(&tied, &routes, 0.95, 200, 1),
+            Some(1.0)
+        );
+        // Route 0 all +1, the rest tied: every page is the same (9 of 36 up),
+        // and its interval holds the truth 0.25 (or no page would).
+        let mut one = tied.clone();
+        one[..9].fill(1.0);
+        assert_eq!(
+            interval_coverage_by_route(&one, &routes, 0.95, 200, 1),
+            Some(1.0)
+        );
+        // Routes that differ: half up on two routes, half down on the others.
+        // The pages vary; the figure is the test's own loop at those cells.
+        let mut mixed = tied.clone();
+        for r in 0..4 {
+            for k in 0..4 {
+                mixed[r * 9 + k] = if r < 2 { 1.0 } else { -1.0 };
+            }
+        }
+        let covered = interval_coverage_by_route(&mixed, &routes, 0.95, 2000, 3).unwrap();
+        let cells = [
+            (9, 4.0 / 9.0, 0.0),
+            (9, 4.0 / 9.0, 0.0),
+            (9, 0.0, 4.0 / 9.0),
+            (9, 0.0, 4.0 / 9.0),
+        ];
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let want = covered_share(
+            &cells,
+            0.0,
+            &DifferenceIntervals::shared(36, 0.95),
+            2000,
+            &mut rng,
+        );
+        assert_eq!(covered, want);
+        eprintln!("routes half up and half down: the exact interval covers {covered:.3}");
+        assert!(covered >= 0.95, "{covered}");
+        assert_eq!(interval_coverage_by_route(&[], &[], 0.95, 10, 1), None);
+        assert_eq!(
+            interval_coverage_by_route(&[1.0], &[0, 1], 0.95, 10, 1),
+            None
+        );
     }
 
     #[test]
