@@ -25,6 +25,10 @@ pub const LEVEL: f64 = 0.95;
 /// [`SIMS`] pages below the nominal 95 %).
 pub const SHORT_OF: f64 = 0.93;
 
+/// A margin test's simulated size above this is marked as over its nominal
+/// 5 % (more than 3 binomial sds of [`SIMS`] pages above it).
+pub const OVER: f64 = 0.059;
+
 /// One test's interval, as the page prints it beside the test.
 pub struct Interval<'a> {
     /// The test's name on the page.
@@ -33,6 +37,10 @@ pub struct Interval<'a> {
     pub pair: &'a Paired,
     /// Yes/no outcome (the exact interval) or a count (the t interval).
     pub yes_no: bool,
+    /// For a count's margin test: how often it says the margin holds at
+    /// 5 % where the truth lies on the margin's edge, simulated as the
+    /// coverage is (the caller's: `shapes`).
+    pub size: Option<f64>,
 }
 
 /// The page's section: one row per test, its components and its coverage.
@@ -44,6 +52,7 @@ pub fn section(intervals: &[Interval]) -> String {
         "within-route sd",
         "pairs b alone / a alone",
         "coverage of its 95 % interval",
+        "its margin test's size at 5 %",
     ]);
     for (i, iv) in intervals.iter().enumerate() {
         let p = iv.pair;
@@ -75,6 +84,13 @@ pub fn section(intervals: &[Interval]) -> String {
                     if c < SHORT_OF { " (short)" } else { "" }
                 )
             }),
+            iv.size.map_or("–".into(), |s| {
+                format!(
+                    "{:.1} %{}",
+                    100.0 * s,
+                    if s > OVER { " (over)" } else { "" }
+                )
+            }),
         ]);
     }
     format!(
@@ -87,10 +103,15 @@ pub fn section(intervals: &[Interval]) -> String {
          test's interval, each route's pairs drawn at that route's own shares of pairs that \
          went each way (truth: the mean difference over the routes driven). Below {:.0} % a \
          coverage is marked short: that interval is narrower than it claims. The verdicts rest \
-         on the tests, not on these intervals. \"–\": fewer than two routes, or no route with \
-         two pairs.\n\n{}\n",
+         on the tests, not on these intervals. A count's margin test (equivalence, no worse) \
+         is simulated on the same pages moved to the margin's edge (each edge of an \
+         equivalence, the larger share given): how often it says the margin holds at 5 % \
+         where it does not, marked over above {:.1} %; a yes/no outcome's is exact (at most \
+         nominal for pairs drawn alike). \"–\": fewer than two routes, no route with two \
+         pairs, or no margin.\n\n{}\n",
         100.0 * LEVEL,
         100.0 * SHORT_OF,
+        100.0 * OVER,
         t.markdown()
     )
 }
@@ -115,16 +136,19 @@ mod tests {
                 what: "red lights",
                 pair: &count,
                 yes_no: false,
+                size: Some(0.0612),
             },
             Interval {
                 what: "success",
                 pair: &tied,
                 yes_no: true,
+                size: None,
             },
             Interval {
                 what: "one route",
                 pair: &one_route,
                 yes_no: false,
+                size: Some(0.05),
             },
         ]);
         let rows: Vec<&str> = s
@@ -140,14 +164,14 @@ mod tests {
         assert_eq!(
             rows[1],
             format!(
-                "| red lights | 36 (4) | 0.250 | 0.661 | – | {:.1} % (short) |",
+                "| red lights | 36 (4) | 0.250 | 0.661 | – | {:.1} % (short) | 6.1 % (over) |",
                 100.0 * want
             )
         );
         assert_eq!(
             rows[2],
-            "| success | 36 (4) | 0.000 | 0.000 | 0 / 0 | 100.0 % |"
+            "| success | 36 (4) | 0.000 | 0.000 | 0 / 0 | 100.0 % | – |"
         );
-        assert_eq!(rows[3], "| one route | 9 (1) | – | – | – | – |");
+        assert_eq!(rows[3], "| one route | 9 (1) | – | – | – | – | 5.0 % |");
     }
 }

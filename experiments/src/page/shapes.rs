@@ -19,7 +19,9 @@ use crate::results::{PairKey, Results, Run};
 use crate::units::{Driver, Unit};
 use sim::monitors::InfractionKind;
 use sim::scenario::SelectorKind;
-use sim::sweep::cluster::{cluster_t_equivalence_p, cluster_t_interval, cluster_t_p};
+use sim::sweep::cluster::{
+    cluster_t_equivalence_p, cluster_t_interval, cluster_t_p, two_stage_share,
+};
 use sim::sweep::exact::{Alternative, holm, sign_flip_p};
 use sim::sweep::paired_binary;
 use sim::sweep::stats::{Paired, RangeCheck};
@@ -147,8 +149,6 @@ impl Test {
         let d = &pair.diffs;
         let (plus, minus, _) = pair.better_worse_same;
         let n = pair.n;
-        let over_routes =
-            |null: f64, alt: Alternative| cluster_t_p(d, &pair.clusters, null, alt).unwrap_or(1.0);
         let (p, direction) = match (ask, outcome) {
             (Ask::Above, _) => (sign_flip_p(d, Alternative::TwoSided), pair.mean_diff > 0.0),
             (Ask::Below, _) => (sign_flip_p(d, Alternative::TwoSided), pair.mean_diff < 0.0),
@@ -162,12 +162,9 @@ impl Test {
                 paired_binary::noninferiority_lower_p(plus, minus, n, m),
                 true,
             ),
-            (Ask::Within(m), Outcome::Count) => (
-                cluster_t_equivalence_p(d, &pair.clusters, m).unwrap_or(1.0),
-                true,
-            ),
-            (Ask::NotBelow(m), Outcome::Count) => (over_routes(-m, Alternative::Greater), true),
-            (Ask::NotAbove(m), Outcome::Count) => (over_routes(m, Alternative::Less), true),
+            (Ask::Within(_) | Ask::NotBelow(_) | Ask::NotAbove(_), Outcome::Count) => {
+                (count_margin_p(ask, d, &pair.clusters).unwrap_or(1.0), true)
+            }
         };
         Test {
             what,
@@ -177,6 +174,30 @@ impl Test {
             p,
             direction,
         }
+    }
+
+    /// How often a count's margin test says the margin holds where the truth
+    /// lies on its edge (each edge of an equivalence; the larger share), at
+    /// [`ALPHA`], on pages drawn as this test's own pairs were
+    /// ([`two_stage_share`]); `None` for yes/no outcomes (their size at the
+    /// margin is exact, `paired_binary`), differences, and fewer than two routes.
+    fn size_at_margin(&self, sims: usize, seed: u64) -> Option<f64> {
+        let edges = match (self.outcome, self.ask) {
+            (Outcome::YesNo, _) | (_, Ask::Above | Ask::Below) => return None,
+            (Outcome::Count, Ask::Within(m)) => vec![-m, m],
+            (Outcome::Count, Ask::NotBelow(m)) => vec![-m],
+            (Outcome::Count, Ask::NotAbove(m)) => vec![m],
+        };
+        let (d, clusters) = (&self.pair.diffs, &self.pair.clusters);
+        let mut worst: Option<f64> = None;
+        for edge in edges {
+            let share = two_stage_share(d, clusters, sims, seed, |page, ids| {
+                let at_edge: Vec<f64> = page.iter().map(|v| v + edge).collect();
+                count_margin_p(self.ask, &at_edge, ids).is_some_and(|p| p <= ALPHA)
+            })?;
+            worst = Some(worst.map_or(share, |w: f64| w.max(share)));
+        }
+        worst
     }
 
     fn evidence(&self, adjusted: f64) -> String {
@@ -214,6 +235,19 @@ impl Test {
 
     fn passes(&self, adjusted: f64) -> bool {
         self.direction && adjusted < ALPHA
+    }
+}
+
+/// The p-value of a count's margin `ask` (t tests over the route means of the
+/// differences `d`, `clusters` naming their routes): "within ±m" by two
+/// one-sided tests, "not below -m" and "not above m" by one. `None` for a
+/// difference (`Above`, `Below`) or with fewer than two routes.
+fn count_margin_p(ask: Ask, d: &[f64], clusters: &[usize]) -> Option<f64> {
+    match ask {
+        Ask::Within(m) => cluster_t_equivalence_p(d, clusters, m),
+        Ask::NotBelow(m) => cluster_t_p(d, clusters, -m, Alternative::Greater),
+        Ask::NotAbove(m) => cluster_t_p(d, clusters, m, Alternative::Less),
+        Ask::Above | Ask::Below => None,
     }
 }
 
@@ -548,10 +582,12 @@ pub(super) fn shapes(cfg: &PaperConfig, results: &Results) -> String {
         .collect();
     let intervals: Vec<super::coverage::Interval> = named
         .iter()
-        .map(|(what, t)| super::coverage::Interval {
+        .enumerate()
+        .map(|(i, (what, t))| super::coverage::Interval {
             what,
             pair: &t.pair,
             yes_no: t.outcome == Outcome::YesNo,
+            size: t.size_at_margin(super::coverage::SIMS, 50 + i as u64),
         })
         .collect();
     s += &super::coverage::section(&intervals);
@@ -808,6 +844,47 @@ mod tests {
             Test::new("x".into(), one, Outcome::Count, Ask::Within(0.25)).p,
             1.0
         );
+    }
+
+    #[test]
+    fn a_counts_margin_test_is_simulated_at_each_edge_of_its_margin() {
+        // Lane crossings of 36 pairs on 4 routes, spread over every route.
+        let d: Vec<f64> = (0..36)
+            .map(|i| f64::from((i * 7 % 5) as u8) - 2.0)
+            .collect();
+        let routes: Vec<usize> = (0..36).map(|i| i / 9).collect();
+        let pair = Paired::by_route(&vec![0.0; 36], &d, &routes);
+        let test = |ask| Test::new("x".into(), pair.clone(), Outcome::Count, ask);
+        // The share of pages moved to `edge` on which the margin is shown at 5 %.
+        let at = |ask: Ask, edge: f64| {
+            two_stage_share(&pair.diffs, &pair.clusters, 2000, 7, |page, ids| {
+                let moved: Vec<f64> = page.iter().map(|v| v + edge).collect();
+                count_margin_p(ask, &moved, ids).unwrap() <= ALPHA
+            })
+            .unwrap()
+        };
+        let within = test(Ask::Within(0.25)).size_at_margin(2000, 7).unwrap();
+        assert_eq!(
+            within,
+            at(Ask::Within(0.25), -0.25).max(at(Ask::Within(0.25), 0.25))
+        );
+        let above = test(Ask::NotAbove(0.25)).size_at_margin(2000, 7).unwrap();
+        assert_eq!(above, at(Ask::NotAbove(0.25), 0.25));
+        let below = test(Ask::NotBelow(0.25)).size_at_margin(2000, 7).unwrap();
+        assert_eq!(below, at(Ask::NotBelow(0.25), -0.25));
+        // Wrong-edge pages (the margin true, well inside it) are shown far more often.
+        assert!(at(Ask::NotAbove(0.25), -2.0) > 5.0 * above.max(0.01));
+        eprintln!("sizes at the margin: within {within}, not above {above}, not below {below}");
+        // Differences, yes/no outcomes and one route have no simulated size.
+        assert_eq!(test(Ask::Above).size_at_margin(100, 7), None);
+        let yes_no = Test::new("x".into(), pair.clone(), Outcome::YesNo, Ask::Within(0.25));
+        assert_eq!(yes_no.size_at_margin(100, 7), None);
+        let one = Paired {
+            clusters: vec![0; 36],
+            ..pair.clone()
+        };
+        let one = Test::new("x".into(), one, Outcome::Count, Ask::Within(0.25));
+        assert_eq!(one.size_at_margin(100, 7), None);
     }
 
     #[test]

@@ -273,23 +273,23 @@ pub fn components(values: &[f64], clusters: &[usize]) -> Option<Components> {
     })
 }
 
-/// The share of `sims` simulated pages whose [`cluster_t_interval`] at
-/// `level` holds the true mean, the pages drawn at the [`Components`] of
-/// `values` and in their shape, by a two-stage bootstrap (Davison and
-/// Hinkley, *Bootstrap Methods*, 3.8, with their variance adjustments): each
-/// cluster keeps its number of values and draws an effect with replacement
-/// from the clusters' centred means, scaled to the estimated `between_sd`;
-/// each value adds a deviation drawn with replacement from the values' own
-/// deviations about their cluster's mean, scaled to the estimated
-/// `within_sd`. So a route that alone holds the page's few red lights, or a
-/// skewed count, keeps that shape. The true mean is 0. The same inputs and
-/// `seed` give the same share. `None` where [`components`] is.
-pub fn t_interval_coverage(
+/// The share of `sims` pages, drawn at the [`Components`] of `values` and in
+/// their shape, on which `holds(page, clusters)` is true. The pages come from
+/// a two-stage bootstrap (Davison and Hinkley, *Bootstrap Methods*, 3.8, with
+/// their variance adjustments): each cluster keeps its number of values and
+/// draws an effect with replacement from the clusters' centred means, scaled
+/// to the estimated `between_sd`; each value adds a deviation drawn with
+/// replacement from the values' own deviations about their cluster's mean,
+/// scaled to the estimated `within_sd`. So a route that alone holds the
+/// page's few red lights, or a skewed count, keeps that shape. The true mean
+/// of a drawn page is 0. The same inputs and `seed` give the same share.
+/// `None` where [`components`] is.
+pub fn two_stage_share(
     values: &[f64],
     clusters: &[usize],
-    level: f64,
     sims: usize,
     seed: u64,
+    mut holds: impl FnMut(&[f64], &[usize]) -> bool,
 ) -> Option<f64> {
     use rand::{RngExt, SeedableRng};
     let c = components(values, clusters)?;
@@ -328,12 +328,25 @@ pub fn t_interval_coverage(
                 ids.push(i);
             }
         }
-        let (_, lo, hi) = cluster_t_interval(&page, &ids, level)?;
-        if lo <= 0.0 && 0.0 <= hi {
+        if holds(&page, &ids) {
             hits += 1;
         }
     }
     Some(hits as f64 / sims as f64)
+}
+
+/// The share of `sims` pages drawn as [`two_stage_share`] draws them whose
+/// [`cluster_t_interval`] at `level` holds the true mean, 0.
+pub fn t_interval_coverage(
+    values: &[f64],
+    clusters: &[usize],
+    level: f64,
+    sims: usize,
+    seed: u64,
+) -> Option<f64> {
+    two_stage_share(values, clusters, sims, seed, |page, ids| {
+        cluster_t_interval(page, ids, level).is_some_and(|(_, lo, hi)| lo <= 0.0 && 0.0 <= hi)
+    })
 }
 
 #[cfg(test)]
