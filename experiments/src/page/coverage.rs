@@ -25,10 +25,6 @@ pub const LEVEL: f64 = 0.95;
 /// [`SIMS`] pages below the nominal 95 %).
 pub const SHORT_OF: f64 = 0.93;
 
-/// A margin test's simulated size above this is marked as over its nominal
-/// 5 % (more than 3 binomial sds of [`SIMS`] pages above it).
-pub const OVER: f64 = 0.059;
-
 /// One test's interval, as the page prints it beside the test.
 pub struct Interval<'a> {
     /// The test's name on the page.
@@ -39,7 +35,7 @@ pub struct Interval<'a> {
     pub yes_no: bool,
     /// For a count's margin test: how often it says the margin holds at
     /// 5 % where the truth lies on the margin's edge, simulated as the
-    /// coverage is (the caller's: `shapes`).
+    /// coverage is (`shapes`, where one over its limit does not pass).
     pub size: Option<f64>,
 }
 
@@ -88,7 +84,11 @@ pub fn section(intervals: &[Interval]) -> String {
                 format!(
                     "{:.1} %{}",
                     100.0 * s,
-                    if s > OVER { " (over)" } else { "" }
+                    if s > super::shapes::SIZE_LIMIT {
+                        " (over)"
+                    } else {
+                        ""
+                    }
                 )
             }),
         ]);
@@ -106,12 +106,14 @@ pub fn section(intervals: &[Interval]) -> String {
          on the tests, not on these intervals. A count's margin test (equivalence, no worse) \
          is simulated on the same pages moved to the margin's edge (each edge of an \
          equivalence, the larger share given): how often it says the margin holds at 5 % \
-         where it does not, marked over above {:.1} %; a yes/no outcome's is exact (at most \
-         nominal for pairs drawn alike). \"–\": fewer than two routes, no route with two \
+         where it does not, marked over above {:.1} %, and then its margin does not pass (a \
+         count's mean admits no test valid for every shape of counts: the page's own is the \
+         one it must hold for); a yes/no outcome's is exact (at most nominal for pairs drawn \
+         alike). \"–\": fewer than two routes, no route with two \
          pairs, or no margin.\n\n{}\n",
         100.0 * LEVEL,
         100.0 * SHORT_OF,
-        100.0 * OVER,
+        100.0 * super::shapes::SIZE_LIMIT,
         t.markdown()
     )
 }
