@@ -178,3 +178,51 @@ fn the_quick_paper_writes_every_table_and_figure_and_resumes() {
         "{err}"
     );
 }
+
+#[test]
+fn the_held_out_routes_are_bound_by_the_papers_registration() {
+    // A checkout whose docs/paper is registered, with rules changed since: the
+    // held-out study (its own folder) is refused too, and registering from it
+    // registers the paper's folder, never a second registration.
+    let tmp = tempfile::tempdir().unwrap();
+    let paper = tmp.path().join("docs/paper");
+    std::fs::create_dir_all(&paper).unwrap();
+    std::fs::write(
+        paper.join("registration.md"),
+        "# Registration\nother rules\n",
+    )
+    .unwrap();
+    std::fs::write(
+        paper.join("registered.toml"),
+        format!(
+            "commit = \"{}\"\nsha256 = \"{}\"\n",
+            "0".repeat(40),
+            sim::record::sha256_hex(b"# Registration\nthe rules\n")
+        ),
+    )
+    .unwrap();
+    let held_out = tmp.path().join("held-out");
+    let out = common::mrdrive()
+        .current_dir(tmp.path())
+        .args(["paper", "--held-out", "--report-only", "--out"])
+        .arg(&held_out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success()
+            && err.contains("changed after registration")
+            && err.contains("docs/paper/registration.md"),
+        "{err}"
+    );
+    let again = common::mrdrive()
+        .current_dir(tmp.path())
+        .args(["paper", "--held-out", "--register"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&again.stderr);
+    assert!(
+        !again.status.success() && err.contains("docs/paper/registered.toml"),
+        "{err}"
+    );
+}

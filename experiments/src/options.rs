@@ -29,6 +29,10 @@ pub struct RunOptions {
     /// Run only the configuration's first this many seeds this time (the
     /// sweep plans still hold every seed; a later call goes on); `None`: all.
     pub seeds: Option<usize>,
+    /// The folder whose registration (`registration.md`, `registered.toml`)
+    /// binds these runs: `out` itself for the paper's routes, the paper's
+    /// folder for the held-out routes (one registration, one study).
+    pub registered_in: PathBuf,
 }
 
 /// The wall time spent running sweeps into one output folder, over every

@@ -44,9 +44,9 @@ pub fn run_paper(
     let mut outcome = Outcome::default();
     std::fs::create_dir_all(&opts.out).map_err(|e| PaperError::io("create", &opts.out, e))?;
     let units = units_of(&opts.experiments, cfg);
-    let registration = Registration::load(&opts.out)?;
+    let registration = Registration::load(&opts.registered_in)?;
     if let Some(r) = &registration {
-        r.check_rules(&opts.out)?;
+        r.check_rules(&opts.registered_in)?;
     }
     if !opts.report_only {
         same_backend(cfg, opts, &units)?;
@@ -54,7 +54,7 @@ pub fn run_paper(
         if let Some(r) = &registration {
             let here = sim::output::provenance::build_id();
             let builds = existing.provenance(|p| &p.build);
-            r.check_builds(&opts.out, builds.iter().chain([&here]))?;
+            r.check_builds(&opts.registered_in, builds.iter().chain([&here]))?;
         }
         if !opts.mixed_builds {
             same_build(
@@ -261,10 +261,10 @@ impl WallClock {
 /// the registering commit ([`Registration::check_builds`]).
 fn report(cfg: &PaperConfig, opts: &RunOptions) -> Result<Vec<PathBuf>, PaperError> {
     let results = Results::load(cfg, &opts.out, &units_of(&Experiment::ALL, cfg))?;
-    let registration = Registration::load(&opts.out)?;
+    let registration = Registration::load(&opts.registered_in)?;
     if let Some(r) = &registration {
-        r.check_rules(&opts.out)?;
-        r.check_builds(&opts.out, &results.provenance(|p| &p.build))?;
+        r.check_rules(&opts.registered_in)?;
+        r.check_builds(&opts.registered_in, &results.provenance(|p| &p.build))?;
     }
     page::write_all(cfg, opts, &results, registration.as_ref())
 }
@@ -337,6 +337,7 @@ mod tests {
             mixed_builds: false,
             label: "quick".into(),
             seeds: None,
+            registered_in: tmp.path().to_path_buf(),
         };
         // One invocation: two runs finish, one fails (time, no run).
         let mut clock = WallClock::start();

@@ -76,19 +76,30 @@ pub fn run(a: PaperArgs) -> anyhow::Result<()> {
         (PaperConfig::full(), "full", "docs/paper")
     };
     let out = a.out.unwrap_or_else(|| PathBuf::from(default_out));
+    // The held-out routes are part of the one registered study: the paper's
+    // folder holds its registration.
+    let registered_in = if a.held_out {
+        PathBuf::from("docs/paper")
+    } else {
+        out.clone()
+    };
     let only = if a.held_out && a.only.is_empty() {
         "fig3,table3"
     } else {
         a.only.as_str()
     };
     if a.register {
-        let r = experiments::registration::register(&out)?;
+        let r = experiments::registration::register(&registered_in)?;
         println!(
             "paper: registered {} at commit {} (SHA-256 {}); commit {} now",
-            out.join(experiments::registration::RULES_FILE).display(),
+            registered_in
+                .join(experiments::registration::RULES_FILE)
+                .display(),
             r.commit,
             r.sha256,
-            out.join(experiments::registration::RECORD_FILE).display()
+            registered_in
+                .join(experiments::registration::RECORD_FILE)
+                .display()
         );
         return Ok(());
     }
@@ -101,6 +112,7 @@ pub fn run(a: PaperArgs) -> anyhow::Result<()> {
         mixed_builds: a.mixed_builds,
         label: label.into(),
         seeds: a.seeds,
+        registered_in,
     };
     let bar = indicatif::ProgressBar::new(0);
     bar.set_style(
