@@ -622,7 +622,7 @@ pub(super) fn shapes(cfg: &PaperConfig, results: &Results) -> String {
             size: t.size,
         })
         .collect();
-    s += &super::coverage::section(&intervals);
+    s += &super::coverage::section(&intervals, SIZE_LIMIT);
     s
 }
 
