@@ -146,15 +146,7 @@ fn the_quick_paper_writes_every_table_and_figure_and_resumes() {
     assert!(page.contains("Not registered: this folder has no `registered.toml`"));
     let rules = "# Registration\nthe rules\n";
     std::fs::write(out.join("registration.md"), rules).unwrap();
-    std::fs::write(
-        out.join("registered.toml"),
-        format!(
-            "commit = \"{}\"\nsha256 = \"{}\"\n",
-            "0".repeat(40),
-            sim::record::sha256_hex(rules.as_bytes())
-        ),
-    )
-    .unwrap();
+    register_at_no_commit(&out, rules);
     let registered = common::run(&["paper", "--quick", "--out", out_s, "--report-only"]);
     let err = String::from_utf8_lossy(&registered.stderr);
     assert!(
@@ -192,15 +184,7 @@ fn the_held_out_routes_are_bound_by_the_papers_registration() {
         "# Registration\nother rules\n",
     )
     .unwrap();
-    std::fs::write(
-        paper.join("registered.toml"),
-        format!(
-            "commit = \"{}\"\nsha256 = \"{}\"\n",
-            "0".repeat(40),
-            sim::record::sha256_hex(b"# Registration\nthe rules\n")
-        ),
-    )
-    .unwrap();
+    register_at_no_commit(&paper, "# Registration\nthe rules\n");
     let held_out = tmp.path().join("held-out");
     let out = common::mrdrive()
         .current_dir(tmp.path())
@@ -225,4 +209,18 @@ fn the_held_out_routes_are_bound_by_the_papers_registration() {
         !again.status.success() && err.contains("docs/paper/registered.toml"),
         "{err}"
     );
+}
+
+/// Writes `dir/registered.toml` registering `rules` at the commit 000...0,
+/// which nothing descends from.
+fn register_at_no_commit(dir: &std::path::Path, rules: &str) {
+    std::fs::write(
+        dir.join("registered.toml"),
+        format!(
+            "commit = \"{}\"\nsha256 = \"{}\"\n",
+            "0".repeat(40),
+            sim::record::sha256_hex(rules.as_bytes())
+        ),
+    )
+    .unwrap();
 }

@@ -248,14 +248,18 @@ fn by_cluster(values: &[f64], clusters: &[usize]) -> Option<Vec<Vec<f64>>> {
 /// `values[i]`); `None` with fewer than two clusters, or without a cluster
 /// holding two values (no noise to estimate).
 pub fn components(values: &[f64], clusters: &[usize]) -> Option<Components> {
-    let groups = by_cluster(values, clusters)?;
-    let (g, n) = (groups.len(), values.len());
+    components_of(&by_cluster(values, clusters)?)
+}
+
+/// The [`Components`] of values already grouped by cluster.
+fn components_of(groups: &[Vec<f64>]) -> Option<Components> {
+    let (g, n) = (groups.len(), groups.iter().map(Vec::len).sum::<usize>());
     if g < 2 || n <= g {
         return None;
     }
-    let mean = values.iter().sum::<f64>() / n as f64;
+    let mean = groups.iter().flatten().sum::<f64>() / n as f64;
     let (mut ssb, mut ssw, mut sum_sq_sizes) = (0.0, 0.0, 0.0);
-    for group in &groups {
+    for group in groups {
         let size = group.len() as f64;
         let m = group.iter().sum::<f64>() / size;
         ssb += size * (m - mean).powi(2);
@@ -292,8 +296,8 @@ pub fn two_stage_share(
     mut holds: impl FnMut(&[f64], &[usize]) -> bool,
 ) -> Option<f64> {
     use rand::{RngExt, SeedableRng};
-    let c = components(values, clusters)?;
     let groups = by_cluster(values, clusters)?;
+    let c = components_of(&groups)?;
     let means: Vec<f64> = groups
         .iter()
         .map(|g| g.iter().sum::<f64>() / g.len() as f64)
@@ -354,6 +358,12 @@ mod tests {
     use super::*;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
+
+    /// A standard normal draw (Box-Muller).
+    fn standard_normal(rng: &mut ChaCha8Rng) -> f64 {
+        let (u, v): (f64, f64) = (rng.random::<f64>().max(1e-300), rng.random());
+        (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
+    }
 
     #[test]
     fn t_quantiles_match_the_tables() {
@@ -446,11 +456,7 @@ mod tests {
         mut interval: impl FnMut(&[f64], &[usize], &[usize]) -> (f64, f64),
     ) -> f64 {
         let mut rng = ChaCha8Rng::seed_from_u64(50);
-        let mut normal = move || {
-            // Box-Muller.
-            let (u, v): (f64, f64) = (rng.random::<f64>().max(1e-300), rng.random());
-            (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
-        };
+        let mut normal = move || standard_normal(&mut rng);
         let mut hits = 0;
         for _ in 0..d.sims {
             let (mut values, mut route_of, mut block_of) = (Vec::new(), Vec::new(), Vec::new());
@@ -521,11 +527,7 @@ mod tests {
                 k += 1.0;
             }
         };
-        let normal = |rng: &mut ChaCha8Rng| {
-            // Box-Muller.
-            let (u, v): (f64, f64) = (rng.random::<f64>().max(1e-300), rng.random());
-            (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
-        };
+        let normal = standard_normal;
         let margin = 0.25;
         let counts = size_at_margin(margin, &mut rng, |rng| {
             let base = 0.5 + 1.5 * rng.random::<f64>();
@@ -631,10 +633,7 @@ mod tests {
         // the run noise, normal): the t interval over route means is exact
         // there, so the simulation at the page's own components covers 95 %.
         let mut rng = ChaCha8Rng::seed_from_u64(52);
-        let mut normal = move || {
-            let (u, v): (f64, f64) = (rng.random::<f64>().max(1e-300), rng.random());
-            (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
-        };
+        let mut normal = move || standard_normal(&mut rng);
         let routes: Vec<usize> = (0..36).map(|i| i / 9).collect();
         let mut values = Vec::new();
         for _ in 0..4 {
