@@ -21,6 +21,7 @@ use rand_chacha::ChaCha8Rng;
 use sim::build::Overrides;
 use sim::build::{self, Drivers, Extras, RunRequest};
 use sim::camera::Camera;
+use sim::driver::Driver;
 use sim::expert::{Expert, ExpertParams};
 use sim::observe::{RunObserver, TickView};
 use sim::render::classes::to_wor;
@@ -33,6 +34,7 @@ use world::route::{DenseRoute, PlannerConfig, plan_route};
 use world::route::{Route, RouteFile, RouteWaypoint};
 use world::{ActorKind, Town, Vec3};
 
+use crate::dagger::{Dagger, DaggerParams};
 use crate::format::{
     ActorRow, DataError, EgoRow, Episode, Index, RouteSpec, Shard, light_code, write_atomic,
 };
@@ -556,6 +558,19 @@ pub struct EpisodeReport {
     pub wall_s: f64,
     /// Whether the route was completed.
     pub success: bool,
+    /// In a DAgger round ([`collect_with`] with a learner): who drove.
+    pub dagger: Option<DaggerShare>,
+}
+
+/// Who drove a DAgger episode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DaggerShare {
+    /// Control boundaries at which the learner drove.
+    pub learner: u64,
+    /// Control boundaries at which the expert drove.
+    pub expert: u64,
+    /// Times the expert took over.
+    pub takeovers: u64,
 }
 
 impl EpisodeReport {
@@ -564,7 +579,7 @@ impl EpisodeReport {
     pub fn line(&self, planned: usize) -> String {
         let e = &self.episode;
         format!(
-            "episode {:>3}/{} {} route {:<12} traffic {:>2}+{:<2} {:>4} frames in {:>5.1} s ({:.0} frames/s){}",
+            "episode {:>3}/{} {} route {:<12} traffic {:>2}+{:<2} {:>4} frames in {:>5.1} s ({:.0} frames/s){}{}",
             e.id + 1,
             planned,
             e.town,
@@ -578,22 +593,44 @@ impl EpisodeReport {
                 ""
             } else {
                 "  (route not completed)"
+            },
+            match self.dagger {
+                Some(d) => format!(
+                    "  (the learner drove {:.1} %; {} takeovers)",
+                    100.0 * d.learner as f64 / (d.learner + d.expert).max(1) as f64,
+                    d.takeovers
+                ),
+                None => String::new(),
             }
         )
     }
 }
 
-/// Drives one episode and returns its frames and index entry (not yet written).
+/// Makes the learner of a DAgger collection afresh for each episode (a policy
+/// loaded from its checkpoint): it drives, the expert watches ([`crate::dagger`]).
+pub type Learner<'a> = dyn Fn() -> Result<Box<dyn Driver>, String> + 'a;
+
+/// Drives one episode and returns its frames and index entry (not yet written):
+/// the expert with noise, or with a `learner` the learner watched by the expert.
 pub fn drive(
     spec: &EpisodeSpec,
     cfg: &CollectConfig,
     towns: &mut TownCache,
-) -> Result<(Shard, Episode, bool), String> {
+    learner: Option<&Learner>,
+) -> Result<(Shard, Episode, bool, Option<DaggerShare>), String> {
     let (prepared, stored) = prepare(spec, towns)?;
     let scenario = scenario_of(spec, &prepared);
     let town = prepared.town.clone();
     let expert = Expert::new(ExpertParams::default());
-    let mut driver = NoisyDriver::new(expert, cfg.noise, spec.seed ^ 0x006e_6f69_7365);
+    let mut noisy;
+    let mut dagger = None;
+    let driver: &mut dyn Driver = match learner {
+        None => {
+            noisy = NoisyDriver::new(expert, cfg.noise, spec.seed ^ 0x006e_6f69_7365);
+            &mut noisy
+        }
+        Some(make) => dagger.insert(Dagger::new(make()?, expert, DaggerParams::default())),
+    };
     let mut recorder = EpisodeRecorder::new(&town, cfg, spec.seed)?;
     let tick_s = scenario.timing.tick_s;
     let overrides = Overrides::default();
@@ -604,7 +641,7 @@ pub fn drive(
     let extras = Extras {
         observer: Some(&mut recorder),
         selector: Some(Box::new(Fixed { scale: 1.0 })),
-        driver: Some(&mut driver),
+        driver: Some(driver),
         prebuilt: Some((&scenario, &prepared)),
     };
     let record = build::run_scenario_with(&request, &Drivers::new(), &mut |_| {}, extras)
@@ -630,15 +667,32 @@ pub fn drive(
         sim_time_s: record.result.sim_time_s,
         labels: None,
     };
-    Ok((recorder.shard, episode, record.result.success))
+    let share = dagger.map(|d| DaggerShare {
+        learner: d.learner_boundaries,
+        expert: d.expert_boundaries,
+        takeovers: d.takeovers,
+    });
+    Ok((recorder.shard, episode, record.result.success, share))
 }
 
-/// Collects every episode of `plan` not yet in `dir`'s index; calls `report`
-/// after each. Returns the index.
+/// Collects every episode of `plan` not yet in `dir`'s index, the expert with
+/// noise driving; calls `report` after each. Returns the index.
 pub fn collect(
     plan: &[EpisodeSpec],
     cfg: &CollectConfig,
     dir: &Path,
+    report: &mut dyn FnMut(&EpisodeReport, &Index),
+) -> Result<Index, DataError> {
+    collect_with(plan, cfg, dir, None, report)
+}
+
+/// [`collect`], and with a `learner` a DAgger round: the learner drives every
+/// episode, the expert watching ([`crate::dagger`]).
+pub fn collect_with(
+    plan: &[EpisodeSpec],
+    cfg: &CollectConfig,
+    dir: &Path,
+    learner: Option<&Learner>,
     report: &mut dyn FnMut(&EpisodeReport, &Index),
 ) -> Result<Index, DataError> {
     std::fs::create_dir_all(dir).map_err(|e| DataError::Io {
@@ -709,8 +763,8 @@ pub fn collect(
             continue;
         }
         let started = std::time::Instant::now();
-        let (shard, episode, success) =
-            drive(spec, cfg, &mut towns).map_err(|msg| DataError::Index {
+        let (shard, episode, success, dagger) =
+            drive(spec, cfg, &mut towns, learner).map_err(|msg| DataError::Index {
                 path: dir.join(shard_name(spec.id)),
                 msg: format!("episode {} ({}): {msg}", spec.id, spec.map.display()),
             })?;
@@ -727,6 +781,7 @@ pub fn collect(
                 episode,
                 wall_s: started.elapsed().as_secs_f64(),
                 success,
+                dagger,
             },
             &index,
         );

@@ -19,6 +19,7 @@
 //! | [`cache`] | where the study's datasets and the training runs' state live, outside the work tree (`$MRDRIVE_CACHE`) |
 //! | [`decode`] | from the head's logits to a control: speed interpolation, then WoR's decoding to steer, throttle and brake |
 //! | [`noise`] | the expert with noise, the driver of collection |
+//! | [`dagger`] | a policy driving while the expert watches and takes over where it is stuck: a DAgger round's driver |
 //! | [`collect`] | planned episodes, the observer that keeps frames, writing shards |
 //! | [`hashes`] | the SHA-256 of a dataset's files, and a check against a committed list |
 //! | [`format`] | the on-disk dataset: index and safetensors shards, and their reader |
@@ -28,6 +29,7 @@
 pub mod action;
 pub mod cache;
 pub mod collect;
+pub mod dagger;
 pub mod decode;
 pub mod format;
 pub mod hashes;

@@ -131,3 +131,52 @@ fn a_truncated_shard_is_skipped_by_name_and_the_rest_labelled() {
         report.failed[0].1
     );
 }
+
+/// A learner that never moves: the expert must take over.
+struct Parked;
+
+impl sim::driver::Driver for Parked {
+    fn name(&self) -> String {
+        "parked".into()
+    }
+    fn needs(&self) -> sim::driver::DriverNeeds {
+        sim::driver::DriverNeeds::default()
+    }
+    fn act(&mut self, _: &sim::driver::Observation<'_>) -> sim::driver::VehicleControl {
+        sim::driver::VehicleControl::BRAKE
+    }
+}
+
+#[test]
+fn a_dagger_round_records_the_learners_states_and_the_expert_takes_over_where_it_stands() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut cfg = config();
+    cfg.max_s = 8.0;
+    let learner = || -> Result<Box<dyn sim::driver::Driver>, String> { Ok(Box::new(Parked)) };
+    let mut reports = Vec::new();
+    let got = collect::collect_with(&plan(1), &cfg, dir.path(), Some(&learner), &mut |r, _| {
+        reports.push(r.clone())
+    });
+    let index = match got {
+        Ok(index) => index,
+        Err(e) if e.to_string().contains("adapter") || e.to_string().contains("camera") => {
+            testdata::skip("collect", Needs::Renderer, &e.to_string());
+            return;
+        }
+        Err(e) => panic!("{e}"),
+    };
+    // The learner stands 3 s where the expert would go, the expert drives 5 s.
+    let share = reports[0]
+        .dagger
+        .expect("a DAgger episode reports who drove");
+    assert_eq!(share.takeovers, 1, "{share:?}");
+    let learner_part = share.learner as f64 / (share.learner + share.expert) as f64;
+    assert!((0.3..0.45).contains(&learner_part), "{share:?}");
+    assert!(reports[0].line(1).contains("takeovers)"));
+    // The frames hold both: standing first, then moving under the expert.
+    let e = &index.episodes[0];
+    let shard = Shard::read(&dir.path().join(&e.shard), index.s0, 3).unwrap();
+    let speeds: Vec<f32> = shard.ego.iter().map(|r| r.speed).collect();
+    assert!(speeds[..8].iter().all(|&v| v < 0.5), "{speeds:?}");
+    assert!(speeds.last().is_some_and(|&v| v > 1.0), "{speeds:?}");
+}

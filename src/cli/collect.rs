@@ -48,6 +48,12 @@ pub struct CollectArgs {
         requires = "scenario"
     )]
     pub densities: Vec<String>,
+    /// A DAgger round: this policy checkpoint drives the preset's episodes while the
+    /// expert watches, taking the wheel where the policy stands and the expert would go
+    /// (`dataset::dagger`); `mrdrive label` then labels the states the policy visited.
+    /// The dataset is named `<preset>-dagger`: collect it into its own directory.
+    #[arg(long, requires = "preset")]
+    pub learner: Option<PathBuf>,
     /// The dataset directory (made if missing; a finished episode is kept and skipped).
     #[arg(long)]
     pub out: PathBuf,
@@ -133,16 +139,39 @@ pub fn collect(a: CollectArgs) -> anyhow::Result<()> {
             spec.crossings_per_min = a.crossings_per_min;
         }
     }
-    let mut cfg = CollectConfig::cpu_default(name);
+    let name = match &a.learner {
+        Some(_) => format!("{name}-dagger"),
+        None => name.to_string(),
+    };
+    let mut cfg = CollectConfig::cpu_default(&name);
     cfg.max_s = a.max_s;
     cfg.noise.mean_gap_s = a.noise_gap_s;
+    let learner = a.learner.as_deref().map(|weights| {
+        move || -> Result<Box<dyn sim::driver::Driver>, String> {
+            let device = ::policy::device::open(::policy::device::DeviceKind::Cpu)
+                .map_err(|e| e.to_string())?;
+            let driver = ::policy::PolicyDriver::from_checkpoint(weights, device)
+                .map_err(|e| format!("--learner {}: {e}", weights.display()))?;
+            Ok(Box::new(driver))
+        }
+    });
+    if let Some(make) = &learner {
+        // A bad checkpoint is said once, before any episode.
+        make().map_err(anyhow::Error::msg)?;
+    }
     let started = std::time::Instant::now();
     let quiet = a.quiet;
-    let index = collect::collect(&plan, &cfg, &a.out, &mut |r, _| {
-        if !quiet {
-            println!("{}", r.line(plan.len()));
-        }
-    })
+    let index = collect::collect_with(
+        &plan,
+        &cfg,
+        &a.out,
+        learner.as_ref().map(|f| f as &collect::Learner),
+        &mut |r, _| {
+            if !quiet {
+                println!("{}", r.line(plan.len()));
+            }
+        },
+    )
     .with_context(|| format!("collecting into {}", a.out.display()))?;
     let wall = started.elapsed().as_secs_f64();
     println!(
