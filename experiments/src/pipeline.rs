@@ -60,6 +60,31 @@ pub struct Curve {
     pub seeds: String,
 }
 
+/// DAgger rounds after the learning curve (issue 48; Ross, Gordon and Bagnell 2011):
+/// in round r the Original so far drives the first `episodes` episodes of its data's
+/// plan while the expert watches (`mrdrive collect --learner`, `dataset::dagger`),
+/// the states it visited are labelled by the expert's world-on-rails values, and it
+/// trains `steps` more steps on its data and every round's so far, then drives the
+/// curve's units. The last round publishes the Original. Why: the Original of the
+/// curve stood at green lights and stopped past its stop lines, states the expert's
+/// data never holds (docs/training.md).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DaggerRounds {
+    /// Rounds (0: none; the curve's last round publishes the Original then).
+    pub rounds: u32,
+    /// Episodes each round drives: the first of the Original's plan (Town01's
+    /// training routes at every density first, then random routes).
+    pub episodes: u32,
+    /// The Original's data each round trains on with the rounds' frames: its first
+    /// this many episodes (the rounds' frames are then a third of the samples, not
+    /// a twentieth).
+    pub original_episodes: u32,
+    /// Training steps (batches of 32) per round.
+    pub steps: u32,
+    /// Options added to the curve's recipe in these rounds.
+    pub options: Vec<String>,
+}
+
 /// One retargeting stage: `mrdrive train --stage STAGE` on the retargeting set.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Retarget {
@@ -111,6 +136,8 @@ pub struct TrainPlan {
     pub datasets: Vec<Dataset>,
     /// The Original's training: rounds after each slice of its data.
     pub curve: Curve,
+    /// Then rounds in which the Original drives and the expert labels.
+    pub dagger: DaggerRounds,
     /// The paper's three retargeted models, in the lanes they run in when two run at
     /// once: each lane a list run in order (each stage needs only the Original).
     pub lanes: Vec<Vec<Retarget>>,
@@ -201,6 +228,14 @@ impl TrainPlan {
                 densities: "0:0,5:10,20:40".into(),
                 seeds: "0,1".into(),
             },
+            // Sized by the pilot of 2026-12-07 (docs/training.md, "DAgger").
+            dagger: DaggerRounds {
+                rounds: 1,
+                episodes: 40,
+                original_episodes: 80,
+                steps: 500,
+                options: strings(&["--start-repeat", "8"]),
+            },
             // RA (both scales per step) takes about as long as the two NRA stages together.
             lanes: vec![
                 vec![retarget("ra", "ra", &[])],
@@ -277,6 +312,9 @@ impl TrainPlan {
         }
         plan.curve.rounds = 2;
         plan.curve.steps = 4;
+        plan.dagger.episodes = 1;
+        plan.dagger.original_episodes = 1;
+        plan.dagger.steps = 4;
         plan.curve.scenarios.truncate(1);
         plan.curve.densities = "0:0".into();
         plan.curve.seeds = "0".into();
@@ -324,7 +362,8 @@ impl TrainPlan {
                     dir: d.dir.clone(),
                     from,
                     end,
-                });
+                })
+                .making_data();
                 let label = Step::new(
                     format!("label {dir} (episodes to {end})"),
                     vec!["label".into(), dir.clone()],
@@ -333,7 +372,8 @@ impl TrainPlan {
                     dir: d.dir.clone(),
                     from,
                     end,
-                });
+                })
+                .making_data();
                 (end, collect, label)
             })
             .collect()
@@ -373,7 +413,10 @@ impl TrainPlan {
     pub fn steps(&self, from_round: u32) -> Vec<Group> {
         let mut groups = Vec::new();
         let mut datasets = self.datasets.iter();
-        if let Some(original) = datasets.next() {
+        // A snapshot after every round of the Original (a retargeting stage's): its
+        // data and rounds are not needed again.
+        let original_done = from_round > self.curve.rounds + self.dagger.rounds;
+        if let Some(original) = datasets.next().filter(|_| !original_done) {
             for (k, (end, collect, label)) in (1..).zip(Self::slices(original)) {
                 groups.extend([Group::One(collect), Group::One(label)]);
                 if k <= self.curve.rounds && k >= from_round {
@@ -381,6 +424,11 @@ impl TrainPlan {
                 }
             }
             groups.push(Group::One(Self::info(original)));
+            // Every DAgger round, also those before the snapshot's: each trains on
+            // the data of the rounds before it, driven by their networks.
+            for r in 1..=self.dagger.rounds {
+                groups.extend(self.dagger_steps(r).into_iter().map(Group::One));
+            }
         }
         for d in datasets {
             for (_, collect, label) in Self::slices(d) {
@@ -403,11 +451,17 @@ impl TrainPlan {
             .collect();
         match parts.as_slice() {
             [curve, slice, _] if curve == "curve" => slice.strip_prefix("slice-")?.parse().ok(),
+            [dagger, round, _] if dagger == "dagger" => {
+                let r: u32 = round.strip_prefix("round-")?.parse().ok()?;
+                (1..=self.dagger.rounds)
+                    .contains(&r)
+                    .then_some(self.curve.rounds + r)
+            }
             [name] => {
                 let mut later = self.lanes.iter().flatten().chain([&self.after_bar]);
                 later
                     .any(|r| &r.name == name)
-                    .then_some(self.curve.rounds + 1)
+                    .then_some(self.curve.rounds + self.dagger.rounds + 1)
             }
             _ => None,
         }
@@ -465,6 +519,151 @@ impl TrainPlan {
                 samples_per_step: batch_of(&train),
             }),
         ];
+        steps.push(self.curve_drive(&format!("round {k}"), &dir, &self.round_records(k)));
+        steps.push(self.curve_table_step());
+        if k == self.curve.rounds {
+            let at = train.iter().position(|a| a == "--out").expect("--out") + 1;
+            train[at] = self.models();
+            steps.push(Step::new("publish the Original", train));
+        }
+        steps
+    }
+
+    /// Episodes of the Original's dataset.
+    fn curve_episodes(&self) -> u32 {
+        self.datasets.first().map_or(0, |d| d.episodes)
+    }
+
+    /// Round `r`'s folder of DAgger frames (`<cache>/data/original-dagger-01`).
+    fn dagger_data(&self, r: u32) -> String {
+        let original = self
+            .datasets
+            .first()
+            .map(|d| d.dir.clone())
+            .unwrap_or_default();
+        let name = original
+            .file_name()
+            .map_or_else(|| "original".into(), |n| n.to_string_lossy().into_owned());
+        original
+            .with_file_name(format!("{name}-dagger-{r:02}"))
+            .display()
+            .to_string()
+    }
+
+    /// Round `r`'s run folders (`--runs`, `--out`) and trained network.
+    fn dagger_dir(&self, r: u32) -> String {
+        format!("{}/dagger/round-{r:02}", self.runs())
+    }
+
+    /// DAgger round `r`: the network so far drives and the expert labels, train
+    /// on the Original's data and every round's frames, drive the curve's units;
+    /// the last round publishes the Original. Round 1's learner is the curve's
+    /// published Original (`models/original`), which only the last round replaces,
+    /// so a cache lost before then makes every round's frames again, the same bytes.
+    fn dagger_steps(&self, r: u32) -> Vec<Step> {
+        let d = &self.dagger;
+        let learner = if r == 1 {
+            format!("{}/original.safetensors", self.models())
+        } else {
+            format!("{}/original.safetensors", self.dagger_dir(r - 1))
+        };
+        let data = self.dagger_data(r);
+        let max_s = self.datasets.first().map_or(90.0, |o| o.max_s);
+        let collect = Step::new(
+            format!("DAgger round {r}: the Original drives, the expert watches"),
+            vec![
+                "collect".into(),
+                "--preset".into(),
+                "original".into(),
+                "--learner".into(),
+                learner.clone(),
+                "--out".into(),
+                data.clone(),
+                "--episodes".into(),
+                d.episodes.to_string(),
+                "--max-s".into(),
+                max_s.to_string(),
+            ],
+        )
+        .doing(Work::Collect {
+            dir: PathBuf::from(&data),
+            from: 0,
+            end: d.episodes,
+        });
+        let label = Step::new(format!("label {data}"), vec!["label".into(), data.clone()]).doing(
+            Work::Label {
+                dir: PathBuf::from(&data),
+                from: 0,
+                end: d.episodes,
+            },
+        );
+        let dir = self.dagger_dir(r);
+        let original = self
+            .datasets
+            .first()
+            .map(|o| o.dir.display().to_string())
+            .unwrap_or_default();
+        let mut train = strings(&["train", "--stage", "original", "--data"]);
+        train.push(original);
+        let first = d.original_episodes.min(self.curve_episodes());
+        train.extend(["--episodes".into(), first.to_string()]);
+        for j in 1..=r {
+            train.extend(["--also".into(), self.dagger_data(j)]);
+        }
+        train.extend(["--runs".into(), dir.clone(), "--out".into(), dir.clone()]);
+        train.extend([
+            "--steps".into(),
+            d.steps.to_string(),
+            "--init".into(),
+            learner,
+        ]);
+        train.extend(self.curve.options.iter().cloned());
+        train.extend(d.options.iter().cloned());
+        train.extend(self.toy_options.iter().cloned());
+        let records = format!("{}/dagger-{r:02}", self.curve_records());
+        let mut steps = vec![
+            collect,
+            label,
+            Step::new(format!("the Original, DAgger round {r}"), train.clone()).doing(
+                Work::Train {
+                    run: PathBuf::from(format!("{dir}/original")),
+                    steps: u64::from(d.steps),
+                    samples_per_step: batch_of(&train),
+                },
+            ),
+        ];
+        // Published as soon as trained: a job that ends after this has the Original
+        // it needs for what follows (see `TrainPlan::dagger_published`).
+        if r == d.rounds {
+            let at = train.iter().position(|a| a == "--out").expect("--out") + 1;
+            train[at] = self.models();
+            steps.push(Step::new("publish the Original", train));
+        }
+        steps.push(self.curve_drive(&format!("DAgger round {r}"), &dir, &records));
+        steps.push(self.curve_table_step());
+        steps
+    }
+
+    /// Whether the published Original (its card's `training.data`, `published_data`)
+    /// was trained by the last DAgger round: a snapshot of that round then means the
+    /// Original is done, and a fresh machine must not collect the round's frames
+    /// again (its learner, the curve's Original, was replaced by the publication).
+    pub fn dagger_published(&self, published_data: &str) -> bool {
+        let last = self.dagger_data(self.dagger.rounds);
+        let name = Path::new(&last)
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        self.dagger.rounds > 0
+            && published_data.split(" + ").any(|d| {
+                Path::new(d.trim())
+                    .file_name()
+                    .is_some_and(|n| n.to_string_lossy() == name)
+            })
+    }
+
+    /// Drives the network in `dir` on the curve's units into `records`.
+    fn curve_drive(&self, what: &str, dir: &str, records: &str) -> Step {
         let mut sweep = vec!["sweep".to_string()];
         sweep.extend(self.curve.scenarios.iter().map(|p| p.display().to_string()));
         sweep.extend(strings(&[
@@ -475,22 +674,20 @@ impl TrainPlan {
             "--densities",
         ]));
         sweep.extend([self.curve.densities.clone(), "--seeds".into()]);
-        sweep.extend([
-            self.curve.seeds.clone(),
-            "--out".into(),
-            self.round_records(k),
-        ]);
+        sweep.extend([self.curve.seeds.clone(), "--out".into(), records.into()]);
         sweep.extend(["--checkpoint".into(), format!("{dir}/original.safetensors")]);
         let runs = self.curve.scenarios.len()
             * list_len(&self.curve.densities)
             * list_len(&self.curve.seeds);
-        steps.push(
-            Step::new(format!("drive round {k}"), sweep).doing(Work::Drive {
-                out: PathBuf::from(self.round_records(k)),
-                runs: runs as u32,
-            }),
-        );
-        steps.push(Step {
+        Step::new(format!("drive {what}"), sweep).doing(Work::Drive {
+            out: PathBuf::from(records),
+            runs: runs as u32,
+        })
+    }
+
+    /// Redraws the learning curve's table (a summary: it may fail).
+    fn curve_table_step(&self) -> Step {
+        Step {
             may_fail: true,
             ..Step::new(
                 "the learning curve's table",
@@ -502,13 +699,7 @@ impl TrainPlan {
                     format!("{}.md", self.curve_records()),
                 ],
             )
-        });
-        if k == self.curve.rounds {
-            let at = train.iter().position(|a| a == "--out").expect("--out") + 1;
-            train[at] = self.models();
-            steps.push(Step::new("publish the Original", train));
         }
-        steps
     }
 
     fn models(&self) -> String {
@@ -674,6 +865,10 @@ pub struct Step {
     pub work: Work,
     /// The binary that runs it; `None`: the plan's own (see [`data_by`]).
     pub exe: Option<PathBuf>,
+    /// It makes one of the study's datasets (their `collect` and `label`): the
+    /// data's own build runs it ([`data_by`]). A DAgger round's frames depend on
+    /// its learner and are made by the plan's build.
+    pub makes_data: bool,
 }
 
 impl Step {
@@ -686,11 +881,19 @@ impl Step {
             may_fail: false,
             work: Work::Small,
             exe: None,
+            makes_data: false,
         }
     }
 
     fn doing(self, work: Work) -> Self {
         Step { work, ..self }
+    }
+
+    fn making_data(self) -> Self {
+        Step {
+            makes_data: true,
+            ..self
+        }
     }
 }
 
@@ -749,18 +952,40 @@ pub fn add_to_training(groups: &mut [Group], extra: &[String]) {
     }
 }
 
-/// Makes `exe` run every step of `groups` that writes the study's data
-/// (`collect`, `label`): the data's own build (`crate::collector`), so that they
-/// stay the bytes their hashes list when the simulator changes after them.
+/// Makes `exe` run every step of `groups` that writes the study's datasets
+/// ([`Step::makes_data`]: their `collect` and `label`): the data's own build
+/// (`crate::collector`), so that they stay the bytes their hashes list when the
+/// simulator changes after them.
 pub fn data_by(groups: &mut [Group], exe: &Path) {
     for step in every_step(groups) {
-        if matches!(
-            step.args.first().map(String::as_str),
-            Some("collect" | "label")
-        ) {
+        if step.makes_data {
             step.exe = Some(exe.to_path_buf());
         }
     }
+}
+
+/// The command lines of `groups`, one a line, each with the binary that runs it
+/// (its own, or `exe`); a step in a lane is prefixed `lane N: ` (`mrdrive train --all
+/// --print-plan`).
+pub fn commands(groups: &[Group], exe: &Path) -> String {
+    let line = |s: &Step| {
+        let bin = s.exe.as_deref().unwrap_or(exe).display().to_string();
+        format!("{bin} {}\n", s.args.join(" "))
+    };
+    let mut out = String::new();
+    for g in groups {
+        match g {
+            Group::One(s) => out.push_str(&line(s)),
+            Group::Lanes(lanes) => {
+                for (i, lane) in lanes.iter().enumerate() {
+                    for s in lane {
+                        out.push_str(&format!("lane {}: {}", i + 1, line(s)));
+                    }
+                }
+            }
+        }
+    }
+    out
 }
 
 /// Runs one step with its own binary, or `exe`, in `dir`.
@@ -980,30 +1205,31 @@ mod tests {
             )
         );
         // 19 rounds of collect, label, train, drive, table; round 19 publishes the
-        // Original; `data info`; the retargeting set; then the lanes, the bar on the
+        // Original; `data info`; the DAgger round (collect, label, train, drive, table,
+        // publish); the retargeting set; then the lanes, the bar on the
         // paper's routes and on the held-out ones (six drivers and a table each), RA5.
         let publish = 19 * 5;
         assert!(all[publish].contains("--runs /c/runs/curve/slice-19 --out out/scratch/models"));
         assert_eq!(all[publish + 1], "data info /c/data/original");
-        assert_eq!(groups.len(), publish + 1 + 1 + 7 + 1 + 2 * (6 + 1) + 1);
+        assert_eq!(groups.len(), publish + 1 + 1 + 6 + 7 + 1 + 2 * (6 + 1) + 1);
         // The bar: 18 runs a town and driver (seeds 0-2), then 12 held-out routes at 5 + 10.
-        let bar = joined(&groups[publish + 10])[0].clone();
+        let bar = joined(&groups[publish + 16])[0].clone();
         assert!(
             bar.starts_with("sweep scenarios/paper/town01_route0.toml")
                 && bar.contains("--densities 0:0,5:10,20:40 --seeds 0,1,2 --out out/scratch/out/bar/expert --expert"),
             "{bar}"
         );
-        let heldout = joined(&groups[publish + 17])[0].clone();
+        let heldout = joined(&groups[publish + 23])[0].clone();
         assert!(
             heldout.starts_with("sweep scenarios/heldout/held01_random0.toml")
                 && heldout.contains("town02_random7.toml --delays 0 --scales 1.0 --densities 5:10 --seeds 0 --out out/scratch/out/bar-heldout/expert"),
             "{heldout}"
         );
         assert_eq!(
-            joined(&groups[publish + 23])[0],
+            joined(&groups[publish + 29])[0],
             "policy table out/scratch/out/bar-heldout --out out/scratch/models/closed-loop-heldout.md"
         );
-        let Group::Lanes(lanes) = &groups[publish + 9] else {
+        let Group::Lanes(lanes) = &groups[publish + 15] else {
             panic!("the retargeting stages run in lanes")
         };
         assert_eq!(lanes.len(), 2);
@@ -1039,14 +1265,97 @@ mod tests {
         assert_eq!(
             from3
                 .iter()
-                .filter(|a| a.starts_with("collect --preset original"))
+                .filter(|a| a.starts_with("collect --preset original --out"))
                 .count(),
             3
         );
-        // A retargeting stage comes after every round; a folder of another plan is none.
-        assert_eq!(plan.round_of(Path::new("ra")), Some(4));
+        // A retargeting stage comes after every round, the DAgger round's too; a
+        // folder of another plan is none.
+        assert_eq!(
+            plan.round_of(Path::new("dagger/round-01/original")),
+            Some(4)
+        );
+        assert_eq!(plan.round_of(Path::new("dagger/round-02/original")), None);
+        assert_eq!(plan.round_of(Path::new("ra")), Some(5));
         assert_eq!(plan.round_of(Path::new("wor/original")), None);
         assert_eq!(plan.round_of(Path::new("curve/slice-x/original")), None);
+    }
+
+    #[test]
+    fn a_dagger_round_follows_the_curve_drives_its_network_and_publishes_the_original() {
+        let plan = TrainPlan::full(Path::new("b"), Path::new("/c"), false).with_rounds(2);
+        let all: Vec<String> = plan.steps(1).iter().flat_map(joined).collect();
+        let info = all
+            .iter()
+            .position(|a| a == "data info /c/data/original")
+            .unwrap();
+        let round = &all[info + 1..info + 7];
+        assert_eq!(
+            round[0],
+            "collect --preset original --learner b/models/original.safetensors \
+             --out /c/data/original-dagger-01 --episodes 40 --max-s 90"
+        );
+        assert_eq!(round[1], "label /c/data/original-dagger-01");
+        assert_eq!(
+            round[2],
+            "train --stage original --data /c/data/original --episodes 80 \
+             --also /c/data/original-dagger-01 \
+             --runs /c/runs/dagger/round-01 --out /c/runs/dagger/round-01 --steps 500 \
+             --init b/models/original.safetensors --standing-keep 0.25 --balanced true \
+             --pedestrian-repeat 8 --stopped-vehicle-repeat 4 --start-repeat 8"
+        );
+        assert!(round[4].starts_with("sweep scenarios/paper/town02_route0.toml"));
+        assert!(round[4].ends_with(
+            "--out b/models/original.curve/dagger-01 \
+             --checkpoint /c/runs/dagger/round-01/original.safetensors"
+        ));
+        assert!(round[5].starts_with("policy table b/models/original.curve "));
+        // The last round publishes as soon as it is trained: its training command into
+        // models/. Its card's data then says so.
+        assert_eq!(
+            round[3],
+            round[2].replace("--out /c/runs/dagger/round-01", "--out b/models")
+        );
+        assert!(plan.dagger_published("/x/data/original + /y/original-dagger-01"));
+        assert!(!plan.dagger_published("/c/data/original"));
+        assert!(!plan.dagger_published("/c/data/original + /c/data/original-dagger-010"));
+        // The curve's last round publishes too: round 1's learner.
+        let publishes = all
+            .iter()
+            .filter(|a| a.starts_with("train ") && a.contains("--out b/models"))
+            .count();
+        assert_eq!(publishes, 2 + 4, "the curve, DAgger, NRA x 2, RA, RA5");
+        // A second round learns from the first's network, on both rounds' frames.
+        let two = DaggerRounds {
+            rounds: 2,
+            ..plan.dagger.clone()
+        };
+        let plan2 = TrainPlan {
+            dagger: two,
+            ..plan.clone()
+        };
+        let all2: Vec<String> = plan2.steps(1).iter().flat_map(joined).collect();
+        let second = all2
+            .iter()
+            .find(|a| a.contains("--out /c/data/original-dagger-02"))
+            .unwrap();
+        assert!(second.contains("--learner /c/runs/dagger/round-01/original.safetensors"));
+        assert!(all2.iter().any(|a| {
+            a.contains("--also /c/data/original-dagger-01 --also /c/data/original-dagger-02")
+        }));
+        // A snapshot of the DAgger round: the curve's rounds skipped, the data and the
+        // round made again. One of a retargeting stage: neither.
+        let from3: Vec<String> = plan.steps(3).iter().flat_map(joined).collect();
+        assert!(!from3.iter().any(|a| a.contains("/curve/slice-")));
+        assert!(
+            from3
+                .iter()
+                .any(|a| a.starts_with("collect --preset original --out"))
+        );
+        assert!(from3.iter().any(|a| a.contains("--learner")));
+        let from4: Vec<String> = plan.steps(4).iter().flat_map(joined).collect();
+        assert!(!from4.iter().any(|a| a.contains("--preset original")));
+        assert!(from4[0].starts_with("collect --preset retarget"));
     }
 
     #[test]
@@ -1118,21 +1427,22 @@ mod tests {
         let plan = TrainPlan::full(tmp.path(), &cache, true);
         let rates = JobRates::default();
         let left = left(&plan.steps(1), tmp.path(), &rates);
-        // 760 + 150 episodes; 19 rounds of 1000 x 32, NRA 0.75 and 1.0 at 600 x 32,
-        // RA at 600 x 32 x 2 scales, RA5 at 600 x 32 x 5; 19 x 12 curve runs, and 6
-        // drivers x (36 runs on the paper's routes + 12 on the held-out ones).
-        assert_eq!(left.collect, 910.0);
-        assert_eq!(left.label, 910.0);
+        // 760 + 40 (DAgger) + 150 episodes; 19 rounds of 1000 x 32, a DAgger round of
+        // 500 x 32, NRA 0.75 and 1.0 at 600 x 32, RA at 600 x 32 x 2 scales, RA5 at
+        // 600 x 32 x 5; 20 x 12 curve runs, and 6 drivers x (36 runs on the paper's
+        // routes + 12 on the held-out ones).
+        assert_eq!(left.collect, 950.0);
+        assert_eq!(left.label, 950.0);
         assert_eq!(
             left.train,
-            19.0 * 32_000.0 + 600.0 * 32.0 * (1.0 + 1.0 + 2.0 + 5.0)
+            19.0 * 32_000.0 + 500.0 * 32.0 + 600.0 * 32.0 * (1.0 + 1.0 + 2.0 + 5.0)
         );
-        assert_eq!(left.drive, 19.0 * 12.0 + 6.0 * (36.0 + 12.0));
+        assert_eq!(left.drive, 20.0 * 12.0 + 6.0 * (36.0 + 12.0));
         // The two retargeting lanes run at once: the longer lane counts (RA, 2 scales,
         // against NRA 1.0 + NRA 0.75: the same), not both.
         let d = Rates::default();
         let serial =
-            910.0 * (d.collect_s + d.label_s) + left.train * d.train_s + left.drive * d.drive_s;
+            950.0 * (d.collect_s + d.label_s) + left.train * d.train_s + left.drive * d.drive_s;
         let lanes = 600.0 * 32.0 * 2.0 * d.train_s;
         assert!(
             (left.secs - (serial - lanes)).abs() < 1e-6,
@@ -1147,7 +1457,7 @@ mod tests {
         );
         assert!(
             left.line(&rates).contains(
-                "collect 910 episodes, label 910 episodes, train 781k samples, drive 516 runs"
+                "collect 950 episodes, label 950 episodes, train 797k samples, drive 528 runs"
             ),
             "{}",
             left.line(&rates)
@@ -1192,13 +1502,15 @@ mod tests {
 
     #[test]
     fn the_data_steps_run_the_datas_own_build() {
-        // Every collect and label step, and no other, gets the data's binary.
+        // Every collect and label step of the datasets, and no other, gets the data's
+        // binary; the DAgger round's frames are the plan's build's.
         let mut plan = TrainPlan::quick(Path::new("q"), Path::new("c"), true).steps(1);
         data_by(&mut plan, Path::new("/c/bin/mrdrive-540f94d"));
         let mut data = 0;
         for step in every_step(&mut plan) {
             let first = step.args[0].as_str();
-            let is_data = first == "collect" || first == "label";
+            let dagger = step.args.iter().any(|a| a.contains("-dagger-"));
+            let is_data = (first == "collect" || first == "label") && !dagger;
             data += usize::from(is_data);
             assert_eq!(
                 step.exe.as_deref() == Some(Path::new("/c/bin/mrdrive-540f94d")),
@@ -1218,6 +1530,26 @@ mod tests {
         })];
         execute(Path::new("/bin/false"), dir.path(), &groups, &|_: &str| {}).unwrap();
         assert!(marker.exists());
+    }
+
+    #[test]
+    fn the_plan_prints_as_the_commands_it_runs() {
+        let mut groups = TrainPlan::quick(Path::new("q"), Path::new("c"), true).steps(1);
+        data_by(&mut groups, Path::new("/c/bin/mrdrive-540f94d"));
+        let text = commands(&groups, Path::new("/bin/mrdrive"));
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), every_step(&mut groups).count());
+        assert_eq!(
+            lines[0],
+            "/c/bin/mrdrive-540f94d collect --preset original --out c/data/original-quick \
+             --episodes 1 --max-s 20"
+        );
+        assert!(lines[2].starts_with("/bin/mrdrive train --stage original "));
+        assert!(
+            lines
+                .iter()
+                .any(|l| l.starts_with("lane 2: /bin/mrdrive train --stage nra-1.0"))
+        );
     }
 
     #[test]

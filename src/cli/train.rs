@@ -45,6 +45,10 @@ pub struct TrainArgs {
     /// kind of work at the rate measured on a 2-core EPYC), and stop; nothing runs.
     #[arg(long, requires = "all")]
     eta: bool,
+    /// With `--all`: print the commands the pipeline would run from here, one a line
+    /// (`lane N:` before those that run beside each other), and stop; nothing runs.
+    #[arg(long, requires = "all")]
+    print_plan: bool,
     /// The labelled dataset [default: <cache>/data/original for the Original,
     /// <cache>/data/retarget otherwise; the cache: $MRDRIVE_CACHE, else ~/.cache/mrdrive].
     #[arg(long)]
@@ -110,6 +114,10 @@ pub struct TrainArgs {
     /// labelled [default: every labelled episode].
     #[arg(long)]
     episodes: Option<usize>,
+    /// Further labelled datasets to train on with --data, every episode of each,
+    /// repeatable: a DAgger round's (`mrdrive collect --learner`).
+    #[arg(long)]
+    also: Vec<PathBuf>,
     /// Network preset.
     #[arg(long, default_value = "cpu")]
     preset: Preset,
@@ -188,6 +196,7 @@ fn request_of(args: &TrainArgs, stage: &str) -> StageRequest {
             balanced: args.balanced,
             init: args.init.clone(),
             episodes: args.episodes,
+            also: args.also.clone(),
         },
     }
 }
@@ -295,6 +304,15 @@ pub fn run_train(args: TrainArgs) -> Result<()> {
     Ok(())
 }
 
+/// The `training.data` of a published model's card (`models/NAME.json`), if it has one.
+fn published_data(card: &Path) -> Option<String> {
+    let text = std::fs::read_to_string(card).ok()?;
+    let card: serde_json::Value = serde_json::from_str(&text).ok()?;
+    card.pointer("/card/training/data")?
+        .as_str()
+        .map(String::from)
+}
+
 /// `mrdrive train --all`: the pipeline's plan, run step by step.
 fn run_all(args: &TrainArgs) -> Result<()> {
     let base = match (&args.into, args.quick) {
@@ -323,23 +341,38 @@ fn run_all(args: &TrainArgs) -> Result<()> {
         dataset::cache::ENV,
         base.join("models").display()
     );
-    // A committed snapshot of round k (or of a later stage): the rounds before it are
-    // done and their records committed, so they are not trained again when the cache
-    // was lost (their slices are still made: later rounds train on them).
+    // A committed snapshot of round k (or of a later stage): the curve's rounds before
+    // it are done and their records committed, so they are not trained again when the
+    // cache was lost (their slices are still made: later rounds train on them). After
+    // the Original's last round (a retargeting stage's snapshot) its data is not made.
     let mut from_round = 1;
     if let Some(file) = &args.snapshot
         && policy::train::stage::resume_path(file).exists()
     {
         let r = policy::train::stage::read_resume(file)?;
         from_round = plan.round_of(&r.run).unwrap_or(1);
+        // The last DAgger round's snapshot once it has published the Original: done.
+        let last_dagger = plan.curve.rounds + plan.dagger.rounds;
+        if plan.dagger.rounds > 0
+            && from_round == last_dagger
+            && published_data(&base.join("models/original.json"))
+                .is_some_and(|d| plan.dagger_published(&d))
+        {
+            from_round = last_dagger + 1;
+        }
         if from_round > 1 {
             eprintln!(
                 "train --all: the snapshot {} is of {} at step {}: rounds 1-{} of the \
-                 learning curve are done",
+                 learning curve are done{}",
                 file.display(),
                 r.run.display(),
                 r.step,
-                from_round - 1
+                (from_round - 1).min(plan.curve.rounds),
+                if from_round > plan.curve.rounds + plan.dagger.rounds {
+                    ", and the DAgger rounds: the Original is published"
+                } else {
+                    ""
+                }
             );
         }
     }
@@ -366,14 +399,28 @@ fn run_all(args: &TrainArgs) -> Result<()> {
     // The data's own build, where the snapshot's folder pins one: collect and label
     // run it, so that they stay the bytes `data.sha256` lists after the simulator
     // changed (`experiments::collector`).
-    if let Some(dir) = args.snapshot.as_deref().and_then(Path::parent)
-        && let Some(bin) = experiments::collector::data_build(dir, Path::new("."), &cache, &|s| {
-            eprintln!("train --all: {s}")
-        })?
-    {
-        pipeline::data_by(&mut groups, &bin);
+    if let Some(dir) = args.snapshot.as_deref().and_then(Path::parent) {
+        // Printing the plan names the data's binary without building it.
+        let bin = if args.print_plan {
+            let this = sim::output::provenance::build_id();
+            experiments::collector::pinned(dir)?.and_then(|commit| {
+                let this_commit = experiments::registration::build_commit(&this);
+                experiments::collector::binary(&commit, this_commit, &cache)
+            })
+        } else {
+            experiments::collector::data_build(dir, Path::new("."), &cache, &|s| {
+                eprintln!("train --all: {s}")
+            })?
+        };
+        if let Some(bin) = bin {
+            pipeline::data_by(&mut groups, &bin);
+        }
     }
     let exe = std::env::current_exe().context("finding this program")?;
+    if args.print_plan {
+        print!("{}", pipeline::commands(&groups, &exe));
+        return Ok(());
+    }
     let started = std::time::Instant::now();
     let ran = pipeline::execute_until(&exe, Path::new("."), &groups, stop_at, &|s| {
         eprintln!("train --all: {s}")
@@ -522,6 +569,24 @@ fn run_synthetic(args: &TrainArgs) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_published_cards_data_is_read_and_a_missing_card_is_none() {
+        let dir = tempfile::tempdir().unwrap();
+        let card = dir.path().join("original.json");
+        std::fs::write(
+            &card,
+            r#"{"format":"f","card":{"training":{"data":"/c/data/original + /c/data/original-dagger-01"}}}"#,
+        )
+        .unwrap();
+        let data = published_data(&card).unwrap();
+        assert_eq!(data, "/c/data/original + /c/data/original-dagger-01");
+        let plan = TrainPlan::full(dir.path(), Path::new("/c"), true);
+        assert!(plan.dagger_published(&data));
+        assert_eq!(published_data(&dir.path().join("absent.json")), None);
+        std::fs::write(&card, r#"{"card":{"trained":false}}"#).unwrap();
+        assert_eq!(published_data(&card), None);
+    }
 
     #[test]
     fn the_job_log_takes_the_newest_round_of_the_curve() {

@@ -57,6 +57,8 @@ pub struct RecipeChanges {
     pub init: Option<PathBuf>,
     /// Train on the dataset's first this many episodes only.
     pub episodes: Option<usize>,
+    /// Further labelled datasets trained on with it, every episode of each.
+    pub also: Vec<PathBuf>,
 }
 
 /// Why a stage request does not make a stage. The messages name `mrdrive train`'s
@@ -191,6 +193,7 @@ impl RecipeChanges {
         if let Some(v) = self.episodes {
             spec.episodes = Some(v);
         }
+        spec.also.extend(self.also.iter().cloned());
         if spec.episodes == Some(0) {
             return Err(SpecError::NoEpisodes);
         }
@@ -312,6 +315,7 @@ mod tests {
             balanced: Some(true),
             init: Some("init.safetensors".into()),
             episodes: Some(40),
+            also: vec!["dagger-1".into()],
         };
         let spec = StageRequest {
             changes,
@@ -326,6 +330,7 @@ mod tests {
         assert_eq!(spec.train.unfreeze_every, None);
         assert_eq!((spec.recalibrate_batches, spec.checkpoint_every), (2, 4));
         assert_eq!(spec.episodes, Some(40));
+        assert_eq!(spec.also, [PathBuf::from("dagger-1")]);
         assert_eq!(
             spec.sampling,
             Sampling {

@@ -28,6 +28,11 @@ pub struct StageSpec {
     /// the dataset grows between its resumes.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub episodes: Option<usize>,
+    /// Further labelled dataset folders trained on with `data`, every episode of each
+    /// (a DAgger round's frames, driven by the policy and labelled by the expert);
+    /// their samples join `data`'s in each epoch.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub also: Vec<PathBuf>,
     /// The teacher checkpoint (the Original) for a retargeting stage; `None` trains from
     /// scratch.
     pub teacher: Option<PathBuf>,
@@ -66,6 +71,7 @@ impl StageSpec {
             scales: vec![1.0],
             data: data.to_path_buf(),
             episodes: None,
+            also: Vec::new(),
             teacher: None,
             batch: 32,
             steps: 4000,
@@ -99,6 +105,7 @@ impl StageSpec {
             scales: scales.to_vec(),
             data: data.to_path_buf(),
             episodes: None,
+            also: Vec::new(),
             teacher: Some(teacher.to_path_buf()),
             batch: 32,
             steps: 600,

@@ -58,6 +58,18 @@ pub enum LoadError {
         /// The policy's height.
         ph: usize,
     },
+    /// A further dataset was collected with other camera views or frame spacing.
+    #[error(
+        "{index}: {found}, but the stage's first dataset has {want}; train on datasets collected with one rig (mrdrive collect's defaults)"
+    )]
+    Mismatch {
+        /// The further dataset's index file.
+        index: PathBuf,
+        /// What it holds, as text.
+        found: String,
+        /// What the first holds, as text.
+        want: String,
+    },
     /// The policy's head does not have WoR's commands and speed bins.
     #[error(
         "policy config num_commands {commands} and num_speed_bins {bins}: the labels have {NUM_COMMANDS} and {NUM_SPEED_BINS}; use those"

@@ -47,6 +47,9 @@ pub struct TrainSet {
     pub samples: Vec<SampleRef>,
     /// Episodes left out, and why.
     pub skipped: Vec<Skipped>,
+    /// Further datasets trained on with it, every episode of each (a DAgger round's
+    /// `mrdrive train --also`): each folder and its index, in the order given.
+    pub also: Vec<(PathBuf, Index)>,
     pub(super) parts: Vec<Part>,
     pub(super) size: [usize; 2],
 }
@@ -168,9 +171,46 @@ impl TrainSet {
             index,
             samples,
             skipped,
+            also: Vec::new(),
             parts,
             size: [h as usize, w as usize],
         })
+    }
+
+    /// This set and every labelled episode of each of `dirs`, as one: their samples
+    /// after this set's, in the order given. Each must have this set's S0 and camera
+    /// views (the same collection settings); an unusable episode is skipped as in
+    /// [`TrainSet::open`].
+    pub fn with_also(mut self, dirs: &[PathBuf], config: &PolicyConfig) -> Result<Self, LoadError> {
+        for dir in dirs {
+            let other = Self::open_first(dir, config, None)?;
+            if other.index.view_yaws_deg != self.index.view_yaws_deg
+                || other.index.frame_every_ticks != self.index.frame_every_ticks
+            {
+                return Err(LoadError::Mismatch {
+                    index: dir.join(INDEX_FILE),
+                    found: format!(
+                        "views {:?} every {} ticks",
+                        other.index.view_yaws_deg, other.index.frame_every_ticks
+                    ),
+                    want: format!(
+                        "views {:?} every {} ticks as {}",
+                        self.index.view_yaws_deg,
+                        self.index.frame_every_ticks,
+                        self.dir.display()
+                    ),
+                });
+            }
+            let offset = self.parts.len() as u32;
+            self.samples.extend(other.samples.iter().map(|s| SampleRef {
+                episode: s.episode + offset,
+                ..*s
+            }));
+            self.parts.extend(other.parts);
+            self.skipped.extend(other.skipped);
+            self.also.push((dir.clone(), other.index));
+        }
+        Ok(self)
     }
 
     /// The ego's speed at a sample's frame (metres per second).
@@ -285,6 +325,49 @@ mod tests {
             .unwrap()
             .to_string();
         assert!(err.contains("first 9 episodes"), "{err}");
+    }
+
+    #[test]
+    fn a_set_with_others_trains_on_theirs_after_its_own_and_refuses_other_views() {
+        let (a, b) = (write(2, 12), write(3, 10));
+        let alone = TrainSet::open(a.path(), &config()).unwrap();
+        let other = TrainSet::open(b.path(), &config()).unwrap();
+        let both = TrainSet::open(a.path(), &config())
+            .unwrap()
+            .with_also(&[b.path().to_path_buf()], &config())
+            .unwrap();
+        assert_eq!(
+            both.samples.len(),
+            alone.samples.len() + other.samples.len()
+        );
+        assert_eq!(both.samples[..alone.samples.len()], alone.samples[..]);
+        // The other set's samples follow, their episodes counted after this set's two.
+        let theirs = &both.samples[alone.samples.len()..];
+        assert!(theirs.iter().zip(&other.samples).all(|(t, o)| {
+            t.episode == o.episode + 2
+                && (t.frame, t.view, t.command) == (o.frame, o.view, o.command)
+        }));
+        // The frames are theirs: the speed of a sample is read from the other shard.
+        let (t, o) = (
+            theirs[theirs.len() - 1],
+            other.samples[other.samples.len() - 1],
+        );
+        assert_eq!(both.speed_mps(&t), other.speed_mps(&o));
+        assert_eq!(both.also.len(), 1);
+        assert_eq!(both.also[0].1.episodes.len(), 3);
+        // Frames at another spacing: refused, naming the file and both settings.
+        let odd = write(1, 10);
+        let mut index = Index::load(odd.path()).unwrap();
+        index.frame_every_ticks = 5;
+        index.save(odd.path()).unwrap();
+        let err = TrainSet::open(a.path(), &config())
+            .unwrap()
+            .with_also(&[odd.path().to_path_buf()], &config());
+        let err = err.err().map(|e| e.to_string()).unwrap_or_default();
+        assert!(
+            err.contains(INDEX_FILE) && err.contains("every 5 ticks"),
+            "{err}"
+        );
     }
 
     #[test]

@@ -28,15 +28,29 @@ pub(super) fn final_card(spec: &StageSpec, set: &TrainSet, steps: usize, wall_s:
         .unwrap_or(usize::MAX)
         .min(set.index.episodes.len())];
     let mut towns = BTreeMap::new();
-    for e in used {
+    for e in used
+        .iter()
+        .chain(set.also.iter().flat_map(|(_, i)| &i.episodes))
+    {
         *towns.entry(e.town.clone()).or_insert(0) += 1;
     }
     // A shard that cannot be read was skipped by the loader too: its hash is left out.
     let data_sha256 = used
         .iter()
-        .filter_map(|e| dataset::hashes::of_episodes(&set.dir, std::slice::from_ref(e)).ok())
+        .map(|e| (set.dir.as_path(), e))
+        .chain(
+            set.also
+                .iter()
+                .flat_map(|(dir, index)| index.episodes.iter().map(move |e| (dir.as_path(), e))),
+        )
+        .filter_map(|(dir, e)| dataset::hashes::of_episodes(dir, std::slice::from_ref(e)).ok())
         .flatten()
         .collect();
+    let data = std::iter::once(&spec.data)
+        .chain(&spec.also)
+        .map(|d| d.display().to_string())
+        .collect::<Vec<_>>()
+        .join(" + ");
     let own = (steps * spec.batch) as u64;
     let before = match spec.init.as_ref().or(spec.teacher.as_ref()) {
         None => Some(0),
@@ -49,15 +63,11 @@ pub(super) fn final_card(spec: &StageSpec, set: &TrainSet, steps: usize, wall_s:
         description: describe(spec),
         source: format!(
             "mrdrive train --stage {} ({} steps of {} samples, seed {}, data {})",
-            spec.name,
-            steps,
-            spec.batch,
-            spec.seed,
-            spec.data.display()
+            spec.name, steps, spec.batch, spec.seed, data
         ),
         training: Some(TrainingRecord {
             stage: spec.name.clone(),
-            data: spec.data.display().to_string(),
+            data,
             samples_in_data: set.samples.len(),
             steps,
             batch: spec.batch,

@@ -106,7 +106,10 @@ impl<'a> Session<'a> {
                 (teacher.to_multires(spec.scales.clone())?, Some(teacher))
             }
         };
-        let set = Arc::new(TrainSet::open_first(&spec.data, &config, spec.episodes)?);
+        let set = Arc::new(
+            TrainSet::open_first(&spec.data, &config, spec.episodes)?
+                .with_also(&spec.also, &config)?,
+        );
         let state_dir = run_dir.join(STATE_DIR);
         let (trainer, wall_before_s) = match (progress, from_snapshot) {
             (Some(p), _) => (
