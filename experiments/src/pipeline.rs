@@ -414,10 +414,20 @@ impl TrainPlan {
         let mut groups = Vec::new();
         let mut datasets = self.datasets.iter();
         // A snapshot after every round of the Original (a retargeting stage's): its
-        // data and rounds are not needed again.
+        // data and rounds are not needed again; after the curve's (a DAgger round's),
+        // only the slices the DAgger rounds train on.
         let original_done = from_round > self.curve.rounds + self.dagger.rounds;
         if let Some(original) = datasets.next().filter(|_| !original_done) {
+            // After the curve, only the slices the DAgger rounds train on.
+            let needed = if from_round > self.curve.rounds {
+                self.dagger.original_episodes
+            } else {
+                original.episodes
+            };
             for (k, (end, collect, label)) in (1..).zip(Self::slices(original)) {
+                if (k - 1) * original.slice.max(1) >= needed {
+                    break;
+                }
                 groups.extend([Group::One(collect), Group::One(label)]);
                 if k <= self.curve.rounds && k >= from_round {
                     groups.extend(self.round_steps(k, end).into_iter().map(Group::One));
@@ -1353,6 +1363,15 @@ mod tests {
                 .any(|a| a.starts_with("collect --preset original --out"))
         );
         assert!(from3.iter().any(|a| a.contains("--learner")));
+        // The study's plan at its DAgger round: the slices that round trains on only.
+        let full = TrainPlan::full(Path::new("b"), Path::new("/c"), false);
+        let at_dagger: Vec<String> = full.steps(20).iter().flat_map(joined).collect();
+        let collects: Vec<&String> = at_dagger
+            .iter()
+            .filter(|a| a.starts_with("collect --preset original --out"))
+            .collect();
+        assert_eq!(collects.len(), 2, "{collects:?}");
+        assert!(collects[1].ends_with("--episodes 80 --max-s 90"));
         let from4: Vec<String> = plan.steps(4).iter().flat_map(joined).collect();
         assert!(!from4.iter().any(|a| a.contains("--preset original")));
         assert!(from4[0].starts_with("collect --preset retarget"));

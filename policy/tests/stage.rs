@@ -8,7 +8,8 @@ use burn::prelude::*;
 use dataset::synthetic::{self, SyntheticSpec};
 use policy::checkpoint;
 use policy::train::stage::{
-    FINAL_FILE, Job, LOSSES_FILE, StageSpec, read_resume, run_stage, run_stage_until, snapshot,
+    FINAL_FILE, Job, LOSSES_FILE, StageSpec, read_resume, resume_path, run_stage, run_stage_until,
+    snapshot,
 };
 use policy::train::{Preset, TrainConfig};
 use std::path::Path;
@@ -137,6 +138,23 @@ fn a_killed_stage_resumes_bit_for_bit_and_a_done_stage_is_skipped() {
     let other = lost.path().join("nra-1.0");
     let fresh = run_stage_until(&spec, &other, &device, &from, |_| {}).unwrap();
     assert_eq!(fresh.steps_now, 6);
+    // One of this run at step 0 (where a chain goes on, nothing trained; no weights
+    // beside it) is ignored too: the run is the straight one, bit for bit.
+    let at_zero = lost.path().join("zero/train-state.safetensors");
+    std::fs::create_dir_all(at_zero.parent().unwrap()).unwrap();
+    std::fs::write(
+        resume_path(&at_zero),
+        r#"{"run": "first/original", "step": 0, "wall_s": 0.0}"#,
+    )
+    .unwrap();
+    let first_run = lost.path().join("first/original");
+    let zero = Job {
+        resume_state: Some(at_zero),
+        ..Job::default()
+    };
+    let started = run_stage_until(&spec, &first_run, &device, &zero, |_| {}).unwrap();
+    assert_eq!((started.stopped_at, started.steps_now), (None, 6));
+    same_tensors(straight.path(), &first_run);
     // A round of the learning curve whose --init (the round before) lived in the
     // lost cache: not needed with a snapshot of the round, refused without one.
     let gone = StageSpec {

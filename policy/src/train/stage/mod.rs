@@ -89,11 +89,13 @@ pub fn run_stage_until(
     job: &Job,
     mut on_step: impl FnMut(&StepUpdate<'_>),
 ) -> Result<StageOutcome, StageError> {
-    // A snapshot of this run: used below only when the run folder has no state.
+    // A snapshot of this run: used below only when the run folder has no state. One
+    // at step 0 holds nothing trained (it says where a chain goes on): the stage
+    // starts from its init as without it.
     let snapshot_here = match &job.resume_state {
         Some(file) => {
             let r = read_resume(file)?;
-            run_dir.ends_with(&r.run).then_some((file.as_path(), r))
+            (run_dir.ends_with(&r.run) && r.step > 0).then_some((file.as_path(), r))
         }
         None => None,
     };
