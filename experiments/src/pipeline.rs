@@ -228,7 +228,7 @@ impl TrainPlan {
                 densities: "0:0,5:10,20:40".into(),
                 seeds: "0,1".into(),
             },
-            // Sized by the pilot of 2026-12-07 (docs/training.md, "DAgger").
+            // One round, tried first as a pilot on 2026-12-07 (docs/training.md, "DAgger").
             dagger: DaggerRounds {
                 rounds: 1,
                 episodes: 40,
