@@ -32,10 +32,9 @@ pub struct DaggerParams {
 
 impl Default for DaggerParams {
     /// 3 s stuck, then 5 s of the expert. A wait at a red light never counts (the
-    /// expert brakes too); a green phase of Town01's lights lasts about 8 s, so a
-    /// learner that stands through green hands over while it is still green (with
-    /// 8 s it stood through every green of the 2026-12-07 Original's Town01 route 0,
-    /// one red after another).
+    /// expert brakes too); a green phase of Town01's lights lasts about 8 s (the
+    /// trace of docs/training.md, "DAgger"), so a learner that stands through green
+    /// hands over while it is still green, where 8 s would hand over only at red.
     fn default() -> Self {
         DaggerParams {
             standing_mps: 0.5,
