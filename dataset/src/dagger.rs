@@ -158,6 +158,12 @@ mod tests {
         throttle: 0.0,
         brake: 1.0,
     };
+    /// The expert braking too, told apart from the learner by its steer.
+    const EXPERT_BRAKE: Control = Control {
+        steer: -0.1,
+        throttle: 0.0,
+        brake: 1.0,
+    };
     const GO: Control = Control {
         steer: 0.1,
         throttle: 0.5,
@@ -208,7 +214,7 @@ mod tests {
     #[test]
     fn waiting_where_the_expert_waits_or_moving_never_hands_over() {
         // Both brake (a red light): the learner keeps the wheel however long.
-        assert!(drive(BRAKE, BRAKE, 0.0, 60.0).iter().all(|&e| !e));
+        assert!(drive(BRAKE, EXPERT_BRAKE, 0.0, 60.0).iter().all(|&e| !e));
         // The learner moves (above the standing speed): no takeover.
         assert!(drive(BRAKE, GO, 3.0, 60.0).iter().all(|&e| !e));
     }
