@@ -502,13 +502,8 @@ impl TrainPlan {
     /// run is published, not trained again).
     fn round_steps(&self, k: u32, episodes: u32) -> Vec<Step> {
         let dir = self.round_dir(k);
-        let data = self
-            .datasets
-            .first()
-            .map(|d| d.dir.display().to_string())
-            .unwrap_or_default();
         let mut train = strings(&["train", "--stage", "original", "--data"]);
-        train.push(data);
+        train.push(self.original_data().display().to_string());
         train.extend(["--episodes".into(), episodes.to_string()]);
         train.extend(["--runs".into(), dir.clone(), "--out".into(), dir.clone()]);
         train.extend(["--steps".into(), self.curve.steps.to_string()]);
@@ -532,11 +527,25 @@ impl TrainPlan {
         steps.push(self.curve_drive(&format!("round {k}"), &dir, &self.round_records(k)));
         steps.push(self.curve_table_step());
         if k == self.curve.rounds {
-            let at = train.iter().position(|a| a == "--out").expect("--out") + 1;
-            train[at] = self.models();
-            steps.push(Step::new("publish the Original", train));
+            steps.push(self.publish(train));
         }
         steps
+    }
+
+    /// The Original's training command `train` with `--out` the models folder: the
+    /// finished run published, not trained again.
+    fn publish(&self, mut train: Vec<String>) -> Step {
+        let at = train.iter().position(|a| a == "--out").expect("--out") + 1;
+        train[at] = self.models();
+        Step::new("publish the Original", train)
+    }
+
+    /// The Original's dataset folder.
+    fn original_data(&self) -> PathBuf {
+        self.datasets
+            .first()
+            .map(|d| d.dir.clone())
+            .unwrap_or_default()
     }
 
     /// Episodes of the Original's dataset.
@@ -546,11 +555,7 @@ impl TrainPlan {
 
     /// Round `r`'s folder of DAgger frames (`<cache>/data/original-dagger-01`).
     fn dagger_data(&self, r: u32) -> String {
-        let original = self
-            .datasets
-            .first()
-            .map(|d| d.dir.clone())
-            .unwrap_or_default();
+        let original = self.original_data();
         let name = original
             .file_name()
             .map_or_else(|| "original".into(), |n| n.to_string_lossy().into_owned());
@@ -608,13 +613,8 @@ impl TrainPlan {
             },
         );
         let dir = self.dagger_dir(r);
-        let original = self
-            .datasets
-            .first()
-            .map(|o| o.dir.display().to_string())
-            .unwrap_or_default();
         let mut train = strings(&["train", "--stage", "original", "--data"]);
-        train.push(original);
+        train.push(self.original_data().display().to_string());
         let first = d.original_episodes.min(self.curve_episodes());
         train.extend(["--episodes".into(), first.to_string()]);
         for j in 1..=r {
@@ -645,9 +645,7 @@ impl TrainPlan {
         // Published as soon as trained: a job that ends after this has the Original
         // it needs for what follows (see `TrainPlan::dagger_published`).
         if r == d.rounds {
-            let at = train.iter().position(|a| a == "--out").expect("--out") + 1;
-            train[at] = self.models();
-            steps.push(Step::new("publish the Original", train));
+            steps.push(self.publish(train));
         }
         steps.push(self.curve_drive(&format!("DAgger round {r}"), &dir, &records));
         steps.push(self.curve_table_step());
