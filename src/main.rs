@@ -30,6 +30,7 @@
 //! | `log.rs` | `log summary`, `log picture` |
 
 mod cli;
+mod memory;
 
 use clap::{Parser, Subcommand};
 
@@ -85,6 +86,7 @@ enum Command {
 fn main() -> std::process::ExitCode {
     // SAFETY: the first statement of main; no other thread exists yet.
     unsafe { sim::render::gpu::init_process() };
+    memory::keep_freed_memory();
     match run() {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
