@@ -86,6 +86,7 @@ enum Command {
 fn main() -> std::process::ExitCode {
     // SAFETY: the first statement of main; no other thread exists yet.
     unsafe { sim::render::gpu::init_process() };
+    // Another C library keeps its own behaviour: nothing to report.
     memory::keep_freed_memory();
     match run() {
         Ok(()) => std::process::ExitCode::SUCCESS,

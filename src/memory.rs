@@ -7,18 +7,20 @@
 //! the kernel faults in and zeroes one at a time. A training step allocates
 //! and frees the same activations and gradients (up to tens of MiB each)
 //! every step: in `perf` the step spent 8 % of its time in page faults and
-//! zeroing. Here blocks up to 32 MiB (the most glibc allows for this
-//! threshold on 64-bit) come from the heap, and the heap is never trimmed,
-//! so they are reused; the process's peak memory is what it was, but it is
-//! not handed back before the process ends.
+//! zeroing. Here blocks up to 32 MiB (the ceiling glibc itself gives its
+//! moving threshold on 64-bit; 256 MiB and 1 GiB measured no better) come
+//! from the heap, and the heap is never trimmed, so they are reused; the
+//! process's peak memory is what it was, but it is not handed back before
+//! the process ends.
 //!
-//! Measured with `mrdrive bench policy --quick --repeats 1 --train-steps 6`
-//! on the 2-core AMD EPYC, the same settings given as `GLIBC_TUNABLES` to the
-//! same binary, three interleaved rounds, medians (docs/bench.md): the
-//! multi-resolution step 22.8 -> 27.3 samples/s with segmentation, 34.3 ->
-//! 36.8 without. No number changes: the allocator decides where a buffer
-//! lives, never what is computed in it. Other allocators measured worse
-//! (jemalloc and mimalloc by `LD_PRELOAD`: 0.6-0.8x of glibc's default).
+//! Measured with `mrdrive bench policy --quick` on the 2-core AMD EPYC, the
+//! build without and with this, six interleaved rounds, medians
+//! (docs/bench.md, "Training"): the multi-resolution step 22.4 -> 27.5
+//! samples/s with segmentation (the Original's recipe), 37.0 -> 35.2 without
+//! (within the machine's noise). No number changes: the allocator decides
+//! where a buffer lives, never what is computed in it. Other allocators
+//! measured worse (jemalloc and mimalloc by `LD_PRELOAD`: 0.6-0.8x of
+//! glibc's default).
 
 /// The size up to which blocks come from the heap and are reused (bytes).
 pub const MMAP_THRESHOLD_BYTES: i32 = 32 << 20;
