@@ -75,6 +75,11 @@ pub struct TrainingRecord {
     /// weights the student starts from); absent where a card on the way is lost.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub frames_seen: Option<u64>,
+    /// The SHA-256 of the network it started from (`init`, or a retargeting stage's
+    /// teacher) when the stage finished: the path alone may since name another network
+    /// (a round of the chain publishes over its own init). Absent for a fresh start.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start_sha256: Option<String>,
     /// The SHA-256 of every shard and label file it trained on, by
     /// `<dataset folder>/<file>` (as `mrdrive data hashes` lists them).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
@@ -706,6 +711,7 @@ mod tests {
             episodes: None,
             towns: BTreeMap::new(),
             frames_seen: None,
+            start_sha256: None,
             data_sha256: BTreeMap::new(),
         }
     }

@@ -270,6 +270,13 @@ fn another_configuration_is_refused_by_name_and_a_retarget_trains_from_the_teach
     assert_eq!(first.frames_seen, Some(24));
     let record = card.training.unwrap();
     assert_eq!(record.frames_seen, Some(24 + 16));
+    // The RA names its teacher by digest, the Original (from scratch) names none.
+    let teacher = std::fs::read(&original.checkpoint).unwrap();
+    assert_eq!(
+        record.start_sha256,
+        Some(sim::output::record::sha256_hex(&teacher))
+    );
+    assert_eq!(first.start_sha256, None);
     assert!(record.build.starts_with("mrdrive "), "{}", record.build);
     let hashes = dataset::hashes::of_dataset(data.path()).unwrap();
     assert_eq!(hashes.len(), 4, "two episodes, a shard and labels each");

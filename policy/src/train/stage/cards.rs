@@ -52,7 +52,11 @@ pub(super) fn final_card(spec: &StageSpec, set: &TrainSet, steps: usize, wall_s:
         .collect::<Vec<_>>()
         .join(" + ");
     let own = (steps * spec.batch) as u64;
-    let before = match spec.init.as_ref().or(spec.teacher.as_ref()) {
+    let start = spec.init.as_ref().or(spec.teacher.as_ref());
+    let start_sha256 = start
+        .and_then(|p| std::fs::read(p).ok())
+        .map(|bytes| sim::output::record::sha256_hex(&bytes));
+    let before = match start {
         None => Some(0),
         Some(start) => checkpoint::read_manifest(start)
             .ok()
@@ -82,6 +86,7 @@ pub(super) fn final_card(spec: &StageSpec, set: &TrainSet, steps: usize, wall_s:
             episodes: spec.episodes,
             towns,
             frames_seen: before.map(|b| b + own),
+            start_sha256,
             data_sha256,
         }),
     }
