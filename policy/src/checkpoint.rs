@@ -339,6 +339,29 @@ pub fn save_f16(net: &PolicyNet, card: &ModelCard, weights: &Path) -> Result<(),
     std::fs::write(weights, half).map_err(|e| fail(format!("could not write: {e}")))
 }
 
+/// Writes the checkpoint `weights` to `to` in half precision (as [`save_f16`] would
+/// have saved it; a file already in half precision is copied as it is). The card
+/// beside it is not touched: copy it with the weights.
+pub fn write_f16(weights: &Path, to: &Path) -> Result<(), CheckpointError> {
+    let fail = |path: &Path, problem: String, fix: &str| CheckpointError::Weights {
+        path: path.to_path_buf(),
+        problem,
+        fix: fix.into(),
+    };
+    let read_fix = "give a checkpoint written by mrdrive (`mrdrive train`, `policy init`)";
+    let bytes = std::fs::read(weights)
+        .map_err(|e| fail(weights, format!("could not read: {e}"), read_fix))?;
+    let half = convert_floats(&bytes, safetensors::Dtype::F32, safetensors::Dtype::F16)
+        .map_err(|problem| fail(weights, problem, read_fix))?;
+    std::fs::write(to, half).map_err(|e| {
+        fail(
+            to,
+            format!("could not write: {e}"),
+            "check the folder exists and is writable",
+        )
+    })
+}
+
 /// A safetensors file (`bytes`) with every tensor of dtype `from` (F32 or F16) stored
 /// as `to` (F16 or F32), the metadata kept in key order; the bytes unchanged when it
 /// holds no tensor of `from`.
