@@ -467,18 +467,24 @@ fn run_all(args: &TrainArgs) -> Result<()> {
 /// trained and its last losses.
 /// The closed-loop check of the learning curve's newest round, from its table
 /// (`models/original.curve.md`): "slice-02 town02: 12/12 succeed, 1/12 with a
-/// collision, 4 red lights, 99.0 % of the route"; "none yet" without a round.
+/// collision, 4 red lights, 99.0 % of the route"; "none yet" without a round. The
+/// DAgger rounds (`dagger-kk`) come after every slice of the curve, though the table
+/// sorts them first.
 fn newest_round(table: &Path) -> String {
     let text = std::fs::read_to_string(table).unwrap_or_default();
-    let row = text.lines().rev().find_map(|l| {
-        let cells: Vec<&str> = l
-            .trim()
-            .trim_matches('|')
-            .split('|')
-            .map(str::trim)
-            .collect();
-        (cells.len() == 7 && cells[0].starts_with("slice-")).then_some(cells)
-    });
+    let rows: Vec<Vec<&str>> = text
+        .lines()
+        .map(|l| {
+            l.trim()
+                .trim_matches('|')
+                .split('|')
+                .map(str::trim)
+                .collect::<Vec<&str>>()
+        })
+        .filter(|cells| cells.len() == 7)
+        .collect();
+    let last = |prefix: &str| rows.iter().rev().find(|c| c[0].starts_with(prefix));
+    let row = last("dagger-").or_else(|| last("slice-"));
     match row {
         Some(c) => format!(
             "{} {}: {} succeed, {} with a collision, {} red lights, {} % of the route",
@@ -604,6 +610,20 @@ mod tests {
         assert_eq!(
             newest_round(&table),
             "slice-02 town02: 12/12 succeed, 1/12 with a collision, 4 red lights, 99.0 % of the route"
+        );
+        // A DAgger round is newer than every slice, though the table lists it first.
+        std::fs::write(
+            &table,
+            "| driver | town | success | runs with a collision | red lights | lane crossings | route % |\n\
+             | --- | --- | --- | --- | --- | --- | --- |\n\
+             | dagger-01 | town02 | 12/12 | 0/12 | 6 | 3 | 99.0 |\n\
+             | slice-01 | town02 | 0/12 | 0/12 | 6 | 0 | 20.7 |\n\
+             | slice-02 | town02 | 12/12 | 1/12 | 4 | 3 | 99.0 |\n",
+        )
+        .unwrap();
+        assert_eq!(
+            newest_round(&table),
+            "dagger-01 town02: 12/12 succeed, 0/12 with a collision, 6 red lights, 99.0 % of the route"
         );
     }
 }
