@@ -340,8 +340,9 @@ pub fn save_f16(net: &PolicyNet, card: &ModelCard, weights: &Path) -> Result<(),
 }
 
 /// Writes the checkpoint `weights` to `to` in half precision (as [`save_f16`] would
-/// have saved it; a file already in half precision is copied as it is). The card
-/// beside it is not touched: copy it with the weights.
+/// have saved it; a file already in half precision is copied as it is), through a
+/// temporary file beside `to` renamed at the end, so `to` is never half written. The
+/// card beside it is not touched: copy it with the weights.
 pub fn write_f16(weights: &Path, to: &Path) -> Result<(), CheckpointError> {
     let fail = |path: &Path, problem: String, fix: &str| CheckpointError::Weights {
         path: path.to_path_buf(),
@@ -353,13 +354,16 @@ pub fn write_f16(weights: &Path, to: &Path) -> Result<(), CheckpointError> {
         .map_err(|e| fail(weights, format!("could not read: {e}"), read_fix))?;
     let half = convert_floats(&bytes, safetensors::Dtype::F32, safetensors::Dtype::F16)
         .map_err(|problem| fail(weights, problem, read_fix))?;
-    std::fs::write(to, half).map_err(|e| {
-        fail(
-            to,
-            format!("could not write: {e}"),
-            "check the folder exists and is writable",
-        )
-    })
+    let tmp = to.with_extension("safetensors.partial");
+    std::fs::write(&tmp, half)
+        .and_then(|()| std::fs::rename(&tmp, to))
+        .map_err(|e| {
+            fail(
+                to,
+                format!("could not write: {e}"),
+                "check the folder exists and is writable",
+            )
+        })
 }
 
 /// A safetensors file (`bytes`) with every tensor of dtype `from` (F32 or F16) stored

@@ -42,10 +42,10 @@ pub fn published_checkpoint(out: &Path, name: &str) -> PathBuf {
 
 /// Copies the finished run in `run_dir` (its checkpoint and card, `losses.csv` and
 /// [`LOSSES_PLOT_FILE`]) to `out` as `<name>.safetensors`, `<name>.json`,
-/// `<name>.losses.csv` and `<name>.losses.png`. The checkpoint is written in half
-/// precision (`checkpoint::save_f16`): the shipped models are what the repository
-/// keeps, at half the bytes, and every check of a shipped model (the bar, the study)
-/// drives this file. The plot may be missing (a run gone on from a snapshot at its
+/// `<name>.losses.csv` and `<name>.losses.png`. The checkpoint is written first, in
+/// half precision (`checkpoint::write_f16`): the shipped models are what the
+/// repository keeps, at half the bytes, and every check of a shipped model (the bar,
+/// the study) drives this file. The plot may be missing (a run gone on from a snapshot at its
 /// last step has no loss rows to draw): then no plot is published and an older one
 /// under that name is removed.
 pub fn publish(run_dir: &Path, out: &Path, name: &str) -> Result<(), PublishError> {
@@ -63,6 +63,7 @@ pub fn publish(run_dir: &Path, out: &Path, name: &str) -> Result<(), PublishErro
         (run_dir.join(LOSSES_FILE), format!("{name}.losses.csv")),
         (plot, format!("{name}.losses.png")),
     ];
+    write_f16(&weights, &published_checkpoint(out, name))?;
     let copies = copies
         .map(|(from, to)| (from, out.join(to)))
         .into_iter()
@@ -70,7 +71,6 @@ pub fn publish(run_dir: &Path, out: &Path, name: &str) -> Result<(), PublishErro
     for (from, to) in copies {
         std::fs::copy(&from, &to).map_err(|source| PublishError::Copy { from, to, source })?;
     }
-    write_f16(&weights, &published_checkpoint(out, name))?;
     Ok(())
 }
 
@@ -124,6 +124,11 @@ mod tests {
         );
         let (_, loaded) = crate::checkpoint::load(&published, &device).unwrap();
         assert_eq!(loaded, card);
+        let names: Vec<_> = std::fs::read_dir(&out)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        assert_eq!(names.len(), 4, "no temporary file left: {names:?}");
         // No plot (no loss rows to draw): published without one, the old one gone.
         std::fs::remove_file(run.path().join(LOSSES_PLOT_FILE)).unwrap();
         publish(run.path(), &out, "ra5").unwrap();
