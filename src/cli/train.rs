@@ -599,28 +599,22 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let table = dir.path().join("original.curve.md");
         assert_eq!(newest_round(&table), "none yet");
-        std::fs::write(
-            &table,
-            "| driver | town | success | runs with a collision | red lights | lane crossings | route % |\n\
-             | --- | --- | --- | --- | --- | --- | --- |\n\
-             | slice-01 | town02 | 0/12 | 0/12 | 6 | 0 | 20.7 |\n\
-             | slice-02 | town02 | 12/12 | 1/12 | 4 | 3 | 99.0 |\n",
-        )
-        .unwrap();
+        let slices = "| slice-01 | town02 | 0/12 | 0/12 | 6 | 0 | 20.7 |\n\
+                      | slice-02 | town02 | 12/12 | 1/12 | 4 | 3 | 99.0 |\n";
+        let write = |rows: &str| {
+            let head = "| driver | town | success | runs with a collision | red lights | \
+                        lane crossings | route % |\n| --- | --- | --- | --- | --- | --- | --- |\n";
+            std::fs::write(&table, format!("{head}{rows}")).unwrap();
+        };
+        write(slices);
         assert_eq!(
             newest_round(&table),
             "slice-02 town02: 12/12 succeed, 1/12 with a collision, 4 red lights, 99.0 % of the route"
         );
         // A DAgger round is newer than every slice, though the table lists it first.
-        std::fs::write(
-            &table,
-            "| driver | town | success | runs with a collision | red lights | lane crossings | route % |\n\
-             | --- | --- | --- | --- | --- | --- | --- |\n\
-             | dagger-01 | town02 | 12/12 | 0/12 | 6 | 3 | 99.0 |\n\
-             | slice-01 | town02 | 0/12 | 0/12 | 6 | 0 | 20.7 |\n\
-             | slice-02 | town02 | 12/12 | 1/12 | 4 | 3 | 99.0 |\n",
-        )
-        .unwrap();
+        write(&format!(
+            "| dagger-01 | town02 | 12/12 | 0/12 | 6 | 3 | 99.0 |\n{slices}"
+        ));
         assert_eq!(
             newest_round(&table),
             "dagger-01 town02: 12/12 succeed, 0/12 with a collision, 6 red lights, 99.0 % of the route"
