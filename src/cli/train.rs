@@ -376,6 +376,12 @@ fn run_all(args: &TrainArgs) -> Result<()> {
             );
         }
     }
+    if !args.print_plan
+        && !args.eta
+        && let Some(why) = foreign_state(&base, args.snapshot.as_deref())
+    {
+        bail!(why);
+    }
     let mut groups = plan.steps(from_round);
     if args.eta {
         let rates = experiments::progress::JobRates::default();
@@ -460,6 +466,37 @@ fn run_all(args: &TrainArgs) -> Result<()> {
         tables.join(" and ")
     );
     Ok(())
+}
+
+/// Why a chain must not run: `base/models/train-state` holds a chain's state (its
+/// pinned data build, `collector`, and its resume point) but `snapshot` is not in that
+/// folder, so the plan would read none of it, train the learning curve again from
+/// round 1 and collect with this build instead of the pinned one. `None` when it may
+/// run (no such state, or the snapshot is in it).
+fn foreign_state(base: &Path, snapshot: Option<&Path>) -> Option<String> {
+    let state = base.join("models/train-state");
+    if !state.join("collector").exists() {
+        return None;
+    }
+    let same = |dir: &Path| {
+        let canon = |p: &Path| std::fs::canonicalize(p).ok();
+        canon(dir).is_some_and(|d| Some(d) == canon(&state))
+    };
+    let dir = snapshot.map(|f| match f.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    });
+    if dir.as_deref().is_some_and(same) {
+        return None;
+    }
+    Some(format!(
+        "{} holds a training chain's state (its pinned data build and where it stopped), \
+         which this command would not read{}: it would train the learning curve again from \
+         round 1 and collect with this build; fix: run it with --snapshot {}",
+        state.display(),
+        snapshot.map_or(String::new(), |f| format!(" (--snapshot {})", f.display())),
+        state.join("train-state.safetensors").display()
+    ))
 }
 
 /// A job's end (`--snapshot FILE`): the newest run's network in half precision to
@@ -592,6 +629,28 @@ mod tests {
         assert_eq!(published_data(&dir.path().join("absent.json")), None);
         std::fs::write(&card, r#"{"card":{"trained":false}}"#).unwrap();
         assert_eq!(published_data(&card), None);
+    }
+
+    #[test]
+    fn a_chains_state_is_only_driven_on_through_its_own_snapshot_path() {
+        let dir = tempfile::tempdir().unwrap();
+        let base = dir.path();
+        let state = base.join("models/train-state");
+        std::fs::create_dir_all(&state).unwrap();
+        let own = state.join("train-state.safetensors");
+        // No pinned build yet: no chain state to lose, any snapshot path will do.
+        assert_eq!(foreign_state(base, None), None);
+        std::fs::write(state.join("collector"), "540f94d\n").unwrap();
+        assert_eq!(foreign_state(base, Some(&own)), None);
+        let elsewhere = base.join("late/train-state.safetensors");
+        std::fs::create_dir_all(base.join("late")).unwrap();
+        for snapshot in [None, Some(elsewhere.as_path())] {
+            let why = foreign_state(base, snapshot).expect("refused");
+            assert!(
+                why.contains("round 1") && why.ends_with("train-state.safetensors"),
+                "{why}"
+            );
+        }
     }
 
     #[test]
