@@ -328,15 +328,7 @@ fn open_weights(path: &Path) -> Result<SafetensorsStore, CheckpointError> {
 /// digits (relative error at most 2^-11 for normal values).
 pub fn save_f16(net: &PolicyNet, card: &ModelCard, weights: &Path) -> Result<(), CheckpointError> {
     save(net, card, weights)?;
-    let fail = |problem: String| CheckpointError::Weights {
-        path: weights.to_path_buf(),
-        problem,
-        fix: "check the folder exists and is writable".into(),
-    };
-    let bytes = std::fs::read(weights).map_err(|e| fail(format!("could not read back: {e}")))?;
-    let half =
-        convert_floats(&bytes, safetensors::Dtype::F32, safetensors::Dtype::F16).map_err(fail)?;
-    std::fs::write(weights, half).map_err(|e| fail(format!("could not write: {e}")))
+    write_f16(weights, weights)
 }
 
 /// Writes the checkpoint `weights` to `to` in half precision (as [`save_f16`] would

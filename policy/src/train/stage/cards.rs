@@ -55,7 +55,7 @@ pub(super) fn final_card(spec: &StageSpec, set: &TrainSet, steps: usize, wall_s:
     let start = spec.init.as_ref().or(spec.teacher.as_ref());
     let start_sha256 = start
         .and_then(|p| std::fs::read(p).ok())
-        .map(|bytes| sim::output::record::sha256_hex(&bytes));
+        .map(|bytes| sim::record::sha256_hex(&bytes));
     let before = match start {
         None => Some(0),
         Some(start) => checkpoint::read_manifest(start)
