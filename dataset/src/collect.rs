@@ -485,12 +485,7 @@ impl RunObserver for EpisodeRecorder {
                 .classes
                 .extend(classes.data.iter().map(|&c| to_wor(c) as u8));
         }
-        self.shard.ego.push(EgoRow {
-            x: ego.position.x,
-            y: ego.position.y,
-            yaw: ego.heading,
-            speed: ego.speed_mps,
-        });
+        self.shard.ego.push(EgoRow::of(ego));
         self.shard.command.push(v.command as u8);
         self.shard.route.push([v.route_index as f32, v.route_s]);
         self.shard.tick.push(tick as u32);
@@ -498,20 +493,7 @@ impl RunObserver for EpisodeRecorder {
             actors
                 .iter()
                 .filter(|a| a.kind != ActorKind::Ego)
-                .map(|a| ActorRow {
-                    kind: if a.kind == ActorKind::Pedestrian {
-                        ActorRow::PEDESTRIAN
-                    } else {
-                        ActorRow::VEHICLE
-                    },
-                    id: a.id,
-                    x: a.position.x,
-                    y: a.position.y,
-                    yaw: a.heading,
-                    length: a.extent.x,
-                    width: a.extent.y,
-                    speed: a.speed_mps,
-                })
+                .map(ActorRow::of)
                 .collect(),
         );
         self.shard

@@ -37,5 +37,6 @@ pub mod info;
 pub mod label_driver;
 pub mod labels;
 pub mod noise;
+pub mod queue;
 pub mod show;
 pub mod synthetic;

@@ -66,6 +66,25 @@ impl ActorRow {
     /// A pedestrian.
     pub const PEDESTRIAN: u8 = 2;
 
+    /// The row of a run's actor (a vehicle or a pedestrian; the ego has an
+    /// [`EgoRow`]), as the episode recorder writes it.
+    pub fn of(a: &world::ActorSnapshot) -> ActorRow {
+        ActorRow {
+            kind: if a.kind == world::ActorKind::Pedestrian {
+                ActorRow::PEDESTRIAN
+            } else {
+                ActorRow::VEHICLE
+            },
+            id: a.id,
+            x: a.position.x,
+            y: a.position.y,
+            yaw: a.heading,
+            length: a.extent.x,
+            width: a.extent.y,
+            speed: a.speed_mps,
+        }
+    }
+
     /// The actor as the rule book's "what is ahead" sees it.
     pub fn view(&self) -> world::rules::ActorView {
         world::rules::ActorView {
@@ -95,6 +114,18 @@ pub struct EgoRow {
     pub yaw: f32,
     /// Speed (metres per second).
     pub speed: f32,
+}
+
+impl EgoRow {
+    /// The row of a run's ego, as the episode recorder writes it.
+    pub fn of(ego: &world::ActorSnapshot) -> EgoRow {
+        EgoRow {
+            x: ego.position.x,
+            y: ego.position.y,
+            yaw: ego.heading,
+            speed: ego.speed_mps,
+        }
+    }
 }
 
 /// One episode in memory: what a shard holds.
