@@ -178,19 +178,10 @@ impl Summary {
                 }
             }
             *s.towns.entry(e.town.clone()).or_default() += n;
-            let route = match &e.route.file {
-                Some(file) => {
-                    let name = Path::new(file)
-                        .file_name()
-                        .map_or(file.clone(), |f| f.to_string_lossy().into_owned());
-                    format!("{name}#{}", e.route.id)
-                }
-                None => {
-                    random.insert(e.route.id.clone());
-                    "random".to_string()
-                }
-            };
-            *s.routes.entry(route).or_default() += n;
+            if e.route.file.is_none() {
+                random.insert(e.route.id.clone());
+            }
+            *s.routes.entry(e.route.key()).or_default() += n;
             match towns(e).and_then(|town| replan(&town, &e.route).map(|r| (town, r))) {
                 Ok((town, route)) => {
                     let stops = StopLines::new(&town).on_route(&route);

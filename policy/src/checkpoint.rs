@@ -70,6 +70,12 @@ pub struct TrainingRecord {
     /// Episodes it trained on, by town.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub towns: BTreeMap<String, usize>,
+    /// Episodes it trained on, by route (`dataset::format::RouteSpec::key`:
+    /// `routes_town01.xml#3`, `random` for every random route): whether its data drove
+    /// a scenario's route (the default scenario's must not be among them for the
+    /// default model). Absent on cards written before 2026-12-07.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub routes: BTreeMap<String, usize>,
     /// Frames drawn in training (steps x batch), this stage's and those of every
     /// network it started from (`init`, or a retargeting stage's teacher, whose
     /// weights the student starts from); absent where a card on the way is lost.
@@ -729,6 +735,7 @@ mod tests {
             build: String::new(),
             episodes: None,
             towns: BTreeMap::new(),
+            routes: BTreeMap::new(),
             frames_seen: None,
             start_sha256: None,
             data_sha256: BTreeMap::new(),

@@ -289,6 +289,11 @@ fn another_configuration_is_refused_by_name_and_a_retarget_trains_from_the_teach
         record.towns
     );
     assert_eq!(record.episodes, None);
+    // By route too: the synthetic episodes drive one random route.
+    assert_eq!(
+        record.routes,
+        std::collections::BTreeMap::from([("random".to_string(), 2)])
+    );
     // The Original trained on (its final checkpoint rewritten) is no longer the teacher
     // the finished RA run was made from: the run is refused, not skipped.
     let longer = StageSpec {

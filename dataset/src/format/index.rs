@@ -21,6 +21,23 @@ pub struct RouteSpec {
     pub waypoints: Vec<[f32; 3]>,
 }
 
+impl RouteSpec {
+    /// The route's name in summaries (`mrdrive data info`, a model card's `routes`):
+    /// `<route file's name>#<id>` for a route from a file (`routes_town01.xml#3`),
+    /// `random` for a random route.
+    pub fn key(&self) -> String {
+        match &self.file {
+            Some(file) => {
+                let name = std::path::Path::new(file)
+                    .file_name()
+                    .map_or(file.clone(), |f| f.to_string_lossy().into_owned());
+                format!("{name}#{}", self.id)
+            }
+            None => "random".to_string(),
+        }
+    }
+}
+
 /// One driven episode in the index.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Episode {
@@ -160,6 +177,19 @@ impl Index {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_route_is_named_by_its_files_name_and_id_or_as_random() {
+        let route = |file: Option<&str>, id: &str| RouteSpec {
+            file: file.map(String::from),
+            id: id.into(),
+            waypoints: Vec::new(),
+        };
+        let carla = route(Some("../shared/carla/routes_town01.xml"), "3");
+        assert_eq!(carla.key(), "routes_town01.xml#3");
+        assert_eq!(route(Some("gen01.toml"), "0").key(), "gen01.toml#0");
+        assert_eq!(route(None, "random-17").key(), "random");
+    }
 
     #[test]
     fn a_missing_index_says_how_to_make_one() {

@@ -27,12 +27,13 @@ pub(super) fn final_card(spec: &StageSpec, set: &TrainSet, steps: usize, wall_s:
         .episodes
         .unwrap_or(usize::MAX)
         .min(set.index.episodes.len())];
-    let mut towns = BTreeMap::new();
+    let (mut towns, mut routes) = (BTreeMap::new(), BTreeMap::new());
     for e in used
         .iter()
         .chain(set.also.iter().flat_map(|(_, i)| &i.episodes))
     {
         *towns.entry(e.town.clone()).or_insert(0) += 1;
+        *routes.entry(e.route.key()).or_insert(0) += 1;
     }
     // A shard that cannot be read was skipped by the loader too: its hash is left out.
     let data_sha256 = used
@@ -85,6 +86,7 @@ pub(super) fn final_card(spec: &StageSpec, set: &TrainSet, steps: usize, wall_s:
             build: sim::output::provenance::build_id(),
             episodes: spec.episodes,
             towns,
+            routes,
             frames_seen: before.map(|b| b + own),
             start_sha256,
             data_sha256,
