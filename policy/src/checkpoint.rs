@@ -184,9 +184,19 @@ pub fn save(net: &PolicyNet, card: &ModelCard, weights: &Path) -> Result<(), Che
         std::fs::read(weights).map_err(|e| written(format!("could not read back: {e}")))?;
     sort_metadata(&mut bytes).map_err(written)?;
     std::fs::write(weights, bytes).map_err(|e| written(format!("could not write: {e}")))?;
+    write_manifest(weights, &net.config, card)
+}
+
+/// Writes the JSON beside `weights` (its config and `card`), the weights untouched: a
+/// card corrected after training keeps the network's SHA-256.
+pub fn write_manifest(
+    weights: &Path,
+    config: &PolicyConfig,
+    card: &ModelCard,
+) -> Result<(), CheckpointError> {
     let manifest = Manifest {
         format: FORMAT.into(),
-        config: net.config.clone(),
+        config: config.clone(),
         card: card.clone(),
     };
     let json = serde_json::to_string_pretty(&manifest).expect("a manifest always serialises");

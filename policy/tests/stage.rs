@@ -290,10 +290,19 @@ fn another_configuration_is_refused_by_name_and_a_retarget_trains_from_the_teach
     );
     assert_eq!(record.episodes, None);
     // By route too: the synthetic episodes drive one random route.
-    assert_eq!(
-        record.routes,
-        std::collections::BTreeMap::from([("random".to_string(), 2)])
-    );
+    let routes = std::collections::BTreeMap::from([("random".to_string(), 2)]);
+    assert_eq!(record.routes, routes);
+    // A card from a build before routes were counted gets them when the finished run
+    // is asked for again (as the chain publishes it), its weights untouched.
+    let (config, mut old) = checkpoint::read_manifest(&out.checkpoint).unwrap();
+    old.training.as_mut().unwrap().routes.clear();
+    checkpoint::write_manifest(&out.checkpoint, &config, &old).unwrap();
+    let weights = std::fs::read(&out.checkpoint).unwrap();
+    let again = run_stage(&ra, ra_dir.path(), &device, |_| {}).unwrap();
+    assert_eq!(again.steps_now, 0, "done: nothing trained");
+    let (_, card) = checkpoint::read_manifest(&again.checkpoint).unwrap();
+    assert_eq!(card.training.unwrap().routes, routes);
+    assert_eq!(std::fs::read(&again.checkpoint).unwrap(), weights);
     // The Original trained on (its final checkpoint rewritten) is no longer the teacher
     // the finished RA run was made from: the run is refused, not skipped.
     let longer = StageSpec {

@@ -5,6 +5,10 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
+use dataset::format::{Episode, Index};
+
+use super::error::StageError;
+use super::run_folder::FINAL_FILE;
 use crate::checkpoint::{self, ModelCard, TrainingRecord};
 use crate::train::loader::TrainSet;
 use crate::train::spec::StageSpec;
@@ -27,14 +31,10 @@ pub(super) fn final_card(spec: &StageSpec, set: &TrainSet, steps: usize, wall_s:
         .episodes
         .unwrap_or(usize::MAX)
         .min(set.index.episodes.len())];
-    let (mut towns, mut routes) = (BTreeMap::new(), BTreeMap::new());
-    for e in used
-        .iter()
-        .chain(set.also.iter().flat_map(|(_, i)| &i.episodes))
-    {
-        *towns.entry(e.town.clone()).or_insert(0) += 1;
-        *routes.entry(e.route.key()).or_insert(0) += 1;
-    }
+    let (towns, routes) = by_town_and_route(
+        used.iter()
+            .chain(set.also.iter().flat_map(|(_, i)| &i.episodes)),
+    );
     // A shard that cannot be read was skipped by the loader too: its hash is left out.
     let data_sha256 = used
         .iter()
@@ -92,6 +92,51 @@ pub(super) fn final_card(spec: &StageSpec, set: &TrainSet, steps: usize, wall_s:
             data_sha256,
         }),
     }
+}
+
+/// Episodes by town and by route (`RouteSpec::key`).
+type Tally = BTreeMap<String, usize>;
+
+/// Counts `episodes` by town and by route.
+fn by_town_and_route<'a>(episodes: impl Iterator<Item = &'a Episode>) -> (Tally, Tally) {
+    let (mut towns, mut routes) = (Tally::new(), Tally::new());
+    for e in episodes {
+        *towns.entry(e.town.clone()).or_insert(0) += 1;
+        *routes.entry(e.route.key()).or_insert(0) += 1;
+    }
+    (towns, routes)
+}
+
+/// Adds to a finished run's card (`final.json` in `run_dir`) its episodes by route,
+/// where the build that trained it did not write them (before 2026-12-07): counted
+/// as [`final_card`] counts them, from the indexes of the data `spec` names (the
+/// first `spec.episodes` of its `data`, every episode of its `also`). The weights
+/// are not touched. A card that has them, or data whose index cannot be read (a lost
+/// cache), is left as it is.
+pub(super) fn complete_final_card(spec: &StageSpec, run_dir: &Path) -> Result<(), StageError> {
+    let weights = run_dir.join(FINAL_FILE);
+    let (config, mut card) = checkpoint::read_manifest(&weights)?;
+    let Some(record) = card.training.as_mut().filter(|t| t.routes.is_empty()) else {
+        return Ok(());
+    };
+    let Ok(first) = Index::load(&spec.data) else {
+        return Ok(());
+    };
+    let mut also = Vec::new();
+    for dir in &spec.also {
+        let Ok(index) = Index::load(dir) else {
+            return Ok(());
+        };
+        also.push(index);
+    }
+    let used = &first.episodes[..spec
+        .episodes
+        .unwrap_or(usize::MAX)
+        .min(first.episodes.len())];
+    let (_, routes) = by_town_and_route(used.iter().chain(also.iter().flat_map(|i| &i.episodes)));
+    record.routes = routes;
+    checkpoint::write_manifest(&weights, &config, &card)?;
+    Ok(())
 }
 
 /// A sentence on what the stage's network is.

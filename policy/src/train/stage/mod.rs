@@ -101,6 +101,7 @@ pub fn run_stage_until(
     };
     let progress = match resume_point(spec, run_dir, snapshot_here.is_some())? {
         ResumePoint::Done(p) => {
+            cards::complete_final_card(spec, run_dir)?;
             return Ok(StageOutcome {
                 checkpoint: run_dir.join(FINAL_FILE),
                 steps_now: 0,
