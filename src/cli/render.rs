@@ -93,7 +93,8 @@ pub struct RenderAtArgs {
     /// Write the class image (in its label colours) instead of the colour image.
     #[arg(long)]
     pub labels: bool,
-    /// Draw the top-down view (this many pixels square, 60 m across) instead of the rig.
+    /// Draw the top-down view (this many pixels square, 60 m across, centred on the ego,
+    /// which is outlined in red, heading up) instead of the rig.
     #[arg(long)]
     pub top_down: Option<u32>,
     #[command(flatten)]

@@ -176,13 +176,17 @@ pub fn render_moment(
         )?,
         View::Rig { scale } => camera.render_rig(&ego, &moment.actors, &moment.lights, scale)?,
     };
-    let image = if request.labels {
+    let mut image = if request.labels {
         let mut img = RgbImage::default();
         class.to_label_rgb(&mut img);
         img
     } else {
         rgb.clone()
     };
+    // The camera does not draw its own car: the top-down view outlines it.
+    if let (View::TopDown { .. }, Some(e)) = (request.view, moment.actors.first()) {
+        outline_ego(&mut image, e.extent.x, e.extent.y, TOP_DOWN_EXTENT_M);
+    }
     let light_ahead = light_ahead(&prepared, &ego, &moment.lights, LIGHT_AHEAD_RANGE_M);
     Ok(MomentPicture {
         image,
@@ -193,6 +197,30 @@ pub fn render_moment(
         light_ahead,
         backend: camera.backend(),
     })
+}
+
+/// Colour of the ego's outline in the top-down view.
+pub const EGO_OUTLINE_RGB: [u8; 3] = [230, 30, 30];
+
+/// Outlines the ego's footprint (`length_m` along the heading, `width_m` across;
+/// metres), 2 pixels wide, in a top-down view `extent_m` metres across that is
+/// centred on the ego with its heading up.
+pub fn outline_ego(image: &mut RgbImage, length_m: f32, width_m: f32, extent_m: f32) {
+    let (w, h) = (image.width as i64, image.height as i64);
+    let px_per_m = image.width as f32 / extent_m;
+    let (cx, cy) = (w as f32 / 2.0, h as f32 / 2.0);
+    let (half_l, half_w) = (length_m * px_per_m / 2.0, width_m * px_per_m / 2.0);
+    let (x0, x1) = ((cx - half_w).round() as i64, (cx + half_w).round() as i64);
+    let (y0, y1) = ((cy - half_l).round() as i64, (cy + half_l).round() as i64);
+    for y in y0..=y1 {
+        for x in x0..=x1 {
+            let edge = x - x0 < 2 || x1 - x < 2 || y - y0 < 2 || y1 - y < 2;
+            if edge && (0..w).contains(&x) && (0..h).contains(&y) {
+                let at = ((y * w + x) * 3) as usize;
+                image.data[at..at + 3].copy_from_slice(&EGO_OUTLINE_RGB);
+            }
+        }
+    }
 }
 
 /// The next stop line of the route within `range_m` ahead of the ego, as the
@@ -211,4 +239,27 @@ pub fn light_ahead(
     let stops = rules::StopLines::new(&prepared.town).on_route(route);
     let (stop, d) = stops.light_ahead(ego_s, range_m)?;
     Some((d, rules::light_state(states, stop.light)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_egos_outline_is_its_footprint_at_the_centre_heading_up() {
+        // 60 px for 60 m: 1 px a metre; a car 4 m long and 2 m wide.
+        let mut img = RgbImage {
+            width: 60,
+            height: 60,
+            data: vec![0; 60 * 60 * 3],
+        };
+        outline_ego(&mut img, 4.0, 2.0, 60.0);
+        let at = |x: usize, y: usize| &img.data[(y * 60 + x) * 3..(y * 60 + x) * 3 + 3];
+        assert_eq!(at(29, 28), EGO_OUTLINE_RGB, "the front left corner");
+        assert_eq!(at(31, 32), EGO_OUTLINE_RGB, "the rear right corner");
+        assert_eq!(at(30, 27), [0, 0, 0], "ahead of the front");
+        assert_eq!(at(32, 30), [0, 0, 0], "right of the side");
+        let red = img.data.chunks(3).filter(|p| *p == EGO_OUTLINE_RGB).count();
+        assert_eq!(red, 3 * 5, "a footprint of 3 x 5 pixels, every one an edge");
+    }
 }
