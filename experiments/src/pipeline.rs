@@ -151,6 +151,9 @@ pub struct TrainPlan {
     /// Trained after the bar, which does not need it: RA with five scales for the
     /// more-scales study.
     pub after_bar: Retarget,
+    /// Every how many frames of the retargeting set RA's learned trigger is fit on
+    /// (`mrdrive policy trigger --every`).
+    pub trigger_every: u32,
     /// Options added to every training command (the quick plan's toy sizes).
     pub toy_options: Vec<String>,
     /// Options added to every retargeting command (the quick plan's).
@@ -288,6 +291,9 @@ impl TrainPlan {
                 "ra",
                 &["--scales", "0.5,0.625,0.75,0.875,1.0", "--name", "ra5"],
             ),
+            // About 10,800 of the set's 54,000 frames: as many as the trigger of
+            // 2026-12-03 was fit on (every 2nd frame of the data of that day).
+            trigger_every: 5,
             toy_options: Vec::new(),
             toy_retarget_options: Vec::new(),
         }
@@ -320,6 +326,7 @@ impl TrainPlan {
         plan.curve.seeds = "0".into();
         plan.toy_options = strings(&["--batch", "4", "--recalibrate-batches", "2"]);
         plan.toy_retarget_options = strings(&["--steps", "4", "--unfreeze-every", "1"]);
+        plan.trigger_every = 1;
         plan
     }
 
@@ -718,6 +725,27 @@ impl TrainPlan {
         self.runs.display().to_string()
     }
 
+    /// Fits RA's learned trigger (`models/ra.trigger.json`, which the `learned`
+    /// selector reads) on the retargeting set, by regret, the top 10 % positive, as
+    /// the trigger of 2026-12-03 was; the retargeting set rather than the Original's
+    /// data because a fresh machine makes it again after the Original is done, where
+    /// the Original's (8 hours of collection) it does not. A trigger of the same RA,
+    /// data and target is left as it is (`policy trigger` says so).
+    fn trigger_step(&self) -> Step {
+        let data = self
+            .datasets
+            .get(1)
+            .map(|d| d.dir.display().to_string())
+            .unwrap_or_default();
+        let models = self.models();
+        let mut args = strings(&["policy", "trigger", "--checkpoint"]);
+        args.extend([format!("{models}/ra.safetensors"), "--data".into(), data]);
+        args.extend(["--every".into(), self.trigger_every.to_string()]);
+        args.extend(strings(&["--target", "regret", "--share", "0.1", "--out"]));
+        args.push(format!("{models}/ra.trigger.json"));
+        Step::new("fit RA's learned trigger", args)
+    }
+
     fn retarget_step(&self, r: &Retarget) -> Step {
         let data = self
             .datasets
@@ -774,6 +802,7 @@ impl TrainPlan {
             });
             groups.extend(all.into_iter().map(|r| Group::One(self.retarget_step(r))));
         }
+        groups.push(Group::One(self.trigger_step()));
         for set in &self.bar_sets {
             let sweeps = self.base.join(&set.folder).display().to_string();
             for b in &self.bar {
@@ -1214,27 +1243,37 @@ mod tests {
         );
         // 19 rounds of collect, label, train, drive, table; round 19 publishes the
         // Original; `data info`; the DAgger round (collect, label, train, drive, table,
-        // publish); the retargeting set; then the lanes, the bar on the
+        // publish); the retargeting set; then the lanes, RA's trigger, the bar on the
         // paper's routes and on the held-out ones (six drivers and a table each), RA5.
         let publish = 19 * 5;
         assert!(all[publish].contains("--runs /c/runs/curve/slice-19 --out out/scratch/models"));
         assert_eq!(all[publish + 1], "data info /c/data/original");
-        assert_eq!(groups.len(), publish + 1 + 1 + 6 + 7 + 1 + 2 * (6 + 1) + 1);
+        assert_eq!(
+            groups.len(),
+            publish + 1 + 1 + 6 + 7 + 1 + 1 + 2 * (6 + 1) + 1
+        );
+        let trigger = joined(&groups[publish + 16])[0].clone();
+        assert_eq!(
+            trigger,
+            "policy trigger --checkpoint out/scratch/models/ra.safetensors --data \
+             /c/data/retarget --every 5 --target regret --share 0.1 --out \
+             out/scratch/models/ra.trigger.json"
+        );
         // The bar: 18 runs a town and driver (seeds 0-2), then 12 held-out routes at 5 + 10.
-        let bar = joined(&groups[publish + 16])[0].clone();
+        let bar = joined(&groups[publish + 17])[0].clone();
         assert!(
             bar.starts_with("sweep scenarios/paper/town01_route0.toml")
                 && bar.contains("--densities 0:0,5:10,20:40 --seeds 0,1,2 --out out/scratch/out/bar/expert --expert"),
             "{bar}"
         );
-        let heldout = joined(&groups[publish + 23])[0].clone();
+        let heldout = joined(&groups[publish + 24])[0].clone();
         assert!(
             heldout.starts_with("sweep scenarios/heldout/held01_random0.toml")
                 && heldout.contains("town02_random7.toml --delays 0 --scales 1.0 --densities 5:10 --seeds 0 --out out/scratch/out/bar-heldout/expert"),
             "{heldout}"
         );
         assert_eq!(
-            joined(&groups[publish + 29])[0],
+            joined(&groups[publish + 30])[0],
             "policy table out/scratch/out/bar-heldout --out out/scratch/models/closed-loop-heldout.md"
         );
         let Group::Lanes(lanes) = &groups[publish + 15] else {
@@ -1388,7 +1427,10 @@ mod tests {
         assert!(
             stages[2].ends_with("--batch 4 --recalibrate-batches 2 --steps 4 --unfreeze-every 1")
         );
-        let bar = joined(&groups[3])[0].clone();
+        assert!(joined(&groups[3])[0].ends_with(
+            "--every 1 --target regret --share 0.1 --out out/train-quick/models/ra.trigger.json"
+        ));
+        let bar = joined(&groups[4])[0].clone();
         assert!(bar.starts_with("sweep scenarios/paper/town01_route0.toml --delays 0"));
         assert!(bar.contains("--densities 0:0 "));
         let all: Vec<String> = plan.steps(1).iter().flat_map(joined).collect();

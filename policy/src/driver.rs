@@ -66,7 +66,8 @@ impl PolicyDriver {
 
     /// Reads `trigger` (the file at `path`) on every frame, for the `learned`
     /// selector ([`Driver::scale_hint`]). It needs the fused CPU path and a
-    /// trigger made for this network's features and scales.
+    /// trigger made for this network's features and scales, fit on this very
+    /// checkpoint (its SHA-256) where the network was read from one.
     pub fn with_trigger(mut self, trigger: Trigger, path: &Path) -> Result<Self, TriggerError> {
         let Some(f) = &self.fused else {
             return Err(TriggerError::Misfit {
@@ -77,6 +78,32 @@ impl PolicyDriver {
             });
         };
         trigger.check_fits(path, f.feature_dim(), &self.net.config.scales)?;
+        if let Some(net) = &self.checkpoint
+            && trigger.card.checkpoint_sha256.as_ref() != Some(&net.sha256)
+        {
+            let short = |d: &str| d.chars().take(12).collect::<String>();
+            return Err(TriggerError::Misfit {
+                path: path.to_path_buf(),
+                field: "card.checkpoint_sha256",
+                why: match &trigger.card.checkpoint_sha256 {
+                    Some(d) => format!(
+                        "it was fit on the network {}..., but {} is {}...",
+                        short(d),
+                        net.file,
+                        short(&net.sha256)
+                    ),
+                    None => "it does not say which network it was fit on (a file from \
+                             before 2026-12-07)"
+                        .to_string(),
+                },
+                fix: format!(
+                    "fit it again on this network: mrdrive policy trigger --checkpoint {} \
+                     --data DIR --out {}",
+                    net.file,
+                    path.display()
+                ),
+            });
+        }
         self.name = format!("{}+trigger:{}", self.name, path.display());
         self.trigger = Some(trigger);
         Ok(self)
@@ -528,7 +555,7 @@ mod tests {
         assert_eq!(driver.trigger(), None);
         // And a learned trigger's, when the scenario names one.
         let trigger_path = tmp.path().join("tiny.trigger.json");
-        Trigger {
+        let fit_on = |digest: Option<String>| Trigger {
             format: TRIGGER_FORMAT.into(),
             low: 0.75,
             high: 1.0,
@@ -536,11 +563,22 @@ mod tests {
             std: vec![1.0; 16],
             weights: vec![0.0; 16],
             bias: 2.0,
-            card: TriggerCard::new("c".into(), "d".into(), 1),
-        }
-        .save(&trigger_path)
-        .unwrap();
+            card: TriggerCard {
+                checkpoint_sha256: digest,
+                ..TriggerCard::new("c".into(), "d".into(), 1)
+            },
+        };
         scenario.driver.trigger = Some(trigger_path.clone());
+        // A trigger fit on another network, or not saying which, is refused by name.
+        for other in [Some("0".repeat(64)), None] {
+            fit_on(other).save(&trigger_path).unwrap();
+            let e = error_chain(&drivers.driver(&scenario, &prepared).err().unwrap());
+            assert!(
+                e.contains("card.checkpoint_sha256") && e.contains("mrdrive policy trigger"),
+                "{e}"
+            );
+        }
+        fit_on(Some(id.sha256.clone())).save(&trigger_path).unwrap();
         let with_trigger = drivers.driver(&scenario, &prepared).unwrap();
         let id = with_trigger.trigger().expect("the trigger is named");
         assert_eq!(id.file, trigger_path.display().to_string());

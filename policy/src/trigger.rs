@@ -70,6 +70,10 @@ pub struct Trigger {
 pub struct TriggerCard {
     /// The policy checkpoint whose features and branches it reads.
     pub checkpoint: String,
+    /// That checkpoint's SHA-256 when the trigger was fit: a policy driver refuses a
+    /// trigger fit on another network (absent in files written before 2026-12-07).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub checkpoint_sha256: Option<String>,
     /// The dataset it was fit on.
     pub data: String,
     /// Every how many frames one was used.
@@ -131,11 +135,24 @@ impl TriggerCard {
         out
     }
 
+    /// Whether a trigger with this card answers the fit `asked` describes (the same
+    /// network by digest, data, frames, target, share and scales): `mrdrive policy
+    /// trigger` then leaves the file as it is.
+    pub fn fits_the_same(&self, asked: &TriggerCard) -> bool {
+        self.checkpoint_sha256.is_some()
+            && self.checkpoint_sha256 == asked.checkpoint_sha256
+            && self.data == asked.data
+            && self.every == asked.every
+            && self.target == asked.target
+            && self.positive_share == asked.positive_share
+    }
+
     /// A card for a trigger of `checkpoint` fit on every `every`-th frame of
     /// `data`; [`fit`] fills in the rest.
     pub fn new(checkpoint: String, data: String, every: usize) -> Self {
         TriggerCard {
             checkpoint,
+            checkpoint_sha256: None,
             data,
             every,
             frames_fit: 0,
@@ -681,6 +698,50 @@ pub fn fit(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_same_fit_is_the_same_network_by_digest_data_frames_and_target() {
+        let asked = TriggerCard {
+            checkpoint_sha256: Some("ab".into()),
+            positive_share: 0.1,
+            target: Target::Regret,
+            ..TriggerCard::new("models/ra.safetensors".into(), "data/r".into(), 5)
+        };
+        // What the fit fills in (frames, scores) does not matter.
+        let made = TriggerCard {
+            frames_fit: 100,
+            ..asked.clone()
+        };
+        assert!(made.fits_the_same(&asked));
+        for other in [
+            TriggerCard {
+                checkpoint_sha256: Some("cd".into()),
+                ..made.clone()
+            },
+            TriggerCard {
+                checkpoint_sha256: None,
+                ..made.clone()
+            },
+            TriggerCard {
+                data: "data/o".into(),
+                ..made.clone()
+            },
+            TriggerCard {
+                every: 2,
+                ..made.clone()
+            },
+            TriggerCard {
+                target: Target::Disagreement,
+                ..made.clone()
+            },
+            TriggerCard {
+                positive_share: 0.25,
+                ..made.clone()
+            },
+        ] {
+            assert!(!other.fits_the_same(&asked), "{other:?}");
+        }
+    }
 
     fn card() -> TriggerCard {
         TriggerCard::new("c".into(), "d".into(), 1)

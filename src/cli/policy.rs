@@ -1,6 +1,6 @@
 //! `mrdrive policy ...`, `mrdrive train --synthetic`, `mrdrive bench policy`.
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use policy::bench;
 use policy::checkpoint;
@@ -242,17 +242,37 @@ fn fit_trigger(
     (share, target): (f32, policy::trigger::Target),
     scales: (f32, f32),
 ) -> Result<()> {
-    use policy::trigger::{self, FitConfig, TriggerCard};
+    use policy::trigger::{self, FitConfig, Trigger, TriggerCard};
     let started = std::time::Instant::now();
+    let digest = sim::record::CheckpointId::of(weights)
+        .with_context(|| format!("reading {}", weights.display()))?
+        .sha256;
+    let card = TriggerCard {
+        checkpoint_sha256: Some(digest),
+        positive_share: share,
+        target,
+        ..TriggerCard::new(
+            weights.display().to_string(),
+            data.display().to_string(),
+            every,
+        )
+    };
+    // The same fit is not made again (the training pipeline asks for it every job).
+    if let Ok(t) = Trigger::load(out)
+        && t.card.fits_the_same(&card)
+        && (t.low, t.high) == scales
+    {
+        print!("{}", t.card.report());
+        println!(
+            "{} is up to date: the same network, data and target",
+            out.display()
+        );
+        return Ok(());
+    }
     let (samples, skipped) = trigger::checkpoint_samples(weights, data, scales, every)?;
     for s in &skipped {
         eprintln!("skipped: {s}");
     }
-    let card = TriggerCard::new(
-        weights.display().to_string(),
-        data.display().to_string(),
-        every,
-    );
     let cfg = FitConfig {
         positive_share: share,
         target,
