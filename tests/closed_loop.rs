@@ -400,10 +400,10 @@ fn render_replays_a_moment_with_the_driver_delay_and_scale_a_sweep_passes() {
         args.extend(extra);
         run_ok(&args)
     };
-    // The scenario's own driver: the RA for our towns with the oracle selector.
+    // The scenario's own driver: the RA with the oracle selector.
     let own = render(&[]);
     assert!(
-        own.contains("driver        policy:scenarios/../models/ra-towns.safetensors")
+        own.contains("driver        policy:scenarios/../models/ra.safetensors")
             && own.contains("resolution oracle-0.75/1"),
         "{own}"
     );

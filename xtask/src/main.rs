@@ -3,7 +3,7 @@
 //! | task | what it does |
 //! | --- | --- |
 //! | `setup` | installs what the tests and the camera need and are missing (Debian packages, a Python venv) |
-//! | `run [ARGS]` | `setup`, then `cargo run --release -- run scenarios/default.toml --json out/run.json --record out/run.mcap` (the RA policy `models/ra-towns` with the oracle selector; `--expert` for the expert): its result table, its picture `out/run.png` and its Foxglove log; flags alone (`--seed 3`, `--checkpoint models/ra.safetensors`) are added to that, other arguments replace it |
+//! | `run [ARGS]` | `setup`, then `cargo run --release -- run scenarios/default.toml --json out/run.json --record out/run.mcap` (the RA policy `models/ra` with the oracle selector; `--expert` for the expert): its result table, its picture `out/run.png` and its Foxglove log; flags alone (`--seed 3`, `--checkpoint models/nra-1.0.safetensors`) are added to that, other arguments replace it |
 //! | `test [ARGS]` | `setup`, then the whole test suite in release mode; ends with the count of skipped tests and why |
 //! | `ci` | what `.ci/run` runs: formatting, then `test` with every skip turned into a failure |
 //! | `lint` | `cargo fmt --check` and `cargo clippy --all-targets -- -D warnings` (run before committing; kept out of CI because it needs a second, check-mode build of every dependency) |
