@@ -99,7 +99,9 @@ pub struct Retarget {
 /// One set of units the closed-loop bar drives every driver on, with its table.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BarSet {
-    /// The folder of its sweeps, one per driver (relative to the base: `out/bar`).
+    /// The folder of its sweeps, one per driver (relative to the base:
+    /// `models/closed-loop`, committed with the models so that a job on a fresh machine
+    /// goes on from the runs done, as the learning curve's records are).
     pub folder: String,
     /// Its table, `policy table` of those sweeps (relative to the base:
     /// `models/closed-loop.md`).
@@ -115,7 +117,7 @@ pub struct BarSet {
 /// One driver of the closed-loop bar: a sweep folder, a model (or the expert), a scale.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BarDriver {
-    /// The sweep folder's name under each set's folder (`out/bar/`).
+    /// The sweep folder's name under each set's folder (`models/closed-loop/`).
     pub label: String,
     /// The model under `models/` (`None`: the expert).
     pub model: Option<String>,
@@ -127,7 +129,8 @@ pub struct BarDriver {
 /// the datasets and the run folders live in the cache (`dataset::cache`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrainPlan {
-    /// The folder whose `models/` and `out/bar/` the pipeline writes.
+    /// The folder whose `models/` (the bar's records in `models/closed-loop/` among
+    /// them) the pipeline writes.
     pub base: PathBuf,
     /// The folder of the training runs' state (`mrdrive train --runs`):
     /// `<cache>/runs` for the study, `<base>/runs` for the quick plan.
@@ -259,7 +262,7 @@ impl TrainPlan {
             bar_sets: vec![
                 // The paper's routes, three densities, seeds 0-2: 18 runs a town.
                 BarSet {
-                    folder: "out/bar".into(),
+                    folder: "models/closed-loop".into(),
                     table: "models/closed-loop.md".into(),
                     scenarios: [
                         "town01_route0",
@@ -275,7 +278,7 @@ impl TrainPlan {
                 },
                 // Routes no dataset drove (held01, Town02's held-out routes) at 5 + 10.
                 BarSet {
-                    folder: "out/bar-heldout".into(),
+                    folder: "models/closed-loop-heldout".into(),
                     table: "models/closed-loop-heldout.md".into(),
                     scenarios: (0..4)
                         .map(|k| format!("held01_random{k}"))
@@ -1263,18 +1266,18 @@ mod tests {
         let bar = joined(&groups[publish + 17])[0].clone();
         assert!(
             bar.starts_with("sweep scenarios/paper/town01_route0.toml")
-                && bar.contains("--densities 0:0,5:10,20:40 --seeds 0,1,2 --out out/scratch/out/bar/expert --expert"),
+                && bar.contains("--densities 0:0,5:10,20:40 --seeds 0,1,2 --out out/scratch/models/closed-loop/expert --expert"),
             "{bar}"
         );
         let heldout = joined(&groups[publish + 24])[0].clone();
         assert!(
             heldout.starts_with("sweep scenarios/heldout/held01_random0.toml")
-                && heldout.contains("town02_random7.toml --delays 0 --scales 1.0 --densities 5:10 --seeds 0 --out out/scratch/out/bar-heldout/expert"),
+                && heldout.contains("town02_random7.toml --delays 0 --scales 1.0 --densities 5:10 --seeds 0 --out out/scratch/models/closed-loop-heldout/expert"),
             "{heldout}"
         );
         assert_eq!(
             joined(&groups[publish + 30])[0],
-            "policy table out/scratch/out/bar-heldout --out out/scratch/models/closed-loop-heldout.md"
+            "policy table out/scratch/models/closed-loop-heldout --out out/scratch/models/closed-loop-heldout.md"
         );
         let Group::Lanes(lanes) = &groups[publish + 15] else {
             panic!("the retargeting stages run in lanes")

@@ -26,8 +26,9 @@ pub struct TrainArgs {
     /// closed-loop bar, RA5 (`cargo xtask train`).
     #[arg(long, conflicts_with_all = ["stage", "synthetic"])]
     all: bool,
-    /// With `--all`: the folder whose models/, runs/, out/bar/ and out/bar-heldout/ the pipeline writes
-    /// (`--into .` replaces the shipped models/).
+    /// With `--all`: the folder whose models/ (with the bar's records,
+    /// models/closed-loop/ and models/closed-loop-heldout/) the pipeline writes (`--into
+    /// .` replaces the shipped models/).
     #[arg(long, requires = "all")]
     into: Option<PathBuf>,
     /// With `--all`: the same plumbing at toy size, into out/train-quick unless --into.
