@@ -183,8 +183,11 @@ pub fn render_moment(
     } else {
         rgb.clone()
     };
-    // The camera does not draw its own car: the top-down view outlines it.
-    if let (View::TopDown { .. }, Some(e)) = (request.view, moment.actors.first()) {
+    // The camera does not draw its own car: the top-down colour view outlines it (a
+    // class image keeps its label colours only).
+    if let (View::TopDown { .. }, false, Some(e)) =
+        (request.view, request.labels, moment.actors.first())
+    {
         outline_ego(&mut image, e.extent.x, e.extent.y, TOP_DOWN_EXTENT_M);
     }
     let light_ahead = light_ahead(&prepared, &ego, &moment.lights, LIGHT_AHEAD_RANGE_M);

@@ -27,10 +27,7 @@ pub(super) fn latest_card(spec: &StageSpec, run_dir: &Path, step: usize) -> Mode
 /// The card of the trained network: `steps` steps in all, on `set` (the
 /// episodes it trained on), in `wall_s` seconds of training over every session.
 pub(super) fn final_card(spec: &StageSpec, set: &TrainSet, steps: usize, wall_s: f64) -> ModelCard {
-    let used = &set.index.episodes[..spec
-        .episodes
-        .unwrap_or(usize::MAX)
-        .min(set.index.episodes.len())];
+    let used = first_episodes(&set.index.episodes, spec.episodes);
     let (towns, routes) = by_town_and_route(
         used.iter()
             .chain(set.also.iter().flat_map(|(_, i)| &i.episodes)),
@@ -94,6 +91,12 @@ pub(super) fn final_card(spec: &StageSpec, set: &TrainSet, steps: usize, wall_s:
     }
 }
 
+/// The episodes a stage trains on of its first dataset: the first `limit` (all
+/// without one).
+fn first_episodes(episodes: &[Episode], limit: Option<usize>) -> &[Episode] {
+    &episodes[..limit.unwrap_or(usize::MAX).min(episodes.len())]
+}
+
 /// Episodes by town and by route (`RouteSpec::key`).
 type Tally = BTreeMap<String, usize>;
 
@@ -129,10 +132,7 @@ pub(super) fn complete_final_card(spec: &StageSpec, run_dir: &Path) -> Result<()
         };
         also.push(index);
     }
-    let used = &first.episodes[..spec
-        .episodes
-        .unwrap_or(usize::MAX)
-        .min(first.episodes.len())];
+    let used = first_episodes(&first.episodes, spec.episodes);
     let (_, routes) = by_town_and_route(used.iter().chain(also.iter().flat_map(|i| &i.episodes)));
     record.routes = routes;
     checkpoint::write_manifest(&weights, &config, &card)?;
