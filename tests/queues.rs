@@ -64,16 +64,8 @@ impl Unit {
 /// The scenario file of `route`, rewritten into `tmp` to read CARLA's files from the
 /// folder the tests use; `None` (skipped) without one.
 fn scenario(route: &str, tmp: &Path) -> Option<PathBuf> {
-    let carla = world::testdata::carla_dir(&format!("queues::{route}"))?;
     let file = root().join("scenarios/paper").join(format!("{route}.toml"));
-    let text = std::fs::read_to_string(&file).unwrap();
-    let copy = tmp.join(format!("{route}.toml"));
-    std::fs::write(
-        &copy,
-        text.replace("../../../shared/carla", &carla.display().to_string()),
-    )
-    .unwrap();
-    Some(copy)
+    common::with_tests_carla(&format!("queues::{route}"), &file, tmp)
 }
 
 /// Drives the three units with `driver` at the fixed input `scale` (`None`: the

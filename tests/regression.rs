@@ -139,12 +139,7 @@ fn scenario_file(name: &str, needs_carla: bool, tmp: &Path) -> Option<PathBuf> {
     if !needs_carla {
         return Some(file);
     }
-    let carla = world::testdata::carla_dir(name)?;
-    let text = std::fs::read_to_string(&file).unwrap();
-    let text = text.replace("../../../shared/carla", &carla.display().to_string());
-    let copy = tmp.join(format!("{name}.toml"));
-    std::fs::write(&copy, text).unwrap();
-    Some(copy)
+    common::with_tests_carla(name, &file, tmp)
 }
 
 /// An expert scenario (no camera) at every delay and density.

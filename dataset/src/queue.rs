@@ -47,6 +47,9 @@ pub struct QueueWatch {
     stops: Option<RouteStops>,
     /// Every tick at which the ego waited in a queue at a red light, in order.
     pub moments: Vec<QueueMoment>,
+    /// The tick's light codes and other actors, kept between ticks (no allocation a tick).
+    lights: Vec<u8>,
+    actors: Vec<ActorRow>,
 }
 
 impl QueueWatch {
@@ -75,11 +78,15 @@ impl RunObserver for QueueWatch {
         let stops = self
             .stops
             .get_or_insert_with(|| StopLines::new(view.town).on_route(view.route));
-        let lights: Vec<u8> = view.lights.iter().map(|&s| light_code(s)).collect();
-        let at_red = approaching_red(stops, view.route_s, &lights);
+        self.lights.clear();
+        self.lights
+            .extend(view.lights.iter().map(|&s| light_code(s)));
+        let at_red = approaching_red(stops, view.route_s, &self.lights);
         let ego = EgoRow::of(view.ego());
-        let actors: Vec<ActorRow> = view.actors[1..].iter().map(ActorRow::of).collect();
-        if let Some(gap_m) = waiting_behind(&ego, &actors, at_red) {
+        self.actors.clear();
+        self.actors
+            .extend(view.actors[1..].iter().map(ActorRow::of));
+        if let Some(gap_m) = waiting_behind(&ego, &self.actors, at_red) {
             self.moments.push(QueueMoment {
                 tick: view.tick,
                 time_s: view.time_s,
@@ -151,8 +158,8 @@ mod tests {
             gap_m: 4.0,
         };
         let watch = QueueWatch {
-            stops: None,
             moments: [10, 11, 12, 20, 30, 31].into_iter().map(at).collect(),
+            ..QueueWatch::default()
         };
         let waits = watch.waits();
         let rounded: Vec<(f64, f64)> = waits

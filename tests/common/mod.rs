@@ -48,3 +48,22 @@ pub fn succeeded<S: AsRef<OsStr>>(args: &[S], out: &Output) -> String {
     );
     stdout
 }
+
+/// `file`, a scenario on CARLA's maps (`../../../shared/carla/...`), rewritten into
+/// `tmp` to read them from the CARLA folder the tests use; `None` (`test` skipped)
+/// without one.
+pub fn with_tests_carla(
+    test: &str,
+    file: &std::path::Path,
+    tmp: &std::path::Path,
+) -> Option<PathBuf> {
+    let carla = world::testdata::carla_dir(test)?;
+    let text = std::fs::read_to_string(file).unwrap();
+    let copy = tmp.join(file.file_name().unwrap());
+    std::fs::write(
+        &copy,
+        text.replace("../../../shared/carla", &carla.display().to_string()),
+    )
+    .unwrap();
+    Some(copy)
+}
