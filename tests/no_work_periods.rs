@@ -6,7 +6,7 @@
 //! The files looked at are the repository's text files (`git ls-files`, tracked and
 //! untracked but not ignored; without git, a walk of the tree that skips `target/`,
 //! `.git/`, `.venv/`, `data/` and `out/`) ending in `.md`, `.rs`, `.toml`, `.py`, `.txt`
-//! or `.json`, except the paper page's run records (`docs/paper/sweeps/`), files over
+//! or `.json`, except the paper pages' run records (`docs/paper*/sweeps/`), files over
 //! 2 MB and this file. Plain string search, case-insensitive; no regex crate.
 
 use std::path::{Path, PathBuf};
@@ -17,7 +17,7 @@ const EXTENSIONS: &[&str] = &["md", "rs", "toml", "py", "txt", "json"];
 /// Files larger than this are not read.
 const MAX_BYTES: u64 = 2 * 1024 * 1024;
 /// Folders (relative to the repository root, `/`-separated) whose files are not read.
-const SKIPPED_PREFIXES: &[&str] = &["docs/paper/sweeps/"];
+const SKIPPED_PREFIXES: &[&str] = &["docs/paper/sweeps/", "docs/paper-2026-12-05/sweeps/"];
 /// Folders the fallback walk does not enter (git ignores them).
 const SKIPPED_DIRS: &[&str] = &["target", ".git", ".venv", "data", "out"];
 /// This file, which has to spell the patterns out.

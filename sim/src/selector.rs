@@ -250,7 +250,7 @@ impl Lookahead {
     /// trigger, so the stop for a red light is decided at the high scale.
     /// The oracle and the plain lookahead switch up 5-7 m before the line,
     /// inside the 6-7 m a car at 6 m/s needs to stop, where the low scale may
-    /// already have decided (`docs/paper/discussion.md` has what the runs
+    /// already have decided (`docs/paper-2026-12-05/discussion.md` has what the runs
     /// showed).
     pub fn braking(low: f32, high: f32, table: &LatencyTable) -> Option<Self> {
         Some(Lookahead {
