@@ -50,6 +50,8 @@ enum Command {
     Sweep(cli::sweep::SweepArgs),
     /// The paper's tables and figures from the shipped checkpoints (resumable; --quick: a smoke test).
     Paper(cli::paper::PaperArgs),
+    /// The study's rerun as a chain of time-limited jobs: one pinned build, run in a worktree of its commit, records committed hourly (--pin, --hours H; neither: where it stands).
+    Study(cli::study::StudyArgs),
     /// Maps: summary, picture, town generator.
     #[command(subcommand)]
     Map(cli::map::MapCommand),
@@ -106,6 +108,7 @@ fn run() -> anyhow::Result<()> {
         Command::Run(a) => cli::run::run(a),
         Command::Sweep(a) => cli::sweep::run(a),
         Command::Paper(a) => cli::paper::run(a),
+        Command::Study(a) => cli::study::run(a),
         Command::Map(c) => cli::map::run(c),
         Command::Routes(a) => cli::routes::run(a),
         Command::Traffic(a) => cli::traffic::run(a),

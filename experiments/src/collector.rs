@@ -38,11 +38,22 @@ fn problem(path: &Path, problem: impl Into<String>) -> CollectorError {
 /// The commit named by `dir/`[`FILE`]: its one line that is not blank or a `#`
 /// comment, 7 to 40 hex digits; `None` where the file does not exist.
 pub fn pinned(dir: &Path) -> Result<Option<String>, CollectorError> {
-    let path = dir.join(FILE);
-    let text = match std::fs::read_to_string(&path) {
+    pinned_in(
+        &dir.join(FILE),
+        "the data's commit",
+        "whose build made the data",
+    )
+}
+
+/// The commit a pin file names: its one line that is not blank or a `#` comment,
+/// 7 to 40 hex digits; `None` where the file does not exist. `what` names the
+/// commit ("the data's commit") and `whose` says what it is ("whose build made the
+/// data") in the error.
+pub fn pinned_in(path: &Path, what: &str, whose: &str) -> Result<Option<String>, CollectorError> {
+    let text = match std::fs::read_to_string(path) {
         Ok(t) => t,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-        Err(e) => return Err(problem(&path, format!("cannot read it: {e}"))),
+        Err(e) => return Err(problem(path, format!("cannot read it: {e}"))),
     };
     let lines: Vec<&str> = text
         .lines()
@@ -57,11 +68,11 @@ pub fn pinned(dir: &Path) -> Result<Option<String>, CollectorError> {
             Ok(Some(commit.to_ascii_lowercase()))
         }
         _ => Err(problem(
-            &path,
+            path,
             format!(
-                "the data's commit must be its one line besides `#` comments, 7 to 40 hex \
-                 digits (found {} such lines: {:?}); write the commit whose build made the \
-                 data, as `git rev-parse HEAD` prints it",
+                "{what} must be its one line besides `#` comments, 7 to 40 hex digits (found \
+                 {} such lines: {:?}); write the commit {whose}, as `git rev-parse HEAD` \
+                 prints it",
                 lines.len(),
                 lines
             ),
@@ -107,7 +118,17 @@ pub fn data_build(
         return Ok(None);
     };
     if !bin.exists() {
-        build(repo, &commit, cache, &bin, note)?;
+        let base = cache.join("collector");
+        let target = base.join("target");
+        build(
+            repo,
+            &commit,
+            &base,
+            &target,
+            &bin,
+            "the data's build",
+            note,
+        )?;
     }
     note(&format!(
         "the data are collected and labelled by {} (commit {commit}, pinned in {})",
@@ -118,19 +139,19 @@ pub fn data_build(
 }
 
 /// Builds `commit` of the repository around `repo` into `binary`: a detached
-/// worktree at `cache/collector/<commit>`, `cargo build --release --bin mrdrive`
-/// there (its own target folder, `cache/collector/target`), and a copy of the
-/// result. `note` hears what it does.
+/// worktree at `base/<commit>` (kept: the study runs in it), `cargo build --release
+/// --bin mrdrive` there into the target folder `target`, and a copy of the result.
+/// `label` names the build in what `note` hears ("the data's build").
 pub fn build(
     repo: &Path,
     commit: &str,
-    cache: &Path,
+    base: &Path,
+    target: &Path,
     binary: &Path,
+    label: &str,
     note: &dyn Fn(&str),
 ) -> Result<(), CollectorError> {
-    let base = cache.join("collector");
     let tree = base.join(commit);
-    let target = base.join("target");
     let run = |cmd: &mut Command, what: &str| -> Result<(), CollectorError> {
         let status = cmd
             .status()
@@ -141,8 +162,8 @@ pub fn build(
             Err(problem(
                 repo,
                 format!(
-                    "{what} failed ({status}); the data's commit {commit} must be in this \
-                     checkout's history (fetch it), or put its binary at {}",
+                    "{what} failed ({status}); commit {commit} must be in this checkout's \
+                     history (fetch it), or put its binary at {}",
                     binary.display()
                 ),
             ))
@@ -150,11 +171,11 @@ pub fn build(
     };
     if !tree.join("Cargo.toml").exists() {
         note(&format!(
-            "the data's build: a worktree of {commit} at {}",
+            "{label}: a worktree of {commit} at {}",
             tree.display()
         ));
-        std::fs::create_dir_all(&base)
-            .map_err(|e| problem(&base, format!("cannot create it: {e}")))?;
+        std::fs::create_dir_all(base)
+            .map_err(|e| problem(base, format!("cannot create it: {e}")))?;
         run(
             Command::new("git").arg("-C").arg(repo).args([
                 "worktree",
@@ -168,14 +189,14 @@ pub fn build(
         )?;
     }
     note(&format!(
-        "the data's build: cargo build --release in {} (a cold build: minutes)",
+        "{label}: cargo build --release in {} (a cold build: minutes)",
         tree.display()
     ));
     run(
         Command::new("cargo")
             .args(["build", "--release", "--bin", "mrdrive"])
             .current_dir(&tree)
-            .env("CARGO_TARGET_DIR", &target),
+            .env("CARGO_TARGET_DIR", target),
         "cargo build",
     )?;
     if let Some(parent) = binary.parent() {

@@ -20,6 +20,9 @@
 //!   commands of this binary (`mrdrive train --all`).
 //! - [`collector`]: the build that collects and labels the study's data, pinned
 //!   so that they stay the bytes their hashes list when the simulator changes.
+//! - [`study`]: the study's rerun as a chain of time-limited jobs, one pinned
+//!   build run in a worktree of its commit, its records committed hourly
+//!   (`mrdrive study`).
 //! - [`progress`]: how far the pipeline is and how long the rest will take.
 //! - [`bench_page`]: every benchmark in one go, into `docs/bench.md`
 //!   (`mrdrive bench all`).
@@ -41,6 +44,7 @@ pub mod registration;
 pub mod report;
 pub mod results;
 pub mod run;
+pub mod study;
 pub mod units;
 
 use std::path::{Path, PathBuf};
@@ -100,6 +104,14 @@ pub enum PaperError {
     /// The study's registration is missing what it needs, or a record breaks it.
     #[error("registration, {path}: {problem}")]
     Registration {
+        /// The file or folder.
+        path: PathBuf,
+        /// What is wrong and how to fix it.
+        problem: String,
+    },
+    /// The study's chain of jobs cannot go on (`mrdrive study`).
+    #[error("study, {path}: {problem}")]
+    Study {
         /// The file or folder.
         path: PathBuf,
         /// What is wrong and how to fix it.

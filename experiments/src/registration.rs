@@ -207,7 +207,7 @@ pub fn build_commit(build: &str) -> Option<&str> {
 }
 
 /// Whether commit `later` descends from (or is) `earlier`, in `dir`'s repository.
-fn descends(dir: &Path, earlier: &str, later: &str) -> Result<bool, PaperError> {
+pub(crate) fn descends(dir: &Path, earlier: &str, later: &str) -> Result<bool, PaperError> {
     let out = Command::new("git")
         .arg("-C")
         .arg(dir)

@@ -12,6 +12,7 @@ pub mod render;
 pub mod routes;
 pub mod run;
 pub mod serve;
+pub mod study;
 pub mod sweep;
 pub mod traffic;
 pub mod train;
@@ -20,4 +21,11 @@ pub mod train;
 /// policy (built by `policy` from its checkpoint).
 pub fn drivers() -> sim::build::Drivers {
     sim::build::Drivers::new().with(sim::scenario::DriverKind::Policy, ::policy::PolicyFactory)
+}
+
+/// `YYYY-MM-DD HH:MM` of a time, UTC (the job logs' clock).
+pub fn time_utc(t: std::time::SystemTime) -> String {
+    chrono::DateTime::<chrono::Utc>::from(t)
+        .format("%Y-%m-%d %H:%M")
+        .to_string()
 }

@@ -554,7 +554,7 @@ fn end_of_job(runs: &Path, file: &Path, how: &str, wall_s: f64, check: &str) -> 
              | --- | --- | --- | --- | --- | --- | --- |"
         )?;
     }
-    let now = time_utc(SystemTime::now());
+    let now = super::time_utc(SystemTime::now());
     let (run, losses) = match &snap {
         Some(s) => (
             format!("{} at step {}", s.run.display(), s.progress.step),
@@ -582,13 +582,6 @@ fn end_of_job(runs: &Path, file: &Path, how: &str, wall_s: f64, check: &str) -> 
         ),
     }
     Ok(())
-}
-
-/// `YYYY-MM-DD HH:MM` of a time, UTC.
-fn time_utc(t: SystemTime) -> String {
-    chrono::DateTime::<chrono::Utc>::from(t)
-        .format("%Y-%m-%d %H:%M")
-        .to_string()
 }
 
 /// `mrdrive train --synthetic`: a smoke run on one toy batch.

@@ -1,0 +1,97 @@
+//! `mrdrive study`: the study's rerun as a chain of time-limited jobs
+//! ([`experiments::study`]): `--pin` names its one build, `--hours H` runs a job,
+//! and with neither it says where the study stands.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, SystemTime};
+
+use anyhow::Result;
+use clap::Args;
+use experiments::study::{self, JobLog, STAGES, Step};
+
+/// `study` arguments.
+#[derive(Debug, Args)]
+pub struct StudyArgs {
+    /// Pin the study's commit: this clean checkout's HEAD, which must descend from
+    /// the registered commit; writes docs/paper/study (commit it next). Once.
+    #[arg(long, conflicts_with = "hours")]
+    pub pin: bool,
+    /// Run one job for at most this many hours (a run in flight at the limit is
+    /// stopped; every finished run is kept and committed): the registration's stages
+    /// in order, each resuming where the last job stopped.
+    #[arg(long)]
+    pub hours: Option<f64>,
+    /// Minutes between the job's commits of its records to the checkout.
+    #[arg(long, default_value_t = 60.0)]
+    pub sync_minutes: f64,
+    /// The checkout (its docs/paper holds the registration, the pin and the log).
+    #[arg(long, default_value = ".")]
+    pub repo: PathBuf,
+}
+
+/// Runs `study`.
+pub fn run(a: StudyArgs) -> Result<()> {
+    let paper = a.repo.join(study::FOLDERS[0]);
+    if a.pin {
+        let commit = study::pin(&paper)?;
+        println!(
+            "study: pinned commit {commit} in {}; commit that file, then run `mrdrive study \
+             --hours H` job after job",
+            paper.join(study::PIN_FILE).display()
+        );
+        return Ok(());
+    }
+    let Some(hours) = a.hours else {
+        return status(&paper);
+    };
+    anyhow::ensure!(
+        hours > 0.0 && a.sync_minutes > 0.0,
+        "--hours and --sync-minutes must be above 0 (got {hours} and {})",
+        a.sync_minutes
+    );
+    let row = study::run_job(
+        &a.repo,
+        &dataset::cache::root(),
+        hours,
+        Duration::from_secs_f64(a.sync_minutes * 60.0),
+        &|| super::time_utc(SystemTime::now()),
+        &policy::train::stage::machine(),
+        &|line| eprintln!("{line}"),
+    )?;
+    println!(
+        "study: job {} ended after {:.2} h: {}; stages finished in it: {:?}",
+        row.job,
+        row.hours.unwrap_or(0.0),
+        row.note,
+        row.finished
+    );
+    Ok(())
+}
+
+/// Prints the pinned commit, the jobs so far and what the next job does.
+fn status(paper: &Path) -> Result<()> {
+    match study::pinned_commit(paper) {
+        Ok(c) => println!("study: commit {c} makes every record"),
+        Err(e) => println!("{e}"),
+    }
+    let log = JobLog::read(&paper.join(study::LOG_FILE))?;
+    println!(
+        "study: {} of the budget's {} jobs used",
+        log.rows.len(),
+        study::BUDGET_JOBS
+    );
+    for s in &STAGES {
+        let step = match log.step(s.number) {
+            Step::Done => format!("done (job {})", log.finished_by(s.number).unwrap_or(0)),
+            Step::Run => "to run".into(),
+            Step::NotRun(why) => format!("not run: {why}"),
+        };
+        println!(
+            "stage {} ({}): `mrdrive {}`: {step}",
+            s.number,
+            s.what,
+            s.args.join(" ")
+        );
+    }
+    Ok(())
+}
