@@ -714,6 +714,9 @@ mod tests {
             assert!(ok, "git {args:?}");
         };
         git(&["init", "-q"]);
+        // The job's own commits need an identity; CI's machine may have none.
+        git(&["config", "user.name", "toy"]);
+        git(&["config", "user.email", "toy@example.org"]);
         git(&["add", "."]);
         git(&["commit", "-q", "-m", "start"]);
         let bin = dir.path().join("fake-mrdrive");
@@ -808,5 +811,107 @@ mod tests {
             e.contains("stage 3") && e.contains("`mrdrive paper`"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn jobs_pin_resume_and_finish_the_stages_in_a_worktree_of_the_pinned_commit() {
+        // A registered checkout, its commit pinned and a worktree of it in the
+        // cache with a fake study binary: two stages finish, then the third.
+        let (_dir, repo, _, _) = toy("");
+        let git = |args: &[&str]| -> String {
+            let out = Command::new("git")
+                .arg("-C")
+                .arg(&repo)
+                .args(["-c", "user.name=t", "-c", "user.email=t@t"])
+                .args(args)
+                .output()
+                .unwrap();
+            assert!(out.status.success(), "git {args:?}");
+            String::from_utf8_lossy(&out.stdout).trim().to_string()
+        };
+        let paper = repo.join("docs/paper");
+        let first = git(&["rev-parse", "HEAD"]);
+        std::fs::write(
+            paper.join(registration::RECORD_FILE),
+            format!("commit = \"{first}\"\nsha256 = \"{}\"\n", "0".repeat(64)),
+        )
+        .unwrap();
+        git(&["add", "."]);
+        git(&["commit", "-q", "-m", "register"]);
+        std::fs::write(paper.join("README.md"), "edited\n").unwrap();
+        let e = pin(&paper).unwrap_err().to_string();
+        assert!(e.contains("uncommitted"), "{e}");
+        git(&["checkout", "--", "."]);
+        let commit = pin(&paper).unwrap();
+        assert!(
+            pin(&paper)
+                .unwrap_err()
+                .to_string()
+                .contains("pinned already")
+        );
+        git(&["add", "."]);
+        git(&["commit", "-q", "-m", "pin"]);
+        assert_eq!(pinned_commit(&paper).unwrap(), commit);
+
+        let cache = repo.parent().unwrap().join("cache");
+        let tree = cache.join("study").join(&commit);
+        git(&[
+            "worktree",
+            "add",
+            "-q",
+            "--detach",
+            tree.to_str().unwrap(),
+            &commit,
+        ]);
+        std::fs::write(tree.join("Cargo.toml"), "").unwrap();
+        // An earlier job's committed record reaches the worktree before any stage.
+        std::fs::create_dir_all(paper.join("sweeps/old/runs")).unwrap();
+        std::fs::write(paper.join("sweeps/old/runs/o.json"), "old").unwrap();
+        git(&["add", "."]);
+        git(&["commit", "-q", "-m", "an earlier job's record"]);
+        // The fake binary: stage 3 (`paper` alone) fails until told otherwise;
+        // the others write one record each.
+        let bin = cache.join("bin").join(format!("mrdrive-{}", &commit[..7]));
+        std::fs::create_dir_all(bin.parent().unwrap()).unwrap();
+        let script = format!(
+            "#!/bin/sh\ntest -f docs/paper/sweeps/old/runs/o.json || exit 9\n\
+             if [ \"$#\" = 1 ] && [ ! -f {ok} ]; then exit 4; fi\n\
+             mkdir -p docs/paper/sweeps/new/runs && echo \"$@\" > \"docs/paper/sweeps/new/runs/$#.json\"\n",
+            ok = cache.join("ok").display()
+        );
+        std::fs::write(&bin, script).unwrap();
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(&bin, std::fs::Permissions::from_mode(0o755)).unwrap();
+
+        let job = |n: &str| {
+            run_job(
+                &repo,
+                &cache,
+                1.0,
+                Duration::from_secs(3600),
+                &|| n.to_string(),
+                "toy",
+                &|_| {},
+            )
+        };
+        let e = job("2026-12-08 09:00").unwrap_err().to_string();
+        assert!(e.contains("stage 3"), "{e}");
+        let log = JobLog::read(&paper.join(LOG_FILE)).unwrap();
+        assert_eq!(log.rows.len(), 1);
+        assert_eq!(log.rows[0].finished, vec![1, 2]);
+        assert!(log.rows[0].note.starts_with("failed"), "{:?}", log.rows[0]);
+        assert!(paper.join("sweeps/new/runs/3.json").exists());
+        std::fs::write(cache.join("ok"), "").unwrap();
+        let row = job("2026-12-08 12:00").unwrap();
+        assert_eq!((row.job, row.finished.clone()), (2, vec![3]));
+        assert!(paper.join("sweeps/new/runs/1.json").exists());
+        assert_eq!(git(&["status", "--porcelain", "--", "docs/paper"]), "");
+        let row = job("2026-12-08 15:00").unwrap();
+        assert_eq!(row.finished, Vec::<u32>::new());
+        assert!(
+            row.note.starts_with("every registered stage is done"),
+            "{row:?}"
+        );
+        assert_eq!(JobLog::read(&paper.join(LOG_FILE)).unwrap().rows.len(), 3);
     }
 }
