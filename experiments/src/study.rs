@@ -307,10 +307,12 @@ impl Job<'_> {
         for f in FOLDERS {
             copied += mirror(&self.tree.join(f), &self.repo.join(f), Overwrite::Changed)?;
         }
-        if self.commit && copied > 0 {
+        // Also when nothing was copied now: a commit that failed before is tried again
+        // (`commit` does nothing where nothing is new).
+        if self.commit {
             commit(
                 &self.repo,
-                &format!("Add the study's records: {what}, {copied} files"),
+                &format!("Add the study's records: {what}, {copied} files copied now"),
             )
             .unwrap_or_else(|e| {
                 (self.note)(&format!(
@@ -725,6 +727,19 @@ mod tests {
         (dir, repo, tree, bin)
     }
 
+    /// A job over the toy's folders that stops after `limit`.
+    fn toy_job(repo: &Path, tree: &Path, bin: &Path, limit: Duration) -> Job<'static> {
+        Job {
+            repo: repo.to_path_buf(),
+            tree: tree.to_path_buf(),
+            binary: bin.to_path_buf(),
+            deadline: Instant::now() + limit,
+            sync_every: Duration::from_secs(3600),
+            commit: true,
+            note: &|_| {},
+        }
+    }
+
     fn commits(repo: &Path) -> String {
         let out = Command::new("git")
             .arg("-C")
@@ -743,15 +758,7 @@ mod tests {
             "mkdir -p docs/paper/sweeps/u/runs && echo \"$@\" > docs/paper/sweeps/u/runs/r.json \
              && echo page > docs/paper/README.md",
         );
-        let job = Job {
-            repo: repo.clone(),
-            tree,
-            binary: bin,
-            deadline: Instant::now() + Duration::from_secs(60),
-            sync_every: Duration::from_secs(3600),
-            commit: true,
-            note: &|_| {},
-        };
+        let job = toy_job(&repo, &tree, &bin, Duration::from_secs(60));
         assert_eq!(job.run_stage(&STAGES[0]).unwrap(), StageEnd::Finished);
         let record = repo.join("docs/paper/sweeps/u/runs/r.json");
         assert_eq!(
@@ -764,7 +771,7 @@ mod tests {
         );
         let log = commits(&repo);
         assert!(
-            log.starts_with("Add the study's records: stage 1, 2 files"),
+            log.starts_with("Add the study's records: stage 1, 2 files copied now"),
             "{log}"
         );
     }
@@ -775,15 +782,7 @@ mod tests {
         let (_dir, repo, tree, bin) = toy(
             "mkdir -p docs/paper/sweeps/u/runs && echo 1 > docs/paper/sweeps/u/runs/a.json && sleep 60",
         );
-        let job = Job {
-            repo: repo.clone(),
-            tree,
-            binary: bin,
-            deadline: Instant::now() + Duration::from_millis(1500),
-            sync_every: Duration::from_secs(3600),
-            commit: true,
-            note: &|_| {},
-        };
+        let job = toy_job(&repo, &tree, &bin, Duration::from_millis(1500));
         let start = Instant::now();
         assert_eq!(job.run_stage(&STAGES[1]).unwrap(), StageEnd::TimeUp);
         assert!(
@@ -797,15 +796,7 @@ mod tests {
     #[test]
     fn a_failing_stage_is_an_error_that_names_its_command() {
         let (_dir, repo, tree, bin) = toy("exit 3");
-        let job = Job {
-            repo,
-            tree,
-            binary: bin,
-            deadline: Instant::now() + Duration::from_secs(60),
-            sync_every: Duration::from_secs(3600),
-            commit: true,
-            note: &|_| {},
-        };
+        let job = toy_job(&repo, &tree, &bin, Duration::from_secs(60));
         let e = job.run_stage(&STAGES[2]).unwrap_err().to_string();
         assert!(
             e.contains("stage 3") && e.contains("`mrdrive paper`"),
