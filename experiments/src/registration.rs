@@ -229,7 +229,7 @@ pub(crate) fn descends(dir: &Path, earlier: &str, later: &str) -> Result<bool, P
 }
 
 /// Runs git in `dir` and returns what it printed.
-fn git(dir: &Path, args: &[&str]) -> Result<String, PaperError> {
+pub(crate) fn git(dir: &Path, args: &[&str]) -> Result<String, PaperError> {
     let out = Command::new("git")
         .arg("-C")
         .arg(dir)

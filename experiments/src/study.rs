@@ -504,23 +504,8 @@ fn commit(repo: &Path, message: &str) -> Result<(), String> {
         .into_iter()
         .filter(|f| repo.join(f).exists())
         .collect();
-    let git = |args: &[&str]| -> Result<(), String> {
-        let out = Command::new("git")
-            .arg("-C")
-            .arg(repo)
-            .args(args)
-            .output()
-            .map_err(|e| format!("could not run git: {e}"))?;
-        if out.status.success() {
-            Ok(())
-        } else {
-            Err(format!(
-                "`git {}`: {}",
-                args.join(" "),
-                String::from_utf8_lossy(&out.stderr).trim()
-            ))
-        }
-    };
+    // Git's own message is the error: the caller notes it and the next sync tries again.
+    let git = |args: &[&str]| registration::git(repo, args).map_err(|e| e.to_string());
     let mut add = vec!["add", "--"];
     add.extend(&present);
     git(&add)?;
@@ -531,7 +516,7 @@ fn commit(repo: &Path, message: &str) -> Result<(), String> {
     }
     let mut commit = vec!["commit", "-q", "-m", message, "--"];
     commit.extend(&present);
-    git(&commit)
+    git(&commit).map(drop)
 }
 
 /// `dir/study`'s commit, checked: it descends from the registered commit.
@@ -573,15 +558,7 @@ pub fn pin(paper: &Path) -> Result<String, PaperError> {
                 .into(),
         });
     }
-    let git = |args: &[&str]| -> Result<String, PaperError> {
-        let out = Command::new("git")
-            .arg("-C")
-            .arg(paper)
-            .args(args)
-            .output()
-            .map_err(|e| PaperError::io("run git in", paper, e))?;
-        Ok(String::from_utf8_lossy(&out.stdout).trim().to_string())
-    };
+    let git = |args: &[&str]| registration::git(paper, args).map(|s| s.trim().to_string());
     if !git(&["status", "--porcelain", "--untracked-files=no"])?.is_empty() {
         return Err(PaperError::Study {
             path: paper.to_path_buf(),
