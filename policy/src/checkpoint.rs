@@ -90,6 +90,15 @@ pub struct TrainingRecord {
     /// `<dataset folder>/<file>` (as `mrdrive data hashes` lists them).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub data_sha256: BTreeMap<String, String>,
+    /// The SHA-256 of the published checkpoint (`<name>.safetensors` in the models
+    /// folder, half precision), written when the run is published
+    /// (`train::publish::publish`): absent on a run folder's own card.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub checkpoint_sha256: Option<String>,
+    /// The closed-loop learning curve that sized its data, as a file beside the
+    /// published model and whose curve it is; absent where none was drawn.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub learning_curve: Option<String>,
 }
 
 impl ModelCard {
@@ -749,6 +758,8 @@ mod tests {
             frames_seen: None,
             start_sha256: None,
             data_sha256: BTreeMap::new(),
+            checkpoint_sha256: None,
+            learning_curve: None,
         }
     }
 

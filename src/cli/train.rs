@@ -626,6 +626,17 @@ mod tests {
     }
 
     #[test]
+    fn the_pipelines_learning_curve_is_the_file_a_published_card_points_to() {
+        let plan = TrainPlan::full(Path::new("b"), Path::new("/c"), true);
+        let table = plan.curve_table();
+        assert_eq!(
+            table.file_name().unwrap().to_str(),
+            Some(policy::train::publish::LEARNING_CURVE_FILE)
+        );
+        assert_eq!(table.parent(), Some(Path::new("b/models")));
+    }
+
+    #[test]
     fn a_chains_state_is_only_driven_on_through_its_own_snapshot_path() {
         let dir = tempfile::tempdir().unwrap();
         let base = dir.path();

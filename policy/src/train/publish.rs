@@ -1,13 +1,25 @@
 //! Publishing a finished run: its checkpoint (in half precision), card, loss log and
-//! loss plot copied from the run folder to a models folder as `<name>.*`.
+//! loss plot copied from the run folder to a models folder as `<name>.*`, the card
+//! stamped with the published checkpoint's SHA-256 and where its curves are.
 
 use std::path::{Path, PathBuf};
 
 use super::stage::{FINAL_FILE, LOSSES_FILE};
-use crate::checkpoint::{CheckpointError, manifest_path, write_f16};
+use crate::checkpoint::{
+    CheckpointError, TrainingRecord, read_manifest, write_f16, write_manifest,
+};
 
 /// The loss plot of a run folder (drawn by the command line from `losses.csv`).
 pub const LOSSES_PLOT_FILE: &str = "losses.png";
+
+/// The closed-loop learning curve `mrdrive train --all` draws in the models folder
+/// it publishes into (the table of `experiments::pipeline::TrainPlan::curve_table`):
+/// the Original's success on the curve's units after each slice of episodes and
+/// each DAgger round.
+pub const LEARNING_CURVE_FILE: &str = "original.curve.md";
+
+/// The stage whose data the learning curve sized.
+const CURVE_STAGE: &str = "original";
 
 /// Why a run could not be published.
 #[derive(Debug, thiserror::Error)]
@@ -45,9 +57,10 @@ pub fn published_checkpoint(out: &Path, name: &str) -> PathBuf {
 /// `<name>.losses.csv` and `<name>.losses.png`. The checkpoint is written first, in
 /// half precision (`checkpoint::write_f16`): the shipped models are what the
 /// repository keeps, at half the bytes, and every check of a shipped model (the bar,
-/// the study) drives this file. The plot may be missing (a run gone on from a snapshot at its
-/// last step has no loss rows to draw): then no plot is published and an older one
-/// under that name is removed.
+/// the study) drives this file. The card's training record then names that file's
+/// SHA-256, its loss log and the learning curve ([`learning_curve`]). The plot may be
+/// missing (a run gone on from a snapshot at its last step has no loss rows to
+/// draw): then no plot is published and an older one under that name is removed.
 pub fn publish(run_dir: &Path, out: &Path, name: &str) -> Result<(), PublishError> {
     std::fs::create_dir_all(out).map_err(|source| PublishError::Create {
         path: out.to_path_buf(),
@@ -59,11 +72,23 @@ pub fn publish(run_dir: &Path, out: &Path, name: &str) -> Result<(), PublishErro
         let _ = std::fs::remove_file(out.join(format!("{name}.losses.png")));
     }
     let copies = [
-        (manifest_path(&weights), format!("{name}.json")),
         (run_dir.join(LOSSES_FILE), format!("{name}.losses.csv")),
         (plot, format!("{name}.losses.png")),
     ];
-    write_f16(&weights, &published_checkpoint(out, name))?;
+    let published = published_checkpoint(out, name);
+    write_f16(&weights, &published)?;
+    let (config, mut card) = read_manifest(&weights)?;
+    if let Some(record) = card.training.as_mut() {
+        let bytes = std::fs::read(&published).map_err(|source| CheckpointError::Io {
+            path: published.clone(),
+            source,
+            fix: "check the models folder is readable",
+        })?;
+        record.checkpoint_sha256 = Some(sim::record::sha256_hex(&bytes));
+        record.losses = format!("{name}.losses.csv");
+        record.learning_curve = learning_curve(out, record);
+    }
+    write_manifest(&published, &config, &card)?;
     let copies = copies
         .map(|(from, to)| (from, out.join(to)))
         .into_iter()
@@ -72,6 +97,28 @@ pub fn publish(run_dir: &Path, out: &Path, name: &str) -> Result<(), PublishErro
         std::fs::copy(&from, &to).map_err(|source| PublishError::Copy { from, to, source })?;
     }
     Ok(())
+}
+
+/// Where the learning curve of a model published into `out` with `record` is: the
+/// Original's is [`LEARNING_CURVE_FILE`]; a network retargeted from it points to the
+/// same file, by its teacher's SHA-256, as its retargeting set was sized as the
+/// paper's and not by a curve of its own. `None` where `out` holds no curve.
+fn learning_curve(out: &Path, record: &TrainingRecord) -> Option<String> {
+    if !out.join(LEARNING_CURVE_FILE).exists() {
+        return None;
+    }
+    Some(if record.stage == CURVE_STAGE {
+        format!(
+            "{LEARNING_CURVE_FILE}: this network's data, closed-loop success on the curve's \
+             units after each slice of episodes and each DAgger round"
+        )
+    } else {
+        let teacher = record.start_sha256.as_deref().unwrap_or("unknown");
+        format!(
+            "{LEARNING_CURVE_FILE}: its teacher's (the Original, SHA-256 {teacher}); the \
+             retargeting set was sized as the paper's, not by a curve of its own"
+        )
+    })
 }
 
 #[cfg(test)]
@@ -100,7 +147,10 @@ mod tests {
         }
         assert_eq!(
             std::fs::read(out.join("ra5.json")).unwrap(),
-            std::fs::read(manifest_path(&run.path().join(FINAL_FILE))).unwrap()
+            std::fs::read(crate::checkpoint::manifest_path(
+                &run.path().join(FINAL_FILE)
+            ))
+            .unwrap()
         );
         // The weights: every float tensor in half precision, about half the bytes,
         // loading with the run's card.
@@ -148,5 +198,60 @@ mod tests {
         let err = publish(run.path(), &out, "ra5").unwrap_err();
         let chain = format!("{err}: {}", std::error::Error::source(&err).unwrap());
         assert!(chain.contains(FINAL_FILE), "{chain}");
+    }
+
+    #[test]
+    fn a_published_card_names_its_checkpoints_sha256_its_losses_and_its_learning_curve() {
+        let run = tempfile::tempdir().unwrap();
+        let out = tempfile::tempdir().unwrap();
+        let device = burn::tensor::Device::flex();
+        device.seed(4);
+        let cfg = crate::model::PolicyConfig::new(crate::backbone::Depth::Resnet18, [4, 8, 8, 16])
+            .with_input_height(64)
+            .with_input_width(96);
+        let record: TrainingRecord = serde_json::from_str(
+            r#"{"stage": "ra", "data": "d", "samples_in_data": 1, "steps": 1, "batch": 1,
+                "seed": 0, "lr": 0.1, "losses": "see losses.csv beside the run",
+                "wall_s": 1.0, "machine": "m", "start_sha256": "abc123"}"#,
+        )
+        .unwrap();
+        let card = crate::checkpoint::ModelCard {
+            training: Some(record),
+            ..crate::checkpoint::ModelCard::random_init(4)
+        };
+        let net = cfg.init(&device);
+        crate::checkpoint::save(&net, &card, &run.path().join(FINAL_FILE)).unwrap();
+        std::fs::write(run.path().join(LOSSES_FILE), b"step,loss\n").unwrap();
+        let stamped = |name: &str| {
+            publish(run.path(), out.path(), name).unwrap();
+            let published = published_checkpoint(out.path(), name);
+            let sha = sim::record::sha256_hex(&std::fs::read(&published).unwrap());
+            let (_, card) = read_manifest(&published).unwrap();
+            (sha, card.training.unwrap())
+        };
+        // No curve in the models folder: the SHA-256 of the file as published and the
+        // loss log beside it, no curve.
+        let (sha, record) = stamped("ra");
+        assert_eq!(record.checkpoint_sha256.as_deref(), Some(sha.as_str()));
+        assert_eq!(record.losses, "ra.losses.csv");
+        assert_eq!(record.learning_curve, None);
+        // With the Original's curve beside it: a retargeted network points to it by its
+        // teacher's digest; published again, the weights are the same bytes.
+        std::fs::write(out.path().join(LEARNING_CURVE_FILE), "| curve |").unwrap();
+        let (again, record) = stamped("ra");
+        assert_eq!(again, sha);
+        let curve = record.learning_curve.unwrap();
+        assert!(
+            curve.starts_with(LEARNING_CURVE_FILE)
+                && curve.contains("teacher's (the Original, SHA-256 abc123)"),
+            "{curve}"
+        );
+        // The Original's own curve.
+        let mut card = card;
+        card.training.as_mut().unwrap().stage = CURVE_STAGE.into();
+        crate::checkpoint::save(&net, &card, &run.path().join(FINAL_FILE)).unwrap();
+        let (_, record) = stamped("original");
+        let curve = record.learning_curve.unwrap();
+        assert!(curve.contains("this network's data"), "{curve}");
     }
 }

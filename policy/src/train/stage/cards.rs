@@ -87,6 +87,8 @@ pub(super) fn final_card(spec: &StageSpec, set: &TrainSet, steps: usize, wall_s:
             frames_seen: before.map(|b| b + own),
             start_sha256,
             data_sha256,
+            checkpoint_sha256: None,
+            learning_curve: None,
         }),
     }
 }
