@@ -363,6 +363,7 @@ pub fn run_job(
             problem: e.problem,
         })?;
     }
+    link_shared(repo, &base)?;
     // What earlier jobs committed (a fresh machine's worktree has none of it).
     for f in FOLDERS {
         mirror(
@@ -440,6 +441,28 @@ pub fn run_job(
     job.sync(&format!("job {number}'s end"))?;
     commit(repo, &format!("End the study's job {number}: {}", row.note)).unwrap_or_else(keep);
     Ok(row)
+}
+
+/// The scenarios name CARLA's maps by paths relative to the checkout
+/// (`scenarios/paper/../../../shared/carla/Town01.xodr`, the `../shared/` beside it):
+/// the worktrees under `base` find them through a link `base/shared` to the
+/// checkout's `../shared`, made (or pointed there again, on a machine where the
+/// checkout moved) before the stages run. Without a `../shared` nothing is linked, and
+/// a stage that needs a CARLA map names the missing file.
+fn link_shared(repo: &Path, base: &Path) -> Result<(), PaperError> {
+    let Ok(shared) = repo.join("../shared").canonicalize() else {
+        return Ok(());
+    };
+    let link = base.join("shared");
+    if let Ok(meta) = std::fs::symlink_metadata(&link) {
+        if !meta.file_type().is_symlink() || std::fs::read_link(&link).ok() == Some(shared.clone())
+        {
+            return Ok(());
+        }
+        std::fs::remove_file(&link).map_err(|e| PaperError::io("remove", &link, e))?;
+    }
+    std::fs::create_dir_all(base).map_err(|e| PaperError::io("create", base, e))?;
+    std::os::unix::fs::symlink(&shared, &link).map_err(|e| PaperError::io("link", &link, e))
 }
 
 /// Stops a stage's call: a kill (every record is written whole or not at all).
@@ -841,8 +864,13 @@ mod tests {
         // the others write one record each.
         let bin = cache.join("bin").join(format!("mrdrive-{}", &commit[..7]));
         std::fs::create_dir_all(bin.parent().unwrap()).unwrap();
+        // A CARLA map beside the checkout, which the stages reach from the worktree.
+        let carla = repo.parent().unwrap().join("shared/carla");
+        std::fs::create_dir_all(&carla).unwrap();
+        std::fs::write(carla.join("Town01.xodr"), "map").unwrap();
         let script = format!(
             "#!/bin/sh\ntest -f docs/paper/sweeps/old/runs/o.json || exit 9\n\
+             test -f ../shared/carla/Town01.xodr || exit 8\n\
              if [ \"$#\" = 1 ] && [ ! -f {ok} ]; then exit 4; fi\n\
              mkdir -p docs/paper/sweeps/new/runs && echo \"$@\" > \"docs/paper/sweeps/new/runs/$#.json\"\n",
             ok = cache.join("ok").display()
