@@ -20,10 +20,15 @@
 //! [`STAGE3_JOBS`] jobs (the registration's budget), and is otherwise never run.
 //!
 //! Every [`Job::sync_every`] (an hour) and when the job ends, the worktree's new
-//! and changed files of the two folders are copied into the checkout and
-//! committed there (`git commit -- docs/paper docs/paper-heldout`), so a lost
-//! machine loses at most its last hour of runs; a job on a fresh machine copies
-//! the committed records into its new worktree first, and the sweeps skip them.
+//! and changed records ([`RESUME`]: the runs under `sweeps/` and `wall.json`) of
+//! the two folders are copied into the checkout and committed there (`git commit
+//! -- docs/paper docs/paper-heldout`), so a lost machine loses at most its last
+//! hour of runs; a job on a fresh machine copies the committed records into its
+//! new worktree first, and the sweeps skip them. The page (tables, figures,
+//! verdicts) is copied only when the stage that writes its folder finishes: the
+//! registration builds it once, at the end, and an hour's half-done page is
+//! neither a verdict nor worth the megabytes of figures it would add to every
+//! clone.
 //! Each job is a row of `docs/paper/study-jobs.md`, written when it starts (so a
 //! job killed with its machine still counts against the budget) and completed
 //! when it ends.
@@ -46,6 +51,10 @@ pub const BUDGET_JOBS: u32 = 14;
 pub const STAGE3_JOBS: u32 = 5;
 /// The folders the study writes, relative to the checkout (and to the worktree).
 pub const FOLDERS: [&str; 2] = ["docs/paper", "docs/paper-heldout"];
+/// What a resume needs of a folder, relative to it: the run records and the
+/// sweeps' wall time. Copied at every sync; the rest of a folder (its page) only
+/// when its stage finishes.
+pub const RESUME: [&str; 2] = ["sweeps", "wall.json"];
 
 /// A stage of the registration's plan.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -56,6 +65,8 @@ pub struct Stage {
     pub what: &'static str,
     /// The arguments of the pinned binary.
     pub args: &'static [&'static str],
+    /// The folder (one of [`FOLDERS`]) whose page it writes.
+    pub folder: &'static str,
 }
 
 /// The registration's three stages, in order.
@@ -64,16 +75,19 @@ pub const STAGES: [Stage; 3] = [
         number: 1,
         what: "the paper's tables and figures on its four routes",
         args: &["paper", "--only", "table2,fig3,fig4,fig5,table3"],
+        folder: FOLDERS[0],
     },
     Stage {
         number: 2,
         what: "Fig. 3 and Table III on the 12 held-out routes",
         args: &["paper", "--held-out"],
+        folder: FOLDERS[1],
     },
     Stage {
         number: 3,
         what: "beyond the paper: the frontier, jitter, more scales",
         args: &["paper"],
+        folder: FOLDERS[0],
     },
 ];
 
@@ -250,7 +264,8 @@ pub enum StageEnd {
 
 impl Job<'_> {
     /// Runs `stage` until it finishes or the deadline comes, copying and
-    /// committing the records every [`Job::sync_every`] and at the end.
+    /// committing the records every [`Job::sync_every`] and at the end, and its
+    /// page when it finishes.
     pub fn run_stage(&self, stage: &Stage) -> Result<StageEnd, PaperError> {
         (self.note)(&format!(
             "study: stage {} ({}): {} {}",
@@ -270,7 +285,8 @@ impl Job<'_> {
                 .try_wait()
                 .map_err(|e| PaperError::io("wait for", &self.binary, e))?
             {
-                self.sync(&format!("stage {}", stage.number))?;
+                let page = status.success().then_some(stage.folder);
+                self.sync(&format!("stage {}", stage.number), page)?;
                 return if status.success() {
                     Ok(StageEnd::Finished)
                 } else {
@@ -289,23 +305,32 @@ impl Job<'_> {
             let now = Instant::now();
             if now >= self.deadline {
                 stop(&mut child);
-                self.sync(&format!("stage {} (time limit)", stage.number))?;
+                self.sync(&format!("stage {} (time limit)", stage.number), None)?;
                 return Ok(StageEnd::TimeUp);
             }
             if now >= next_sync {
-                self.sync(&format!("stage {}", stage.number))?;
+                self.sync(&format!("stage {}", stage.number), None)?;
                 next_sync = now + self.sync_every;
             }
             std::thread::sleep(Duration::from_millis(200).min(self.deadline - now));
         }
     }
 
-    /// Copies the worktree's new and changed files of [`FOLDERS`] into the
-    /// checkout and commits them there (with `what` in the message).
-    pub fn sync(&self, what: &str) -> Result<usize, PaperError> {
+    /// Copies the worktree's new and changed records ([`RESUME`] of each of
+    /// [`FOLDERS`]) into the checkout, and with `page` (a finished stage's folder)
+    /// the whole of that folder, then commits them there (with `what` in the
+    /// message).
+    pub fn sync(&self, what: &str, page: Option<&str>) -> Result<usize, PaperError> {
         let mut copied = 0;
         for f in FOLDERS {
-            copied += mirror(&self.tree.join(f), &self.repo.join(f), Overwrite::Changed)?;
+            if page == Some(f) {
+                copied += mirror(&self.tree.join(f), &self.repo.join(f), Overwrite::Changed)?;
+                continue;
+            }
+            for r in RESUME {
+                let (from, to) = (self.tree.join(f).join(r), self.repo.join(f).join(r));
+                copied += mirror(&from, &to, Overwrite::Changed)?;
+            }
         }
         // Also when nothing was copied now: a commit that failed before is tried again
         // (`commit` does nothing where nothing is new).
@@ -366,15 +391,9 @@ pub fn run_job(
     link_shared(repo, &base)?;
     // What earlier jobs committed (a fresh machine's worktree has none of it).
     for f in FOLDERS {
-        mirror(
-            &repo.join(f).join("sweeps"),
-            &tree.join(f).join("sweeps"),
-            Overwrite::Never,
-        )?;
-        let wall = Path::new(f).join("wall.json");
-        if repo.join(&wall).exists() && !tree.join(&wall).exists() {
-            std::fs::copy(repo.join(&wall), tree.join(&wall))
-                .map_err(|e| PaperError::io("copy", &repo.join(&wall), e))?;
+        for r in RESUME {
+            let (from, to) = (repo.join(f).join(r), tree.join(f).join(r));
+            mirror(&from, &to, Overwrite::Never)?;
         }
     }
     let log_path = paper.join(LOG_FILE);
@@ -438,7 +457,7 @@ pub fn run_job(
     row.note = ended;
     let row = row.clone();
     log.write(&log_path)?;
-    job.sync(&format!("job {number}'s end"))?;
+    job.sync(&format!("job {number}'s end"), None)?;
     commit(repo, &format!("End the study's job {number}: {}", row.note)).unwrap_or_else(keep);
     Ok(row)
 }
@@ -465,6 +484,28 @@ fn link_shared(repo: &Path, base: &Path) -> Result<(), PaperError> {
     std::os::unix::fs::symlink(&shared, &link).map_err(|e| PaperError::io("link", &link, e))
 }
 
+/// How many runs `folder` (one of [`FOLDERS`]) records: the files of its
+/// sweeps' `runs/` folders (0 where it has none).
+pub fn recorded(folder: &Path) -> Result<usize, PaperError> {
+    let sweeps = folder.join(RESUME[0]);
+    let entries = match std::fs::read_dir(&sweeps) {
+        Ok(e) => e,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
+        Err(e) => return Err(PaperError::io("read", &sweeps, e)),
+    };
+    let mut n = 0;
+    for entry in entries {
+        let runs = entry
+            .map_err(|e| PaperError::io("read", &sweeps, e))?
+            .path()
+            .join("runs");
+        if let Ok(files) = std::fs::read_dir(&runs) {
+            n += files.filter(|f| f.is_ok()).count();
+        }
+    }
+    Ok(n)
+}
+
 /// Stops a stage's call: a kill (every record is written whole or not at all).
 fn stop(child: &mut Child) {
     let _ = child.kill();
@@ -482,43 +523,46 @@ pub enum Overwrite {
 
 /// Copies the files under `from` into `to` (same relative paths), missing ones
 /// and, with [`Overwrite::Changed`], differing ones; returns how many it copied.
-/// A missing `from` copies nothing.
+/// A file `from` is copied to the file `to`; a missing `from` copies nothing.
 pub fn mirror(from: &Path, to: &Path, overwrite: Overwrite) -> Result<usize, PaperError> {
-    let entries = match std::fs::read_dir(from) {
-        Ok(e) => e,
+    let meta = match std::fs::metadata(from) {
+        Ok(m) => m,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
         Err(e) => return Err(PaperError::io("read", from, e)),
     };
+    if !meta.is_dir() {
+        return copy_file(from, to, overwrite);
+    }
+    let entries = std::fs::read_dir(from).map_err(|e| PaperError::io("read", from, e))?;
     let mut copied = 0;
     for entry in entries {
         let entry = entry.map_err(|e| PaperError::io("read", from, e))?;
-        let (src, dst) = (entry.path(), to.join(entry.file_name()));
-        if entry
-            .file_type()
-            .map_err(|e| PaperError::io("read", &src, e))?
-            .is_dir()
-        {
-            copied += mirror(&src, &dst, overwrite)?;
-            continue;
-        }
-        let same = match std::fs::read(&dst) {
-            Ok(old) => {
-                overwrite == Overwrite::Never || {
-                    let new = std::fs::read(&src).map_err(|e| PaperError::io("read", &src, e))?;
-                    old == new
-                }
-            }
-            Err(_) => false,
-        };
-        if !same {
-            std::fs::create_dir_all(to).map_err(|e| PaperError::io("create", to, e))?;
-            let tmp = dst.with_extension("study-tmp");
-            std::fs::copy(&src, &tmp).map_err(|e| PaperError::io("copy", &src, e))?;
-            std::fs::rename(&tmp, &dst).map_err(|e| PaperError::io("rename", &dst, e))?;
-            copied += 1;
-        }
+        copied += mirror(&entry.path(), &to.join(entry.file_name()), overwrite)?;
     }
     Ok(copied)
+}
+
+/// [`mirror`] of one file: 1 if it copied `src` to `dst`, else 0.
+fn copy_file(src: &Path, dst: &Path, overwrite: Overwrite) -> Result<usize, PaperError> {
+    let same = match std::fs::read(dst) {
+        Ok(old) => {
+            overwrite == Overwrite::Never || {
+                let new = std::fs::read(src).map_err(|e| PaperError::io("read", src, e))?;
+                old == new
+            }
+        }
+        Err(_) => false,
+    };
+    if same {
+        return Ok(0);
+    }
+    if let Some(dir) = dst.parent() {
+        std::fs::create_dir_all(dir).map_err(|e| PaperError::io("create", dir, e))?;
+    }
+    let tmp = dst.with_extension("study-tmp");
+    std::fs::copy(src, &tmp).map_err(|e| PaperError::io("copy", src, e))?;
+    std::fs::rename(&tmp, dst).map_err(|e| PaperError::io("rename", dst, e))?;
+    Ok(1)
 }
 
 /// Commits [`FOLDERS`] (what is in them now, nothing else) in `repo`.
@@ -693,6 +737,13 @@ mod tests {
             mirror(&dir.path().join("none"), &b, Overwrite::Changed).unwrap(),
             0
         );
+        // A file to a file, into a folder that is not there yet.
+        let one = dir.path().join("c/wall.json");
+        assert_eq!(
+            mirror(&a.join("README.md"), &one, Overwrite::Never).unwrap(),
+            1
+        );
+        assert_eq!(std::fs::read_to_string(&one).unwrap(), "new");
     }
 
     /// A checkout with one commit, and a fake study binary (a shell script) in a
@@ -779,18 +830,58 @@ mod tests {
     #[test]
     fn the_deadline_stops_a_stage_and_keeps_what_it_finished() {
         // A record, then a long run that the deadline cuts short.
+        // A record, the sweeps' wall time and a half-done page, then a long run
+        // that the deadline cuts short.
         let (_dir, repo, tree, bin) = toy(
-            "mkdir -p docs/paper/sweeps/u/runs && echo 1 > docs/paper/sweeps/u/runs/a.json && sleep 60",
+            "mkdir -p docs/paper/sweeps/u/runs && echo 1 > docs/paper/sweeps/u/runs/a.json \
+             && echo 2 > docs/paper/wall.json && echo half > docs/paper/README.md \
+             && echo fig > docs/paper/fig3.svg && sleep 60",
         );
         let job = toy_job(&repo, &tree, &bin, Duration::from_millis(1500));
         let start = Instant::now();
-        assert_eq!(job.run_stage(&STAGES[1]).unwrap(), StageEnd::TimeUp);
+        assert_eq!(job.run_stage(&STAGES[0]).unwrap(), StageEnd::TimeUp);
         assert!(
             start.elapsed() < Duration::from_secs(30),
             "the stage was not stopped"
         );
         assert!(repo.join("docs/paper/sweeps/u/runs/a.json").exists());
-        assert!(commits(&repo).contains("stage 2 (time limit)"));
+        assert_eq!(
+            std::fs::read_to_string(repo.join("docs/paper/wall.json")).unwrap(),
+            "2\n"
+        );
+        // The page waits for the stage's end: the checkout keeps its own.
+        assert_eq!(
+            std::fs::read_to_string(repo.join("docs/paper/README.md")).unwrap(),
+            "placeholder\n"
+        );
+        assert!(!repo.join("docs/paper/fig3.svg").exists());
+        assert!(commits(&repo).contains("stage 1 (time limit), 2 files copied now"));
+        assert_eq!(recorded(&repo.join("docs/paper")).unwrap(), 1);
+        assert_eq!(recorded(&repo.join("docs/paper-heldout")).unwrap(), 0);
+    }
+
+    #[test]
+    fn a_finished_stage_copies_its_own_folders_page_and_only_the_others_records() {
+        // Stage 2 writes the held-out page; the worktree's docs/paper page is not
+        // its work (on a fresh machine it is the pinned commit's) and stays out.
+        let (_dir, repo, tree, bin) = toy(
+            "mkdir -p docs/paper-heldout/sweeps/h/runs && echo h > docs/paper-heldout/sweeps/h/runs/r.json \
+             && echo held > docs/paper-heldout/README.md && echo stale > docs/paper/README.md",
+        );
+        let job = toy_job(&repo, &tree, &bin, Duration::from_secs(60));
+        assert_eq!(job.run_stage(&STAGES[1]).unwrap(), StageEnd::Finished);
+        assert!(
+            repo.join("docs/paper-heldout/sweeps/h/runs/r.json")
+                .exists()
+        );
+        assert_eq!(
+            std::fs::read_to_string(repo.join("docs/paper-heldout/README.md")).unwrap(),
+            "held\n"
+        );
+        assert_eq!(
+            std::fs::read_to_string(repo.join("docs/paper/README.md")).unwrap(),
+            "placeholder\n"
+        );
     }
 
     #[test]

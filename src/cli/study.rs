@@ -42,7 +42,7 @@ pub fn run(a: StudyArgs) -> Result<()> {
         return Ok(());
     }
     let Some(hours) = a.hours else {
-        return status(&paper);
+        return status(&a.repo);
     };
     anyhow::ensure!(
         hours > 0.0 && a.sync_minutes > 0.0,
@@ -68,8 +68,10 @@ pub fn run(a: StudyArgs) -> Result<()> {
     Ok(())
 }
 
-/// Prints the pinned commit, the jobs so far and what the next job does.
-fn status(paper: &Path) -> Result<()> {
+/// Prints the pinned commit, the jobs so far, the runs recorded and what the next
+/// job does, from the checkout `repo`.
+fn status(repo: &Path) -> Result<()> {
+    let paper = &repo.join(study::FOLDERS[0]);
     match study::pinned_commit(paper) {
         Ok(c) => println!("study: commit {c} makes every record"),
         Err(e) => println!("{e}"),
@@ -80,6 +82,10 @@ fn status(paper: &Path) -> Result<()> {
         log.rows.len(),
         study::BUDGET_JOBS
     );
+    for f in study::FOLDERS {
+        let n = study::recorded(&repo.join(f))?;
+        println!("study: {n} runs recorded in {f}/sweeps");
+    }
     for s in &STAGES {
         let step = match log.step(s.number) {
             Step::Done => format!("done (job {})", log.finished_by(s.number).unwrap_or(0)),
