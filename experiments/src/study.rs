@@ -474,8 +474,7 @@ fn link_shared(repo: &Path, base: &Path) -> Result<(), PaperError> {
     };
     let link = base.join("shared");
     if let Ok(meta) = std::fs::symlink_metadata(&link) {
-        if !meta.file_type().is_symlink() || std::fs::read_link(&link).ok() == Some(shared.clone())
-        {
+        if !meta.file_type().is_symlink() || std::fs::read_link(&link).is_ok_and(|l| l == shared) {
             return Ok(());
         }
         std::fs::remove_file(&link).map_err(|e| PaperError::io("remove", &link, e))?;
