@@ -148,6 +148,17 @@ impl Results {
             .collect()
     }
 
+    /// These results with every run's collisions counted by `rule`
+    /// ([`sim::output::record::RunResult::counted_by`]); `None` when a run's
+    /// record predates the per-rule counts.
+    pub fn counted_by(&self, rule: sim::monitors::counting::CountingRule) -> Option<Results> {
+        let mut r = self.clone();
+        for run in r.units.values_mut().flat_map(|u| &mut u.runs) {
+            run.record.result = run.record.result.counted_by(rule)?;
+        }
+        Some(r)
+    }
+
     /// These results without the runs of the units `keys`.
     pub fn without(&self, keys: &[PairKey]) -> Results {
         let mut r = self.clone();

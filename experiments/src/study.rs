@@ -24,11 +24,19 @@
 //! the two folders are copied into the checkout and committed there (`git commit
 //! -- docs/paper docs/paper-heldout`), so a lost machine loses at most its last
 //! hour of runs; a job on a fresh machine copies the committed records into its
-//! new worktree first, and the sweeps skip them. The page (tables, figures,
-//! verdicts) is copied only when the stage that writes its folder finishes: the
-//! registration builds it once, at the end, and an hour's half-done page is
-//! neither a verdict nor worth the megabytes of figures it would add to every
-//! clone.
+//! new worktree first, and the sweeps skip them. The pinned build's own page in
+//! the worktree is never copied: the registration builds the page once, at the
+//! end, and an hour's half-done page is neither a verdict nor worth the megabytes
+//! of figures it would add to every clone.
+//!
+//! The pages are built when every stage is settled (done, or stage 3 ruled out
+//! by the budget), in the checkout, by the checkout's own build from the
+//! records alone ([`build_pages`]: `mrdrive paper --report-only`, each folder
+//! with its last finished stage's arguments), at the end of the job that settles
+//! the last stage or by `mrdrive study --page`. The records' build runs the
+//! study; the page's build need only descend from the registration, as the page
+//! checks: it is the one that judges collisions under both registered rules
+//! (registration, section 4), which the pinned commit's page did not.
 //! Each job is a row of `docs/paper/study-jobs.md`, written when it starts (so a
 //! job killed with its machine still counts against the budget) and completed
 //! when it ends.
@@ -52,8 +60,7 @@ pub const STAGE3_JOBS: u32 = 5;
 /// The folders the study writes, relative to the checkout (and to the worktree).
 pub const FOLDERS: [&str; 2] = ["docs/paper", "docs/paper-heldout"];
 /// What a resume needs of a folder, relative to it: the run records and the
-/// sweeps' wall time. Copied at every sync; the rest of a folder (its page) only
-/// when its stage finishes.
+/// sweeps' wall time: all a sync copies (the page is built at the end).
 pub const RESUME: [&str; 2] = ["sweeps", "wall.json"];
 
 /// A stage of the registration's plan.
@@ -65,7 +72,7 @@ pub struct Stage {
     pub what: &'static str,
     /// The arguments of the pinned binary.
     pub args: &'static [&'static str],
-    /// The folder (one of [`FOLDERS`]) whose page it writes.
+    /// The folder (one of [`FOLDERS`]) it writes its records in.
     pub folder: &'static str,
 }
 
@@ -214,6 +221,11 @@ impl JobLog {
             .map(|r| r.job)
     }
 
+    /// Whether every stage is settled: done, or ruled out by the budget.
+    pub fn settled(&self) -> bool {
+        STAGES.iter().all(|s| self.step(s.number) != Step::Run)
+    }
+
     /// What the next job does with `stage`: the registration's order and budget.
     pub fn step(&self, stage: u32) -> Step {
         if self.finished_by(stage).is_some() {
@@ -256,7 +268,7 @@ pub struct Job<'a> {
 /// How a stage's call ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum StageEnd {
-    /// Every run of the stage is done and its page written.
+    /// Every run of the stage is done.
     Finished,
     /// The deadline came first.
     TimeUp,
@@ -264,8 +276,7 @@ pub enum StageEnd {
 
 impl Job<'_> {
     /// Runs `stage` until it finishes or the deadline comes, copying and
-    /// committing the records every [`Job::sync_every`] and at the end, and its
-    /// page when it finishes.
+    /// committing the records every [`Job::sync_every`] and at the end.
     pub fn run_stage(&self, stage: &Stage) -> Result<StageEnd, PaperError> {
         (self.note)(&format!(
             "study: stage {} ({}): {} {}",
@@ -285,8 +296,7 @@ impl Job<'_> {
                 .try_wait()
                 .map_err(|e| PaperError::io("wait for", &self.binary, e))?
             {
-                let page = status.success().then_some(stage.folder);
-                self.sync(&format!("stage {}", stage.number), page)?;
+                self.sync(&format!("stage {}", stage.number))?;
                 return if status.success() {
                     Ok(StageEnd::Finished)
                 } else {
@@ -305,11 +315,11 @@ impl Job<'_> {
             let now = Instant::now();
             if now >= self.deadline {
                 stop(&mut child);
-                self.sync(&format!("stage {} (time limit)", stage.number), None)?;
+                self.sync(&format!("stage {} (time limit)", stage.number))?;
                 return Ok(StageEnd::TimeUp);
             }
             if now >= next_sync {
-                self.sync(&format!("stage {}", stage.number), None)?;
+                self.sync(&format!("stage {}", stage.number))?;
                 next_sync = now + self.sync_every;
             }
             std::thread::sleep(Duration::from_millis(200).min(self.deadline - now));
@@ -317,16 +327,11 @@ impl Job<'_> {
     }
 
     /// Copies the worktree's new and changed records ([`RESUME`] of each of
-    /// [`FOLDERS`]) into the checkout, and with `page` (a finished stage's folder)
-    /// the whole of that folder, then commits them there (with `what` in the
+    /// [`FOLDERS`]) into the checkout and commits them there (with `what` in the
     /// message).
-    pub fn sync(&self, what: &str, page: Option<&str>) -> Result<usize, PaperError> {
+    pub fn sync(&self, what: &str) -> Result<usize, PaperError> {
         let mut copied = 0;
         for f in FOLDERS {
-            if page == Some(f) {
-                copied += mirror(&self.tree.join(f), &self.repo.join(f), Overwrite::Changed)?;
-                continue;
-            }
             for r in RESUME {
                 let (from, to) = (self.tree.join(f).join(r), self.repo.join(f).join(r));
                 copied += mirror(&from, &to, Overwrite::Changed)?;
@@ -349,20 +354,36 @@ impl Job<'_> {
     }
 }
 
-/// Runs one job of the study from the checkout `repo`: the pinned commit's
-/// binary (built into `cache` where missing), the committed records copied into
-/// its worktree, then the stages the log and the budget leave, until they are
-/// done or `hours` have passed. `now_utc` gives `YYYY-MM-DD HH:MM`; `machine`
-/// names this machine in the log. Returns the job's row.
+/// Where a job works.
+#[derive(Debug, Clone, Copy)]
+pub struct Place<'a> {
+    /// The checkout: its docs/paper holds the registration, the pin and the log.
+    pub repo: &'a Path,
+    /// The cache the pinned binary and its worktree live in.
+    pub cache: &'a Path,
+    /// The checkout's own build, which builds the pages ([`build_pages`]).
+    pub page_binary: &'a Path,
+}
+
+/// Runs one job of the study from the checkout `place.repo`: the pinned
+/// commit's binary (built into `place.cache` where missing), the committed
+/// records copied into its worktree, then the stages the log and the budget
+/// leave, until they are done or `hours` have passed; the job that settles the
+/// last stage builds the pages ([`build_pages`]). `now_utc` gives `YYYY-MM-DD
+/// HH:MM`; `machine` names this machine in the log. Returns the job's row.
 pub fn run_job(
-    repo: &Path,
-    cache: &Path,
+    place: Place<'_>,
     hours: f64,
     sync_every: Duration,
     now_utc: &dyn Fn() -> String,
     machine: &str,
     note: &dyn Fn(&str),
 ) -> Result<JobRow, PaperError> {
+    let Place {
+        repo,
+        cache,
+        page_binary,
+    } = place;
     let start = Instant::now();
     let paper = repo.join(FOLDERS[0]);
     let pinned = pinned_commit(&paper)?;
@@ -457,9 +478,74 @@ pub fn run_job(
     row.note = ended;
     let row = row.clone();
     log.write(&log_path)?;
-    job.sync(&format!("job {number}'s end"), None)?;
+    job.sync(&format!("job {number}'s end"))?;
     commit(repo, &format!("End the study's job {number}: {}", row.note)).unwrap_or_else(keep);
+    if log.settled() {
+        build_pages(repo, page_binary, &log, note)?;
+    }
     Ok(row)
+}
+
+/// Builds the study's pages in the checkout `repo` with `page_binary` (the
+/// checkout's own build), from the records alone (`--report-only`), each folder
+/// of [`FOLDERS`] with the arguments of the last stage that finished in it (a
+/// folder none finished in is left alone), and commits them. Refused while a
+/// stage is still to run. Returns the folders built.
+pub fn build_pages(
+    repo: &Path,
+    page_binary: &Path,
+    log: &JobLog,
+    note: &dyn Fn(&str),
+) -> Result<Vec<&'static str>, PaperError> {
+    if let Some(s) = STAGES.iter().find(|s| log.step(s.number) == Step::Run) {
+        return Err(PaperError::Study {
+            path: repo.join(FOLDERS[0]).join(LOG_FILE),
+            problem: format!(
+                "stage {} is still to run: the page is built once, when every stage is done \
+                 (`mrdrive study --hours H` goes on with it)",
+                s.number
+            ),
+        });
+    }
+    let mut built = Vec::new();
+    for f in FOLDERS {
+        let Some(stage) = STAGES
+            .iter()
+            .rev()
+            .find(|s| s.folder == f && log.finished_by(s.number).is_some())
+        else {
+            continue;
+        };
+        let mut args = stage.args.to_vec();
+        args.push("--report-only");
+        note(&format!(
+            "study: the page of {f}: {} {}",
+            page_binary.display(),
+            args.join(" ")
+        ));
+        let status = Command::new(page_binary)
+            .args(&args)
+            .current_dir(repo)
+            .status()
+            .map_err(|e| PaperError::io("run", page_binary, e))?;
+        if !status.success() {
+            return Err(PaperError::Study {
+                path: repo.join(f),
+                problem: format!(
+                    "building its page, `mrdrive {}` ended with {status}; every record is \
+                     committed: read its message above, mend, and build it again with `mrdrive \
+                     study --page`",
+                    args.join(" ")
+                ),
+            });
+        }
+        built.push(f);
+    }
+    commit(repo, "Build the study's pages from its records").map_err(|e| PaperError::Study {
+        path: repo.to_path_buf(),
+        problem: format!("the pages are built but not committed ({e}): commit them by hand"),
+    })?;
+    Ok(built)
 }
 
 /// The scenarios name CARLA's maps by paths relative to the checkout
@@ -803,7 +889,8 @@ mod tests {
     #[test]
     fn a_finished_stage_lands_its_records_in_the_checkout_as_a_commit() {
         // The fake binary writes a record and the page in its working folder (the
-        // worktree), with the arguments it was given.
+        // worktree), with the arguments it was given: the record lands, the pinned
+        // build's page does not (the checkout's build writes the page at the end).
         let (_dir, repo, tree, bin) = toy(
             "mkdir -p docs/paper/sweeps/u/runs && echo \"$@\" > docs/paper/sweeps/u/runs/r.json \
              && echo page > docs/paper/README.md",
@@ -817,11 +904,11 @@ mod tests {
         );
         assert_eq!(
             std::fs::read_to_string(repo.join("docs/paper/README.md")).unwrap(),
-            "page\n"
+            "placeholder\n"
         );
         let log = commits(&repo);
         assert!(
-            log.starts_with("Add the study's records: stage 1, 2 files copied now"),
+            log.starts_with("Add the study's records: stage 1, 1 files copied now"),
             "{log}"
         );
     }
@@ -860,27 +947,45 @@ mod tests {
     }
 
     #[test]
-    fn a_finished_stage_copies_its_own_folders_page_and_only_the_others_records() {
-        // Stage 2 writes the held-out page; the worktree's docs/paper page is not
-        // its work (on a fresh machine it is the pinned commit's) and stays out.
-        let (_dir, repo, tree, bin) = toy(
-            "mkdir -p docs/paper-heldout/sweeps/h/runs && echo h > docs/paper-heldout/sweeps/h/runs/r.json \
-             && echo held > docs/paper-heldout/README.md && echo stale > docs/paper/README.md",
+    fn the_pages_are_built_in_the_checkout_once_every_stage_is_settled() {
+        // The checkout's build, faked: it writes its arguments as the page of the
+        // folder they name, in the folder it runs in.
+        let (_dir, repo, _, page) = toy(
+            "case \"$*\" in *--held-out*) d=docs/paper-heldout;; *) d=docs/paper;; esac\n\
+             mkdir -p $d && echo \"$@\" > $d/README.md",
         );
-        let job = toy_job(&repo, &tree, &bin, Duration::from_secs(60));
-        assert_eq!(job.run_stage(&STAGES[1]).unwrap(), StageEnd::Finished);
-        assert!(
-            repo.join("docs/paper-heldout/sweeps/h/runs/r.json")
-                .exists()
+        let read = |f: &str| std::fs::read_to_string(repo.join(f).join("README.md")).unwrap();
+        // Stage 2 still to run: refused, nothing written.
+        let log = JobLog {
+            rows: vec![row(1, &[1])],
+        };
+        let e = build_pages(&repo, &page, &log, &|_| {})
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("stage 2 is still to run"), "{e}");
+        assert_eq!(read("docs/paper"), "placeholder\n");
+        // Stages 1 and 2 done at job 10: stage 3 is ruled out, the page is stage 1's.
+        let mut rows: Vec<JobRow> = (1..10).map(|j| row(j, &[])).collect();
+        rows.push(row(10, &[1, 2]));
+        let log = JobLog { rows };
+        assert!(log.settled());
+        let built = build_pages(&repo, &page, &log, &|_| {}).unwrap();
+        assert_eq!(built, FOLDERS.to_vec());
+        assert_eq!(
+            read("docs/paper"),
+            "paper --only table2,fig3,fig4,fig5,table3 --report-only\n"
         );
         assert_eq!(
-            std::fs::read_to_string(repo.join("docs/paper-heldout/README.md")).unwrap(),
-            "held\n"
+            read("docs/paper-heldout"),
+            "paper --held-out --report-only\n"
         );
-        assert_eq!(
-            std::fs::read_to_string(repo.join("docs/paper/README.md")).unwrap(),
-            "placeholder\n"
-        );
+        assert!(commits(&repo).starts_with("Build the study's pages from its records"));
+        // A page that fails to build names its command and how to try again.
+        std::fs::write(&page, "#!/bin/sh\nexit 5\n").unwrap();
+        let e = build_pages(&repo, &page, &log, &|_| {})
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("mrdrive study --page"), "{e}");
     }
 
     #[test]
@@ -968,11 +1073,23 @@ mod tests {
         std::fs::write(&bin, script).unwrap();
         use std::os::unix::fs::PermissionsExt;
         std::fs::set_permissions(&bin, std::fs::Permissions::from_mode(0o755)).unwrap();
+        // The checkout's build, which writes the pages: its arguments as the page.
+        let page = cache.join("bin").join("mrdrive-checkout");
+        std::fs::write(
+            &page,
+            "#!/bin/sh\ncase \"$*\" in *--held-out*) d=docs/paper-heldout;; *) d=docs/paper;; esac\n\
+             mkdir -p $d && echo \"$@\" > $d/README.md\n",
+        )
+        .unwrap();
+        std::fs::set_permissions(&page, std::fs::Permissions::from_mode(0o755)).unwrap();
 
         let job = |n: &str| {
             run_job(
-                &repo,
-                &cache,
+                Place {
+                    repo: &repo,
+                    cache: &cache,
+                    page_binary: &page,
+                },
                 1.0,
                 Duration::from_secs(3600),
                 &|| n.to_string(),
@@ -987,9 +1104,23 @@ mod tests {
         assert_eq!(log.rows[0].finished, vec![1, 2]);
         assert!(log.rows[0].note.starts_with("failed"), "{:?}", log.rows[0]);
         assert!(paper.join("sweeps/new/runs/3.json").exists());
+        // Stage 3 still to run: no page yet.
+        assert_eq!(
+            std::fs::read_to_string(paper.join("README.md")).unwrap(),
+            "placeholder\n"
+        );
         std::fs::write(cache.join("ok"), "").unwrap();
         let row = job("2026-12-08 12:00").unwrap();
         assert_eq!((row.job, row.finished.clone()), (2, vec![3]));
+        // The job that settles the last stage builds the pages, in the checkout.
+        assert_eq!(
+            std::fs::read_to_string(paper.join("README.md")).unwrap(),
+            "paper --report-only\n"
+        );
+        assert_eq!(
+            std::fs::read_to_string(repo.join("docs/paper-heldout/README.md")).unwrap(),
+            "paper --held-out --report-only\n"
+        );
         assert!(paper.join("sweeps/new/runs/1.json").exists());
         assert_eq!(git(&["status", "--porcelain", "--", "docs/paper"]), "");
         let row = job("2026-12-08 15:00").unwrap();

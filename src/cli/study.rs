@@ -21,6 +21,11 @@ pub struct StudyArgs {
     /// in order, each resuming where the last job stopped.
     #[arg(long)]
     pub hours: Option<f64>,
+    /// Build the pages now (every stage settled, a job that failed to build them
+    /// before): in the checkout, by this build, from the records alone. A job
+    /// that settles the last stage does it itself.
+    #[arg(long, conflicts_with_all = ["hours", "pin"])]
+    pub page: bool,
     /// Minutes between the job's commits of its records to the checkout.
     #[arg(long, default_value_t = 60.0)]
     pub sync_minutes: f64,
@@ -41,6 +46,24 @@ pub fn run(a: StudyArgs) -> Result<()> {
         );
         return Ok(());
     }
+    let exe = std::env::current_exe()?;
+    // This build writes the pages (at the end of the job that settles the last
+    // stage, or with --page): it must be a commit's, as the records' build is.
+    let build = sim::output::provenance::build_id();
+    anyhow::ensure!(
+        !build.contains("-dirty"),
+        "this build ({build}) has uncommitted changes, and a study job or --page may write \
+         the study's pages with it: commit, build again (`cargo build --release`), then run it"
+    );
+    if a.page {
+        let log = JobLog::read(&paper.join(study::LOG_FILE))?;
+        let built = study::build_pages(&a.repo, &exe, &log, &|line| eprintln!("{line}"))?;
+        println!(
+            "study: the pages of {} are built and committed",
+            built.join(" and ")
+        );
+        return Ok(());
+    }
     let Some(hours) = a.hours else {
         return status(&a.repo);
     };
@@ -49,9 +72,14 @@ pub fn run(a: StudyArgs) -> Result<()> {
         "--hours and --sync-minutes must be above 0 (got {hours} and {})",
         a.sync_minutes
     );
+    let cache = dataset::cache::root();
+    let place = study::Place {
+        repo: &a.repo,
+        cache: &cache,
+        page_binary: &exe,
+    };
     let row = study::run_job(
-        &a.repo,
-        &dataset::cache::root(),
+        place,
         hours,
         Duration::from_secs_f64(a.sync_minutes * 60.0),
         &|| super::time_utc(SystemTime::now()),

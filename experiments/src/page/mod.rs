@@ -141,12 +141,13 @@ fn header(cfg: &PaperConfig, opts: &RunOptions, results: &Results, family: usize
         );
     }
     s += &format!(
-        "Builds: {}. Render backend: {}.\n\n",
+        "Builds: {} (the records'); this page was written by {}. Render backend: {}.\n\n",
         if builds.is_empty() {
             "none yet".into()
         } else {
             builds.iter().cloned().collect::<Vec<_>>().join(", ")
         },
+        sim::output::provenance::build_id(),
         if backends.is_empty() {
             "none yet".into()
         } else {

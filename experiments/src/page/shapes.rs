@@ -18,6 +18,7 @@ use crate::report::{Comparison, Stats, Table, p_text};
 use crate::results::{PairKey, Results, Run};
 use crate::units::{Driver, Unit};
 use sim::monitors::InfractionKind;
+use sim::monitors::counting::CountingRule;
 use sim::scenario::SelectorKind;
 use sim::sweep::cluster::{
     cluster_t_equivalence_p, cluster_t_interval, cluster_t_p, two_stage_share,
@@ -81,7 +82,10 @@ pub fn rules() -> String {
          paper's range (\"compatible\": only its 95 % interval over the route means reaches it). A shape \
          agrees when every test and check of its row passes. Each verdict is also given without \
          the units (route, density, seed) that every policy configuration fails, which cannot \
-         tell configurations apart.\n\n\
+         tell configurations apart. Collisions are counted as the paper's scorer counts them \
+         (`paper`: each other actor once a run, the map's geometry as one actor), which decides; \
+         each verdict is also given with collisions counted as CARLA's leaderboard 1.0 counts \
+         them (`leaderboard-1.0`), the same tests as their own family.\n\n\
          1. *RA performs like NRA* (Table II): at D = 0 and at each scale, RA - NRA on success \
          and on collided is equivalent within ±{a:.3} (one run in six).\n\
          2. *0.75x runs more red lights than 1.0x* (Fig. 3): for NRA and RA, at D = 0 and \
@@ -294,6 +298,9 @@ struct Claim {
     routes: usize,
     /// False while some of its runs are missing.
     complete: bool,
+    /// Whether it reads collisions (then its evidence is shown under each
+    /// counting rule).
+    collisions: bool,
 }
 
 impl Claim {
@@ -304,6 +311,7 @@ impl Claim {
             checks: Vec::new(),
             routes: 0,
             complete: true,
+            collisions: false,
         }
     }
 
@@ -325,6 +333,7 @@ fn claims(cfg: &PaperConfig, results: &Results) -> Vec<Claim> {
 
     // 1. RA performs like NRA at each scale (Table II).
     let mut claim = Claim::new("RA performs like NRA at each scale (Table II)".into());
+    claim.collisions = true;
     for scale in [cfg.low, cfg.high] {
         let c = Comparison::of(
             &runs(&model_at(cfg, false, scale, d0)),
@@ -391,6 +400,7 @@ fn claims(cfg: &PaperConfig, results: &Results) -> Vec<Claim> {
          collapses at 200 ms (Fig. 5)"
             .into(),
     );
+    cliff.collisions = true;
     let planned = |d: f64| cfg.delays_ms.contains(&d);
     if !(planned(100.0) && planned(150.0) && planned(200.0)) {
         cliff.complete = false;
@@ -429,6 +439,7 @@ fn claims(cfg: &PaperConfig, results: &Results) -> Vec<Claim> {
     let mut switch = Claim::new(
         "the switcher beats both fixed scales at equal worst-case latency (Table III)".into(),
     );
+    switch.collisions = true;
     for e in &cfg.envelopes {
         let fixed = |scale: f64, ms: f64| Config {
             label: String::new(),
@@ -573,6 +584,13 @@ pub(super) fn shapes(cfg: &PaperConfig, results: &Results) -> String {
     let failing = results.failed_everywhere();
     let keys: Vec<PairKey> = failing.iter().map(|(k, _)| k.clone()).collect();
     let informative = claims(cfg, &results.without(&keys));
+    // The same tests with collisions counted as leaderboard 1.0 counts them: their
+    // own family (registration, section 4). A unit fails on success alone, so the
+    // units left out are the same.
+    let leaderboard = results.counted_by(CountingRule::Leaderboard1).map(|r| {
+        let (all, informative) = (claims(cfg, &r), claims(cfg, &r.without(&keys)));
+        (judge(&all), judge(&informative), all)
+    });
     let family: usize = all.iter().map(|c| c.tests.len()).sum();
     let without_header = format!(
         "verdict without the {} units every policy fails",
@@ -584,15 +602,25 @@ pub(super) fn shapes(cfg: &PaperConfig, results: &Results) -> String {
         "routes",
         "verdict",
         &without_header,
+        "verdict, collisions as leaderboard 1.0 counts them (all units / without those)",
     ]);
-    for ((c, (verdict, evidence)), (v2, _)) in all.iter().zip(judge(&all)).zip(judge(&informative))
+    for (i, ((c, (verdict, evidence)), (v2, _))) in all
+        .iter()
+        .zip(judge(&all))
+        .zip(judge(&informative))
+        .enumerate()
     {
+        let lb = leaderboard.as_ref().map_or_else(
+            || "– (records made before collisions were counted by rule)".to_string(),
+            |(a, b, _)| format!("{} / {}", a[i].0, b[i].0),
+        );
         t.push(vec![
             c.shape.clone(),
             evidence,
             c.routes.to_string(),
             verdict.into(),
             v2.into(),
+            lb,
         ]);
     }
     let mut s = format!(
@@ -601,6 +629,32 @@ pub(super) fn shapes(cfg: &PaperConfig, results: &Results) -> String {
         rules(),
         t.markdown()
     );
+    if let Some((judged, informative, claims)) = &leaderboard {
+        let mut t = Table::new(&[
+            "the paper's shape",
+            "ours, collisions as leaderboard 1.0 counts them (as above)",
+            "verdict",
+            &without_header,
+        ]);
+        for (i, c) in claims.iter().enumerate().filter(|(_, c)| c.collisions) {
+            t.push(vec![
+                c.shape.clone(),
+                judged[i].1.clone(),
+                judged[i].0.into(),
+                informative[i].0.into(),
+            ]);
+        }
+        s += &format!(
+            "### The shapes that read collisions, counted as leaderboard 1.0 counts them\n\n\
+             The same {family} tests and checks with each run's collisions counted by \
+             leaderboard 1.0's `CollisionTest` (`leaderboard-1.0`: sidewalk contacts dropped, a \
+             touch within 3 m of a remembered collision dropped; docs/protocol.md §3), adjusted \
+             by Holm across those {family}. The paper's scorer decides the verdicts above; \
+             these stand beside them. The shapes of red lights and lane crossings read no \
+             collisions: their evidence is the one above, their Holm p the other family's.\n\n{}\n",
+            t.markdown()
+        );
+    }
     s += &uninformative(&failing);
     // Each test named with its shape's table or figure, "(Fig. 3)".
     let named: Vec<(String, &Test)> = all
@@ -679,6 +733,7 @@ mod tests {
     use crate::report::tests::run;
     use crate::results::UnitRuns;
     use sim::monitors::InfractionKind::RedLight;
+    use sim::monitors::counting::CollisionCounts;
 
     const SEEDS: u64 = 12;
     /// The routes every configuration drives (the paper's four).
@@ -735,8 +790,16 @@ mod tests {
             .find(|l| l.starts_with(&format!("| {claim}")))
             .unwrap_or_else(|| panic!("no {claim:?} row in:\n{page}"));
         let cells: Vec<&str> = line.split('|').map(str::trim).collect();
-        let n = cells.len();
-        (cells[n - 3].to_string(), cells[n - 2].to_string())
+        (cells[4].to_string(), cells[5].to_string())
+    }
+
+    /// The verdicts of a claim's row with collisions as leaderboard 1.0 counts them.
+    fn leaderboard_of(page: &str, claim: &str) -> String {
+        let line = page
+            .lines()
+            .find(|l| l.starts_with(&format!("| {claim}")))
+            .unwrap_or_else(|| panic!("no {claim:?} row in:\n{page}"));
+        line.split('|').map(str::trim).nth(6).unwrap().to_string()
     }
 
     fn verdict_of(page: &str, claim: &str) -> String {
@@ -812,6 +875,67 @@ mod tests {
         assert_eq!(
             verdict_of(&shapes(&cfg, &r), cliff_row),
             "not enough runs yet"
+        );
+    }
+
+    #[test]
+    fn every_verdict_is_given_again_with_collisions_as_leaderboard_1_counts_them() {
+        let cfg = PaperConfig::full();
+        let cliff_row = "a cliff near 150 ms";
+        // Records from before the per-rule counts: the paper's verdicts alone.
+        let page = shapes(&cfg, &results_with(&cfg, cliff));
+        assert_eq!(
+            leaderboard_of(&page, cliff_row),
+            "– (records made before collisions were counted by rule)"
+        );
+        assert!(!page.contains("counted as leaderboard 1.0 counts them\n"));
+        // Every collision a kerb mount: the paper counts it, leaderboard 1.0 does not,
+        // so no collisions jump at 150 ms or fill the runs at 200 ms.
+        let mut r = results_with(&cfg, cliff);
+        for x in r.units.values_mut().flat_map(|u| &mut u.runs) {
+            let paper = CollisionCounts {
+                static_: x.record.result.collisions(),
+                ..CollisionCounts::default()
+            };
+            x.record.result.collisions = [
+                (CountingRule::Paper.name().to_string(), paper),
+                (
+                    CountingRule::Leaderboard1.name().to_string(),
+                    CollisionCounts::default(),
+                ),
+            ]
+            .into();
+        }
+        let page = shapes(&cfg, &r);
+        assert_eq!(verdicts_of(&page, cliff_row).0, "agrees", "{page}");
+        assert_eq!(
+            leaderboard_of(&page, cliff_row),
+            "does not agree / does not agree"
+        );
+        // Its evidence under leaderboard 1.0: no jump, and the runs at 200 ms are
+        // outside the paper's 83-100 % with a collision.
+        let section = page
+            .split("### The shapes that read collisions")
+            .nth(1)
+            .expect("the leaderboard's section");
+        assert!(
+            section.contains("RA 1.0x collided 150 - 100 ms: +0.00"),
+            "{section}"
+        );
+        assert!(
+            section.contains("RA 1.0x D = 200 ms collided 0 % [0, 0] (paper 83-100 %: outside) ✗"),
+            "{section}"
+        );
+        // Shapes that read no collisions are not repeated there; RA like NRA is.
+        assert!(
+            !section.contains("| 0.75x runs more red lights"),
+            "{section}"
+        );
+        assert!(section.contains("| RA performs like NRA"), "{section}");
+        // Lanes read no collisions: the same verdict under both rules.
+        assert_eq!(
+            leaderboard_of(&page, "lane invasions barely change"),
+            "agrees / agrees"
         );
     }
 

@@ -353,6 +353,21 @@ impl RunResult {
             + self.count(InfractionKind::CollisionPedestrian)
             + self.count(InfractionKind::CollisionStatic)
     }
+
+    /// This result with its collision counts ([`RunResult::counts`], which
+    /// `collisions()` sums) as `rule` counts them, taken from the record's own
+    /// per-rule counts (its `collisions` field); everything else, the
+    /// infraction list included, as it was. `None` for a record made before
+    /// records counted by rule.
+    pub fn counted_by(&self, rule: CountingRule) -> Option<RunResult> {
+        let c = self.collisions.get(rule.name())?;
+        let mut r = self.clone();
+        r.counts.insert(InfractionKind::CollisionVehicle, c.vehicle);
+        r.counts
+            .insert(InfractionKind::CollisionPedestrian, c.pedestrian);
+        r.counts.insert(InfractionKind::CollisionStatic, c.static_);
+        Some(r)
+    }
 }
 
 /// Counts infractions by kind, listing every kind (zeros included).
@@ -470,6 +485,56 @@ mod tests {
         assert!(
             table.contains("  leaderboard-1.0        0 / 0 / 0\n"),
             "{table}"
+        );
+    }
+
+    #[test]
+    fn a_result_counted_by_a_rule_takes_that_rules_collisions() {
+        let spec = crate::sweep::RunSpec {
+            scenario: "a.toml".into(),
+            delay_ms: None,
+            scale: None,
+            density: None,
+            seed: 0,
+            driver: None,
+        };
+        let mut result = crate::sweep::fixtures::fake_record(&spec).result;
+        // A record from before the counting rules: no rule can count it again.
+        result.collisions.clear();
+        assert_eq!(result.counted_by(CountingRule::Leaderboard1), None);
+        // A kerb mount and a car: the paper counts both, leaderboard 1.0 the car.
+        use crate::monitors::contacts::TouchWith;
+        let touch = |with, what: &str, tick| Touch {
+            tick,
+            time_s: tick as f64 / 20.0,
+            with,
+            actor: (with == TouchWith::Vehicle).then_some(7),
+            what: what.into(),
+            position: [tick as f32 * 10.0, 0.0],
+            speed_mps: 3.0,
+            repeat: false,
+            kerb: None,
+            left_tick: None,
+        };
+        result.contacts = vec![
+            touch(TouchWith::Kerb, "kerb up", 10),
+            touch(TouchWith::Vehicle, "vehicle", 100),
+        ];
+        result.collisions = collisions_by_rule(&result.contacts);
+        let paper = result.counted_by(CountingRule::Paper).unwrap();
+        let lb = result.counted_by(CountingRule::Leaderboard1).unwrap();
+        assert_eq!((paper.collisions(), lb.collisions()), (2, 1));
+        assert_eq!(paper.count(InfractionKind::CollisionStatic), 1);
+        assert_eq!(lb.count(InfractionKind::CollisionStatic), 0);
+        assert_eq!(lb.count(InfractionKind::CollisionVehicle), 1);
+        // Nothing else moves.
+        assert_eq!(
+            lb.count(InfractionKind::RedLight),
+            result.count(InfractionKind::RedLight)
+        );
+        assert_eq!(
+            (lb.success, &lb.infractions),
+            (result.success, &result.infractions)
         );
     }
 }
