@@ -831,6 +831,11 @@ mod tests {
         assert_eq!(std::fs::read_to_string(&one).unwrap(), "new");
     }
 
+    /// The checkout's build at toy size: it writes its arguments as the page of
+    /// the folder they name (`--held-out`: docs/paper-heldout), where it runs.
+    const FAKE_PAGE: &str = "case \"$*\" in *--held-out*) d=docs/paper-heldout;; *) d=docs/paper;; esac\n\
+                             mkdir -p $d && echo \"$@\" > $d/README.md";
+
     /// A checkout with one commit, and a fake study binary (a shell script) in a
     /// worktree folder: the job's mechanics at toy size.
     fn toy(script: &str) -> (tempfile::TempDir, PathBuf, PathBuf, PathBuf) {
@@ -935,7 +940,7 @@ mod tests {
             std::fs::read_to_string(repo.join("docs/paper/wall.json")).unwrap(),
             "2\n"
         );
-        // The page waits for the stage's end: the checkout keeps its own.
+        // The pinned build's page never comes: the checkout keeps its own.
         assert_eq!(
             std::fs::read_to_string(repo.join("docs/paper/README.md")).unwrap(),
             "placeholder\n"
@@ -950,10 +955,7 @@ mod tests {
     fn the_pages_are_built_in_the_checkout_once_every_stage_is_settled() {
         // The checkout's build, faked: it writes its arguments as the page of the
         // folder they name, in the folder it runs in.
-        let (_dir, repo, _, page) = toy(
-            "case \"$*\" in *--held-out*) d=docs/paper-heldout;; *) d=docs/paper;; esac\n\
-             mkdir -p $d && echo \"$@\" > $d/README.md",
-        );
+        let (_dir, repo, _, page) = toy(FAKE_PAGE);
         let read = |f: &str| std::fs::read_to_string(repo.join(f).join("README.md")).unwrap();
         // Stage 2 still to run: refused, nothing written.
         let log = JobLog {
@@ -1075,12 +1077,7 @@ mod tests {
         std::fs::set_permissions(&bin, std::fs::Permissions::from_mode(0o755)).unwrap();
         // The checkout's build, which writes the pages: its arguments as the page.
         let page = cache.join("bin").join("mrdrive-checkout");
-        std::fs::write(
-            &page,
-            "#!/bin/sh\ncase \"$*\" in *--held-out*) d=docs/paper-heldout;; *) d=docs/paper;; esac\n\
-             mkdir -p $d && echo \"$@\" > $d/README.md\n",
-        )
-        .unwrap();
+        std::fs::write(&page, format!("#!/bin/sh\n{FAKE_PAGE}\n")).unwrap();
         std::fs::set_permissions(&page, std::fs::Permissions::from_mode(0o755)).unwrap();
 
         let job = |n: &str| {
