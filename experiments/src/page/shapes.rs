@@ -4,7 +4,8 @@
 //! margins of counts), one family of them corrected by Holm's method, intervals
 //! over route means for counts and the exact test's own for yes/no outcomes,
 //! thresholds from the paper's own figures, and each verdict
-//! given with and without the units that every policy fails.
+//! given with and without the units that every policy fails, with collisions
+//! counted by the paper's scorer and again as leaderboard 1.0 counts them.
 //!
 //! The rules were written on 2026-12-05 for the study's rerun (issue 38),
 //! before its runs. A rule that turns out wrong is discussed in
@@ -651,7 +652,8 @@ pub(super) fn shapes(cfg: &PaperConfig, results: &Results) -> String {
              touch within 3 m of a remembered collision dropped; docs/protocol.md §3), adjusted \
              by Holm across those {family}. The paper's scorer decides the verdicts above; \
              these stand beside them. The shapes of red lights and lane crossings read no \
-             collisions: their evidence is the one above, their Holm p the other family's.\n\n{}\n",
+             collisions and are not repeated: their tests are the ones above, and only their \
+             Holm adjustment, across this family, can differ.\n\n{}\n",
             t.markdown()
         );
     }
