@@ -580,11 +580,10 @@ pub fn recorded(folder: &Path) -> Result<usize, PaperError> {
     };
     let mut n = 0;
     for entry in entries {
-        let runs = entry
+        let root = entry
             .map_err(|e| PaperError::io("read", &sweeps, e))?
-            .path()
-            .join("runs");
-        if let Ok(files) = std::fs::read_dir(&runs) {
+            .path();
+        if let Ok(files) = std::fs::read_dir(sim::sweep::folder::SweepDir { root }.runs_dir()) {
             n += files.filter(|f| f.is_ok()).count();
         }
     }
@@ -810,14 +809,11 @@ mod tests {
         std::fs::create_dir_all(&b).unwrap();
         std::fs::write(b.join("README.md"), "old").unwrap();
         assert_eq!(mirror(&a, &b, Overwrite::Never).unwrap(), 1);
-        assert_eq!(std::fs::read_to_string(b.join("README.md")).unwrap(), "old");
+        assert_eq!(text(b.join("README.md")), "old");
         assert_eq!(mirror(&a, &b, Overwrite::Changed).unwrap(), 1);
-        assert_eq!(std::fs::read_to_string(b.join("README.md")).unwrap(), "new");
+        assert_eq!(text(b.join("README.md")), "new");
         assert_eq!(mirror(&a, &b, Overwrite::Changed).unwrap(), 0);
-        assert_eq!(
-            std::fs::read_to_string(b.join("sweeps/u/runs/r.json")).unwrap(),
-            "1"
-        );
+        assert_eq!(text(b.join("sweeps/u/runs/r.json")), "1");
         assert_eq!(
             mirror(&dir.path().join("none"), &b, Overwrite::Changed).unwrap(),
             0
@@ -828,7 +824,12 @@ mod tests {
             mirror(&a.join("README.md"), &one, Overwrite::Never).unwrap(),
             1
         );
-        assert_eq!(std::fs::read_to_string(&one).unwrap(), "new");
+        assert_eq!(text(&one), "new");
+    }
+
+    /// A file's text (the test fails where it cannot be read).
+    fn text(path: impl AsRef<Path>) -> String {
+        std::fs::read_to_string(path).unwrap()
     }
 
     /// The checkout's build at toy size: it writes its arguments as the page of
@@ -903,14 +904,8 @@ mod tests {
         let job = toy_job(&repo, &tree, &bin, Duration::from_secs(60));
         assert_eq!(job.run_stage(&STAGES[0]).unwrap(), StageEnd::Finished);
         let record = repo.join("docs/paper/sweeps/u/runs/r.json");
-        assert_eq!(
-            std::fs::read_to_string(record).unwrap(),
-            "paper --only table2,fig3,fig4,fig5,table3\n"
-        );
-        assert_eq!(
-            std::fs::read_to_string(repo.join("docs/paper/README.md")).unwrap(),
-            "placeholder\n"
-        );
+        assert_eq!(text(record), "paper --only table2,fig3,fig4,fig5,table3\n");
+        assert_eq!(text(repo.join("docs/paper/README.md")), "placeholder\n");
         let log = commits(&repo);
         assert!(
             log.starts_with("Add the study's records: stage 1, 1 files copied now"),
@@ -920,7 +915,6 @@ mod tests {
 
     #[test]
     fn the_deadline_stops_a_stage_and_keeps_what_it_finished() {
-        // A record, then a long run that the deadline cuts short.
         // A record, the sweeps' wall time and a half-done page, then a long run
         // that the deadline cuts short.
         let (_dir, repo, tree, bin) = toy(
@@ -936,15 +930,9 @@ mod tests {
             "the stage was not stopped"
         );
         assert!(repo.join("docs/paper/sweeps/u/runs/a.json").exists());
-        assert_eq!(
-            std::fs::read_to_string(repo.join("docs/paper/wall.json")).unwrap(),
-            "2\n"
-        );
+        assert_eq!(text(repo.join("docs/paper/wall.json")), "2\n");
         // The pinned build's page never comes: the checkout keeps its own.
-        assert_eq!(
-            std::fs::read_to_string(repo.join("docs/paper/README.md")).unwrap(),
-            "placeholder\n"
-        );
+        assert_eq!(text(repo.join("docs/paper/README.md")), "placeholder\n");
         assert!(!repo.join("docs/paper/fig3.svg").exists());
         assert!(commits(&repo).contains("stage 1 (time limit), 2 files copied now"));
         assert_eq!(recorded(&repo.join("docs/paper")).unwrap(), 1);
@@ -956,7 +944,7 @@ mod tests {
         // The checkout's build, faked: it writes its arguments as the page of the
         // folder they name, in the folder it runs in.
         let (_dir, repo, _, page) = toy(FAKE_PAGE);
-        let read = |f: &str| std::fs::read_to_string(repo.join(f).join("README.md")).unwrap();
+        let read = |f: &str| text(repo.join(f).join("README.md"));
         // Stage 2 still to run: refused, nothing written.
         let log = JobLog {
             rows: vec![row(1, &[1])],
@@ -1102,20 +1090,14 @@ mod tests {
         assert!(log.rows[0].note.starts_with("failed"), "{:?}", log.rows[0]);
         assert!(paper.join("sweeps/new/runs/3.json").exists());
         // Stage 3 still to run: no page yet.
-        assert_eq!(
-            std::fs::read_to_string(paper.join("README.md")).unwrap(),
-            "placeholder\n"
-        );
+        assert_eq!(text(paper.join("README.md")), "placeholder\n");
         std::fs::write(cache.join("ok"), "").unwrap();
         let row = job("2026-12-08 12:00").unwrap();
         assert_eq!((row.job, row.finished.clone()), (2, vec![3]));
         // The job that settles the last stage builds the pages, in the checkout.
+        assert_eq!(text(paper.join("README.md")), "paper --report-only\n");
         assert_eq!(
-            std::fs::read_to_string(paper.join("README.md")).unwrap(),
-            "paper --report-only\n"
-        );
-        assert_eq!(
-            std::fs::read_to_string(repo.join("docs/paper-heldout/README.md")).unwrap(),
+            text(repo.join("docs/paper-heldout/README.md")),
             "paper --held-out --report-only\n"
         );
         assert!(paper.join("sweeps/new/runs/1.json").exists());
