@@ -486,6 +486,23 @@ pub fn run_job(
     Ok(row)
 }
 
+/// Checks that the binary `exe`, whose build is `build` (`mrdrive VERSION
+/// (COMMIT)`), may write the study's pages: a clean checkout's commit, as
+/// every record's build must be ([`Registration::check_builds`]).
+pub fn check_page_build(exe: &Path, build: &str) -> Result<(), PaperError> {
+    match registration::build_commit(build) {
+        Some(c) if !c.ends_with("-dirty") => Ok(()),
+        _ => Err(PaperError::Study {
+            path: exe.to_path_buf(),
+            problem: format!(
+                "its build `{build}` names no clean commit (uncommitted changes, or built \
+                 outside git), and a study job or `--page` writes the study's pages with it: \
+                 commit, build again (`cargo build --release`), then run it"
+            ),
+        }),
+    }
+}
+
 /// Builds the study's pages in the checkout `repo` with `page_binary` (the
 /// checkout's own build), from the records alone (`--report-only`), each folder
 /// of [`FOLDERS`] with the arguments of the last stage that finished in it (a
@@ -976,6 +993,19 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("mrdrive study --page"), "{e}");
+    }
+
+    #[test]
+    fn only_a_clean_commits_build_may_write_the_pages() {
+        let exe = Path::new("target/release/mrdrive");
+        assert!(check_page_build(exe, "mrdrive 0.1.0 (c36f3af7814e)").is_ok());
+        for unfit in [
+            "mrdrive 0.1.0 (c36f3af7814e-dirty)",
+            "mrdrive 0.1.0 (unknown commit)",
+        ] {
+            let e = check_page_build(exe, unfit).unwrap_err().to_string();
+            assert!(e.contains("no clean commit"), "{e}");
+        }
     }
 
     #[test]

@@ -46,16 +46,14 @@ pub fn run(a: StudyArgs) -> Result<()> {
         );
         return Ok(());
     }
-    let exe = std::env::current_exe()?;
+    if !a.page && a.hours.is_none() {
+        return status(&a.repo);
+    }
     // This build writes the pages (at the end of the job that settles the last
-    // stage, or with --page): it must be a commit's, as the records' build is.
-    let build = sim::output::provenance::build_id();
-    anyhow::ensure!(
-        !build.contains("-dirty"),
-        "this build ({build}) has uncommitted changes, and a study job or --page may write \
-         the study's pages with it: commit, build again (`cargo build --release`), then run it"
-    );
-    if a.page {
+    // stage, or with --page).
+    let exe = std::env::current_exe()?;
+    study::check_page_build(&exe, &sim::output::provenance::build_id())?;
+    let Some(hours) = a.hours else {
         let log = JobLog::read(&paper.join(study::LOG_FILE))?;
         let built = study::build_pages(&a.repo, &exe, &log, &|line| eprintln!("{line}"))?;
         println!(
@@ -63,9 +61,6 @@ pub fn run(a: StudyArgs) -> Result<()> {
             built.join(" and ")
         );
         return Ok(());
-    }
-    let Some(hours) = a.hours else {
-        return status(&a.repo);
     };
     anyhow::ensure!(
         hours > 0.0 && a.sync_minutes > 0.0,
