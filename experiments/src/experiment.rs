@@ -62,6 +62,21 @@ impl Experiment {
         }
     }
 
+    /// Its name on the page: "Table II", "Fig. 3", "Beyond the paper: latency jitter".
+    pub fn title(self) -> &'static str {
+        match self {
+            Experiment::Table1 => "Table I",
+            Experiment::Table2 => "Table II",
+            Experiment::Fig3 => "Fig. 3",
+            Experiment::Fig4 => "Fig. 4",
+            Experiment::Fig5 => "Fig. 5",
+            Experiment::Table3 => "Table III",
+            Experiment::Frontier => "Beyond the paper: the latency/safety frontier",
+            Experiment::Jitter => "Beyond the paper: latency jitter",
+            Experiment::Scales => "Beyond the paper: more scales in one network",
+        }
+    }
+
     /// Every name.
     pub fn ids() -> Vec<&'static str> {
         Self::ALL.iter().map(|e| e.id()).collect()

@@ -256,8 +256,10 @@ impl WallClock {
     }
 }
 
-/// Rewrites every experiment's tables, figures and page section from the
-/// runs that exist, so `--only` adds to the page without dropping the rest.
+/// Rewrites the tables, figures and page sections from the runs that exist:
+/// of the experiments asked for, and of any other whose runs are all here, so
+/// `--only` adds to the page without dropping what is complete (an experiment
+/// neither asked for nor complete gets a line saying it was not run here).
 /// A registered folder's page takes only records of builds that descend from
 /// the registering commit ([`Registration::check_builds`]).
 fn report(cfg: &PaperConfig, opts: &RunOptions) -> Result<Vec<PathBuf>, PaperError> {

@@ -46,17 +46,25 @@ pub fn write_all(
         docs: opts.out.clone(),
         written: Vec::new(),
     };
-    let sections = [
-        table1::table1(cfg, &mut w)?,
-        table2::table2(cfg, results, &mut w)?,
-        fig34::fig34(cfg, results, &mut w, true)?,
-        fig34::fig34(cfg, results, &mut w, false)?,
-        fig5::fig5(cfg, results, &mut w)?,
-        table3::table3(cfg, results, &mut w)?,
-        frontier::frontier(cfg, results, &mut w)?,
-        jitter::jitter(cfg, results, &mut w)?,
-        scales::scales(cfg, results, &mut w)?,
-    ];
+    let asked = &opts.experiments;
+    let mut sections = Vec::new();
+    for e in Experiment::ALL {
+        if !drawn(cfg, results, asked, e) {
+            sections.push(not_run_here(cfg, results, asked, e));
+            continue;
+        }
+        sections.push(match e {
+            Experiment::Table1 => table1::table1(cfg, &mut w)?,
+            Experiment::Table2 => table2::table2(cfg, results, &mut w)?,
+            Experiment::Fig3 => fig34::fig34(cfg, results, &mut w, true)?,
+            Experiment::Fig4 => fig34::fig34(cfg, results, &mut w, false)?,
+            Experiment::Fig5 => fig5::fig5(cfg, results, &mut w)?,
+            Experiment::Table3 => table3::table3(cfg, results, &mut w)?,
+            Experiment::Frontier => frontier::frontier(cfg, results, &mut w)?,
+            Experiment::Jitter => jitter::jitter(cfg, results, &mut w)?,
+            Experiment::Scales => scales::scales(cfg, results, &mut w)?,
+        });
+    }
     // The sections' paired tests form one family for Holm's correction; the
     // shapes' tests, which decide the verdicts, form their own (see `shapes`).
     let (sections, family) = resolve_holm(&sections.join("\n"));
@@ -70,10 +78,40 @@ pub fn write_all(
     );
     let page = header(cfg, opts, results, family)
         + &registered
-        + &shapes::shapes(cfg, results)
+        + &shapes::shapes(cfg, results, asked)
         + &sections;
     w.text("README.md", &page)?;
     Ok(w.written)
+}
+
+/// Whether the page draws `e`: it was asked of this folder (`--only`, all by
+/// default), or every run it reads is here (runs it shares with those asked
+/// for: Fig. 4's are Fig. 3's), or it reads no runs (Table I). A folder run
+/// for some experiments does not show half of another (registration, section
+/// 1: a stage not run is reported as not rerun, none of its records used).
+fn drawn(cfg: &PaperConfig, results: &Results, asked: &[Experiment], e: Experiment) -> bool {
+    let (done, planned) = results.progress(cfg, &e.units(cfg));
+    e == Experiment::Table1 || asked.contains(&e) || done == planned
+}
+
+/// The section of an experiment the page does not draw ([`drawn`]).
+fn not_run_here(
+    cfg: &PaperConfig,
+    results: &Results,
+    asked: &[Experiment],
+    e: Experiment,
+) -> String {
+    let (done, planned) = results.progress(cfg, &e.units(cfg));
+    let ids: Vec<&str> = asked.iter().map(|a| a.id()).collect();
+    format!(
+        "## {}: not run in this folder\n\nThis folder's runs were made for {} (`--only`). {done} \
+         of the {planned} runs {} reads are here (runs it shares with those), so it is not \
+         drawn and none of its records is used here; `--only {}` runs the rest.\n",
+        e.title(),
+        ids.join(", "),
+        e.title(),
+        e.id()
+    )
 }
 
 fn header(cfg: &PaperConfig, opts: &RunOptions, results: &Results, family: usize) -> String {
@@ -219,8 +257,10 @@ fn header(cfg: &PaperConfig, opts: &RunOptions, results: &Results, family: usize
             e.id().into(),
             if e == Experiment::Table1 {
                 "(spawns only)".into()
-            } else {
+            } else if drawn(cfg, results, &opts.experiments, e) {
                 format!("{done} / {planned}")
+            } else {
+                format!("{done} / {planned} (not run in this folder)")
             },
         ]);
     }
@@ -229,4 +269,65 @@ fn header(cfg: &PaperConfig, opts: &RunOptions, results: &Results, family: usize
     s += "\nThe discussion of where our shapes differ from the paper's, and why, is in \
           [`discussion.md`](discussion.md) (written by hand from these tables).\n\n";
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::report::tests::run;
+    use crate::results::UnitRuns;
+    use crate::units::Unit;
+
+    /// A folder whose runs were all made for `run_for`: every unit those read
+    /// has its two planned runs, every other unit none.
+    fn folder(cfg: &PaperConfig, run_for: &[Experiment]) -> Results {
+        let made: Vec<Unit> = run_for.iter().flat_map(|e| e.units(cfg)).collect();
+        let mut r = Results::default();
+        for u in Experiment::ALL.iter().flat_map(|e| e.units(cfg)) {
+            let runs = if made.contains(&u) {
+                (0..2).map(|s| run("a", s, true, 0, 0, 0, 100.0)).collect()
+            } else {
+                Vec::new()
+            };
+            r.units.insert(u.id(cfg), UnitRuns { planned: 2, runs });
+        }
+        r
+    }
+
+    fn drawn_of(cfg: &PaperConfig, r: &Results, asked: &[Experiment]) -> Vec<Experiment> {
+        Experiment::ALL
+            .into_iter()
+            .filter(|&e| drawn(cfg, r, asked, e))
+            .collect()
+    }
+
+    #[test]
+    fn a_folder_run_for_some_experiments_draws_those_and_what_their_runs_complete() {
+        use Experiment::*;
+        let cfg = PaperConfig::full();
+        // The held-out stage (`--held-out`: fig3, table3): Fig. 4 reads Fig. 3's runs
+        // and is drawn; Table II lacks the Original's and the expert's, Fig. 5 the
+        // delays past 50 ms.
+        let asked = [Fig3, Table3];
+        let r = folder(&cfg, &asked);
+        assert_eq!(drawn_of(&cfg, &r, &asked), [Table1, Fig3, Fig4, Table3]);
+        let table2 = not_run_here(&cfg, &r, &asked, Table2);
+        assert!(
+            table2.starts_with("## Table II: not run in this folder\n\nThis folder's runs were made for fig3, table3 (`--only`). 6 of the 10 runs Table II reads are here"),
+            "{table2}"
+        );
+        // Stage 1 without stage 3: the frontier is all stage 1's runs, jitter and
+        // the more scales are not.
+        let stage1 = [Table2, Fig3, Fig4, Fig5, Table3];
+        let r = folder(&cfg, &stage1);
+        assert_eq!(
+            drawn_of(&cfg, &r, &stage1),
+            [Table1, Table2, Fig3, Fig4, Fig5, Table3, Frontier]
+        );
+        // Asked for, an experiment is drawn however few of its runs are here.
+        assert_eq!(
+            drawn_of(&cfg, &folder(&cfg, &[]), &Experiment::ALL),
+            Experiment::ALL
+        );
+    }
 }

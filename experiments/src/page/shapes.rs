@@ -15,6 +15,7 @@ use super::configs::{Config, model_at, x};
 // The cliff's ranges are the paper's own (Fig. 5's text).
 use super::reference::{FIG5_AT_200 as CLIFF_AT_200, FIG5_UP_TO_100 as CLIFF_BELOW};
 use crate::config::PaperConfig;
+use crate::experiment::Experiment;
 use crate::report::{Comparison, Stats, Table, p_text};
 use crate::results::{PairKey, Results, Run};
 use crate::units::{Driver, Unit};
@@ -302,10 +303,12 @@ struct Claim {
     /// Whether it reads collisions (then its evidence is shown under each
     /// counting rule).
     collisions: bool,
+    /// The table or figure of the paper it is read from.
+    experiment: Experiment,
 }
 
 impl Claim {
-    fn new(shape: String) -> Claim {
+    fn new(shape: String, experiment: Experiment) -> Claim {
         Claim {
             shape,
             tests: Vec::new(),
@@ -313,6 +316,28 @@ impl Claim {
             routes: 0,
             complete: true,
             collisions: false,
+            experiment,
+        }
+    }
+
+    /// Its verdict, given whether its tests and checks pass, in a folder whose
+    /// runs were made for the experiments `asked` (`--only`). A claim whose
+    /// experiment was not asked for is "not run in this folder" while runs are
+    /// missing, and says whose runs it was read from when none is.
+    fn verdict(&self, agrees: bool, asked: &[Experiment]) -> String {
+        let verdict = match (self.complete, agrees) {
+            (false, _) if !asked.contains(&self.experiment) => {
+                return "not run in this folder".into();
+            }
+            (false, _) => "not enough runs yet",
+            (true, true) => "agrees",
+            (true, false) => "does not agree",
+        };
+        if asked.contains(&self.experiment) {
+            verdict.into()
+        } else {
+            let ids: Vec<&str> = asked.iter().map(|e| e.id()).collect();
+            format!("{verdict} (read from the runs of {})", ids.join(", "))
         }
     }
 
@@ -333,7 +358,10 @@ fn claims(cfg: &PaperConfig, results: &Results) -> Vec<Claim> {
     let mut out = Vec::new();
 
     // 1. RA performs like NRA at each scale (Table II).
-    let mut claim = Claim::new("RA performs like NRA at each scale (Table II)".into());
+    let mut claim = Claim::new(
+        "RA performs like NRA at each scale (Table II)".into(),
+        Experiment::Table2,
+    );
     claim.collisions = true;
     for scale in [cfg.low, cfg.high] {
         let c = Comparison::of(
@@ -359,12 +387,18 @@ fn claims(cfg: &PaperConfig, results: &Results) -> Vec<Claim> {
     out.push(claim);
 
     // 2 and 3. Red lights up, lane crossings flat at the low scale (Figs. 3 and 4).
-    let mut red = Claim::new(format!(
-        "{} runs more red lights than {} (Fig. 3)",
-        x(cfg.low),
-        x(cfg.high)
-    ));
-    let mut lane = Claim::new("lane invasions barely change with the scale (Fig. 4)".into());
+    let mut red = Claim::new(
+        format!(
+            "{} runs more red lights than {} (Fig. 3)",
+            x(cfg.low),
+            x(cfg.high)
+        ),
+        Experiment::Fig3,
+    );
+    let mut lane = Claim::new(
+        "lane invasions barely change with the scale (Fig. 4)".into(),
+        Experiment::Fig4,
+    );
     for ra in [false, true] {
         for &d in cfg.delays_ms.iter().take(2) {
             let c = Comparison::of(
@@ -400,6 +434,7 @@ fn claims(cfg: &PaperConfig, results: &Results) -> Vec<Claim> {
         "a cliff near 150 ms: success high up to 100 ms, collisions jump at 150 ms, success \
          collapses at 200 ms (Fig. 5)"
             .into(),
+        Experiment::Fig5,
     );
     cliff.collisions = true;
     let planned = |d: f64| cfg.delays_ms.contains(&d);
@@ -439,6 +474,7 @@ fn claims(cfg: &PaperConfig, results: &Results) -> Vec<Claim> {
     // 5. The oracle switcher beats both fixed scales at the same worst case (Table III).
     let mut switch = Claim::new(
         "the switcher beats both fixed scales at equal worst-case latency (Table III)".into(),
+        Experiment::Table3,
     );
     switch.collisions = true;
     for e in &cfg.envelopes {
@@ -539,7 +575,7 @@ fn range_checks(
 
 /// The verdict of each claim and its evidence, with Holm's correction across
 /// every test of every claim.
-fn judge(claims: &[Claim]) -> Vec<(&'static str, String)> {
+fn judge(claims: &[Claim], asked: &[Experiment]) -> Vec<(String, String)> {
     let raw: Vec<f64> = claims
         .iter()
         .flat_map(|c| c.tests.iter().map(|t| t.p))
@@ -551,11 +587,7 @@ fn judge(claims: &[Claim]) -> Vec<(&'static str, String)> {
             let adj: Vec<f64> = adjusted.by_ref().take(c.tests.len()).collect();
             let agrees = c.tests.iter().zip(&adj).all(|(t, &q)| t.passes(q))
                 && c.checks.iter().all(|(_, ok)| *ok);
-            let verdict = match (c.complete, agrees) {
-                (false, _) => "not enough runs yet",
-                (true, true) => "agrees",
-                (true, false) => "does not agree",
-            };
+            let verdict = c.verdict(agrees, asked);
             // The range checks that hold are summarised; those that fail are named.
             let held = c.checks.iter().filter(|(_, ok)| *ok).count();
             let mut evidence: Vec<String> = c
@@ -580,7 +612,7 @@ fn judge(claims: &[Claim]) -> Vec<(&'static str, String)> {
 
 /// The page's section: the rules, the verdicts with and without the units every
 /// policy fails, and those units.
-pub(super) fn shapes(cfg: &PaperConfig, results: &Results) -> String {
+pub(super) fn shapes(cfg: &PaperConfig, results: &Results, asked: &[Experiment]) -> String {
     let all = claims(cfg, results);
     let failing = results.failed_everywhere();
     let keys: Vec<PairKey> = failing.iter().map(|(k, _)| k.clone()).collect();
@@ -590,7 +622,7 @@ pub(super) fn shapes(cfg: &PaperConfig, results: &Results) -> String {
     // units left out are the same.
     let leaderboard = results.counted_by(CountingRule::Leaderboard1).map(|r| {
         let (all, informative) = (claims(cfg, &r), claims(cfg, &r.without(&keys)));
-        (judge(&all), judge(&informative), all)
+        (judge(&all, asked), judge(&informative, asked), all)
     });
     let family: usize = all.iter().map(|c| c.tests.len()).sum();
     let without_header = format!(
@@ -607,8 +639,8 @@ pub(super) fn shapes(cfg: &PaperConfig, results: &Results) -> String {
     ]);
     for (i, ((c, (verdict, evidence)), (v2, _))) in all
         .iter()
-        .zip(judge(&all))
-        .zip(judge(&informative))
+        .zip(judge(&all, asked))
+        .zip(judge(&informative, asked))
         .enumerate()
     {
         let lb = leaderboard.as_ref().map_or_else(
@@ -619,8 +651,8 @@ pub(super) fn shapes(cfg: &PaperConfig, results: &Results) -> String {
             c.shape.clone(),
             evidence,
             c.routes.to_string(),
-            verdict.into(),
-            v2.into(),
+            verdict,
+            v2,
             lb,
         ]);
     }
@@ -641,8 +673,8 @@ pub(super) fn shapes(cfg: &PaperConfig, results: &Results) -> String {
             t.push(vec![
                 c.shape.clone(),
                 judged[i].1.clone(),
-                judged[i].0.into(),
-                informative[i].0.into(),
+                judged[i].0.clone(),
+                informative[i].0.clone(),
             ]);
         }
         s += &format!(
@@ -809,10 +841,56 @@ mod tests {
     }
 
     #[test]
+    fn a_shape_this_folder_was_not_run_for_says_whose_runs_it_reads() {
+        use Experiment::{Fig3, Table3};
+        let cfg = PaperConfig::full();
+        let cliff_row = "a cliff near 150 ms";
+        let asked = [Fig3, Table3];
+        // Every fixed policy at every delay: the cliff is complete though not asked for.
+        let page = shapes(&cfg, &results_with(&cfg, cliff), &asked);
+        assert_eq!(
+            verdict_of(&page, cliff_row),
+            "agrees (read from the runs of fig3, table3)"
+        );
+        // Asked for and short of runs (no switcher ran): still to come.
+        assert_eq!(
+            verdict_of(&page, "the switcher beats"),
+            "not enough runs yet"
+        );
+        // Not asked for and short of runs: not run here, under both rules.
+        let mut r = results_with(&cfg, cliff);
+        for driver in [Driver::NraLow, Driver::NraHigh, Driver::Ra] {
+            r.units.remove(&Unit::fixed(driver, 200.0).id(&cfg));
+        }
+        // Both rules count each collision alike.
+        for x in r.units.values_mut().flat_map(|u| &mut u.runs) {
+            let counts = CollisionCounts {
+                vehicle: x.record.result.collisions(),
+                ..CollisionCounts::default()
+            };
+            x.record.result.collisions = [CountingRule::Paper, CountingRule::Leaderboard1]
+                .map(|rule| (rule.name().to_string(), counts))
+                .into();
+        }
+        let page = shapes(&cfg, &r, &asked);
+        assert_eq!(
+            verdicts_of(&page, cliff_row),
+            (
+                "not run in this folder".to_string(),
+                "not run in this folder".to_string()
+            )
+        );
+        assert_eq!(
+            leaderboard_of(&page, cliff_row),
+            "not run in this folder / not run in this folder"
+        );
+    }
+
+    #[test]
     fn the_shapes_are_judged_by_their_stated_rules() {
         let cfg = PaperConfig::full();
         let cliff_row = "a cliff near 150 ms";
-        let page = shapes(&cfg, &results_with(&cfg, cliff));
+        let page = shapes(&cfg, &results_with(&cfg, cliff), &Experiment::ALL);
         assert_eq!(verdict_of(&page, cliff_row), "agrees", "{page}");
         // Same outcomes at both scales: RA and NRA alike (48 identical yes/no pairs:
         // the exact unconditional test gives p = 0.0013 within ±1/6, 0.026 after
@@ -831,13 +909,14 @@ mod tests {
         assert!(page.contains("The family holds 28 tests"), "{page}");
         // Success holds at 150 ms and collisions only come at 200: no jump at 150.
         let late = |d: f64| if d <= 150.0 { (SEEDS, 0) } else { (0, SEEDS) };
-        let page = shapes(&cfg, &results_with(&cfg, late));
+        let page = shapes(&cfg, &results_with(&cfg, late), &Experiment::ALL);
         assert_eq!(verdict_of(&page, cliff_row), "does not agree");
         // Collisions jump at 150 ms, but success never falls: 48 of 48 at 200 ms
         // (on every route: [100, 100] %) is outside the paper's 0-8.35 %.
         let page = shapes(
             &cfg,
             &results_with(&cfg, |d| (SEEDS, if d <= 100.0 { 0 } else { SEEDS })),
+            &Experiment::ALL,
         );
         assert_eq!(verdict_of(&page, cliff_row), "does not agree");
         assert!(
@@ -863,7 +942,7 @@ mod tests {
                     .insert(sim::monitors::InfractionKind::CollisionVehicle, 0);
             }
         }
-        let page = shapes(&cfg, &r);
+        let page = shapes(&cfg, &r, &Experiment::ALL);
         assert_eq!(verdict_of(&page, cliff_row), "does not agree");
         assert!(
             page.contains(
@@ -875,7 +954,7 @@ mod tests {
         let mut r = results_with(&cfg, cliff);
         r.units.remove(&Unit::fixed(Driver::Ra, 200.0).id(&cfg));
         assert_eq!(
-            verdict_of(&shapes(&cfg, &r), cliff_row),
+            verdict_of(&shapes(&cfg, &r, &Experiment::ALL), cliff_row),
             "not enough runs yet"
         );
     }
@@ -885,7 +964,7 @@ mod tests {
         let cfg = PaperConfig::full();
         let cliff_row = "a cliff near 150 ms";
         // Records from before the per-rule counts: the paper's verdicts alone.
-        let page = shapes(&cfg, &results_with(&cfg, cliff));
+        let page = shapes(&cfg, &results_with(&cfg, cliff), &Experiment::ALL);
         assert_eq!(
             leaderboard_of(&page, cliff_row),
             "– (records made before collisions were counted by rule)"
@@ -908,7 +987,7 @@ mod tests {
             ]
             .into();
         }
-        let page = shapes(&cfg, &r);
+        let page = shapes(&cfg, &r, &Experiment::ALL);
         assert_eq!(verdicts_of(&page, cliff_row).0, "agrees", "{page}");
         assert_eq!(
             leaderboard_of(&page, cliff_row),
@@ -1097,10 +1176,13 @@ mod tests {
         let red = "0.75x runs more red lights";
         // 12 of 12 up on route a (36 pairs the same): raw p = 2^-11 = 0.0005 each, 0.014 at
         // most after Holm.
-        assert_eq!(verdict_of(&shapes(&cfg, &with_red(12)), red), "agrees");
+        assert_eq!(
+            verdict_of(&shapes(&cfg, &with_red(12), &Experiment::ALL), red),
+            "agrees"
+        );
         // 6 of 12 up: raw p = 2/64 = 0.031 each, below 0.05, but not after Holm; the
         // interval over the four route means (0.5, 0, 0, 0) holds 0.
-        let page = shapes(&cfg, &with_red(6));
+        let page = shapes(&cfg, &with_red(6), &Experiment::ALL);
         assert_eq!(verdict_of(&page, red), "does not agree");
         assert!(
             page.contains(
@@ -1124,7 +1206,7 @@ mod tests {
                 }
             }
         }
-        let page = shapes(&cfg, &r);
+        let page = shapes(&cfg, &r, &Experiment::ALL);
         assert!(
             page.contains("| a | (5, 10) | 11 | 20 | stuck (20) | 100.0 |"),
             "{page}"
@@ -1135,7 +1217,7 @@ mod tests {
             ("agrees".into(), "agrees".into())
         );
         // Nothing fails everywhere: no unit to leave out.
-        let page = shapes(&cfg, &results_with(&cfg, cliff));
+        let page = shapes(&cfg, &results_with(&cfg, cliff), &Experiment::ALL);
         assert!(page.contains("No unit is failed by every policy configuration."));
     }
 }
