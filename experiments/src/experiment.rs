@@ -77,6 +77,11 @@ impl Experiment {
         }
     }
 
+    /// The names of `list`, as `--only` takes them ("fig3, table3").
+    pub fn joined(list: &[Experiment]) -> String {
+        list.iter().map(|e| e.id()).collect::<Vec<_>>().join(", ")
+    }
+
     /// Every name.
     pub fn ids() -> Vec<&'static str> {
         Self::ALL.iter().map(|e| e.id()).collect()

@@ -47,9 +47,13 @@ pub fn write_all(
         written: Vec::new(),
     };
     let asked = &opts.experiments;
+    let shown: Vec<Experiment> = Experiment::ALL
+        .into_iter()
+        .filter(|&e| drawn(cfg, results, asked, e))
+        .collect();
     let mut sections = Vec::new();
     for e in Experiment::ALL {
-        if !drawn(cfg, results, asked, e) {
+        if !shown.contains(&e) {
             sections.push(not_run_here(cfg, results, asked, e));
             continue;
         }
@@ -76,7 +80,7 @@ pub fn write_all(
         },
         |r| r.line() + "\n\n",
     );
-    let page = header(cfg, opts, results, family)
+    let page = header(cfg, opts, results, family, &shown)
         + &registered
         + &shapes::shapes(cfg, results, asked)
         + &sections;
@@ -102,19 +106,26 @@ fn not_run_here(
     e: Experiment,
 ) -> String {
     let (done, planned) = results.progress(cfg, &e.units(cfg));
-    let ids: Vec<&str> = asked.iter().map(|a| a.id()).collect();
     format!(
         "## {}: not run in this folder\n\nThis folder's runs were made for {} (`--only`). {done} \
          of the {planned} runs {} reads are here (runs it shares with those), so it is not \
          drawn and none of its records is used here; `--only {}` runs the rest.\n",
         e.title(),
-        ids.join(", "),
+        Experiment::joined(asked),
         e.title(),
         e.id()
     )
 }
 
-fn header(cfg: &PaperConfig, opts: &RunOptions, results: &Results, family: usize) -> String {
+/// The page's header: how it was made, from which builds, and how far each
+/// experiment is (`shown`: those the page draws, [`drawn`]).
+fn header(
+    cfg: &PaperConfig,
+    opts: &RunOptions,
+    results: &Results,
+    family: usize,
+    shown: &[Experiment],
+) -> String {
     let wall = WallLog::read(&opts.out);
     let builds = results.provenance(|p| &p.build);
     let backends = results.backends();
@@ -257,7 +268,7 @@ fn header(cfg: &PaperConfig, opts: &RunOptions, results: &Results, family: usize
             e.id().into(),
             if e == Experiment::Table1 {
                 "(spawns only)".into()
-            } else if drawn(cfg, results, &opts.experiments, e) {
+            } else if shown.contains(&e) {
                 format!("{done} / {planned}")
             } else {
                 format!("{done} / {planned} (not run in this folder)")

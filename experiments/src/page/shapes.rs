@@ -336,8 +336,10 @@ impl Claim {
         if asked.contains(&self.experiment) {
             verdict.into()
         } else {
-            let ids: Vec<&str> = asked.iter().map(|e| e.id()).collect();
-            format!("{verdict} (read from the runs of {})", ids.join(", "))
+            format!(
+                "{verdict} (read from the runs of {})",
+                Experiment::joined(asked)
+            )
         }
     }
 
